@@ -1,0 +1,203 @@
+"""Frozen configuration dataclasses for every part of the simulation.
+
+Each field carries a one-line docstring with its unit. Configs are immutable;
+derive a variant with :func:`dataclasses.replace`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+
+def asset_path(*parts: str) -> Path:
+    """Absolute path of a file shipped in ``bulletnav/assets``."""
+    return Path(str(resources.files("bulletnav").joinpath("assets", *parts)))
+
+
+@dataclass(frozen=True)
+class PhysicsConfig:
+    """Physics engine rate and solver settings."""
+
+    physics_hz: int = 240
+    """Physics steps per simulated second (Hz)."""
+    control_hz: int = 24
+    """Control (agent action) steps per simulated second (Hz); must divide ``physics_hz``."""
+    solver_iterations: int = 10
+    """Constraint-solver iterations per physics step (PyBullet ``numSolverIterations``)."""
+    gravity: float = 9.81
+    """Magnitude of gravity (m/s^2), pointing down -z."""
+
+    def __post_init__(self) -> None:
+        if self.physics_hz <= 0 or self.control_hz <= 0:
+            raise ValueError(
+                f"physics_hz and control_hz must be positive, got {self.physics_hz} and {self.control_hz}"
+            )
+        if self.physics_hz % self.control_hz:
+            raise ValueError(
+                f"control_hz={self.control_hz} must divide physics_hz={self.physics_hz} exactly"
+            )
+        if self.solver_iterations < 1:
+            raise ValueError(f"solver_iterations must be >= 1, got {self.solver_iterations}")
+
+    @property
+    def substeps(self) -> int:
+        """Physics steps per control step."""
+        return self.physics_hz // self.control_hz
+
+    @property
+    def control_dt(self) -> float:
+        """Seconds between control steps."""
+        return 1.0 / self.control_hz
+
+    @property
+    def physics_dt(self) -> float:
+        """Seconds per physics step."""
+        return 1.0 / self.physics_hz
+
+
+@dataclass(frozen=True)
+class RobotConfig:
+    """The differential-drive robot. Geometry (wheel radius, wheelbase) is read from the URDF."""
+
+    urdf: str = ""
+    """Path of the robot URDF; empty means the shipped ``assets/diff_drive.urdf``."""
+    max_wheel_torque: float = 0.15
+    """Velocity-motor torque limit per wheel (N*m): 2.6 m/s^2 peak acceleration, below wheel slip and tipping."""
+    wheel_friction: float = 1.0
+    """Coulomb friction coefficient between the wheels and the floor."""
+    caster_friction: float = 0.0
+    """Friction of the passive caster ball; 0 models a free-rolling ball caster."""
+
+    def urdf_path(self) -> Path:
+        return Path(self.urdf) if self.urdf else asset_path("diff_drive.urdf")
+
+
+@dataclass(frozen=True)
+class WorldConfig:
+    """Procedural warehouse generation (ignored for the obstacles of a YAML layout)."""
+
+    size: tuple[float, float] = (14.0, 14.0)
+    """Floor extent along x and y (m), centred on the origin; walls enclose it."""
+    num_obstacles: int = 31
+    """Obstacles (racks, columns, pallets, boxes) placed in a procedural layout; walls excluded."""
+    wall_height: float = 2.0
+    """Height of the enclosing walls (m)."""
+    min_gap: float = 0.6
+    """Minimum free gap between any two obstacle footprints, and between obstacles and walls (m)."""
+    max_placement_tries: int = 4000
+    """Rejection-sampling attempts before a procedural layout gives up on an obstacle."""
+
+    def __post_init__(self) -> None:
+        if self.num_obstacles < 0:
+            raise ValueError(f"num_obstacles must be >= 0, got {self.num_obstacles}")
+        if min(self.size) <= 2.0:
+            raise ValueError(f"size must exceed 2 m on both axes, got {self.size}")
+
+
+@dataclass(frozen=True)
+class SamplerConfig:
+    """Start/goal sampling in free space."""
+
+    min_goal_distance: float = 2.0
+    """Smallest straight-line start-goal distance (m)."""
+    max_goal_distance: float = 6.0
+    """Largest straight-line start-goal distance (m)."""
+    clearance: float = 0.4
+    """Minimum distance from the start or goal point to any obstacle or wall (m)."""
+    grid_resolution: float = 0.1
+    """Cell size of the coarse free-space grid used for clearance and reachability (m)."""
+    robot_radius: float = 0.2
+    """Robot footprint radius used to inflate obstacles for the reachability check (m)."""
+    max_tries: int = 200
+    """Goal draws per start before the sampler gives up."""
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.min_goal_distance <= self.max_goal_distance:
+            raise ValueError(
+                "need 0 <= min_goal_distance <= max_goal_distance, got "
+                f"{self.min_goal_distance} and {self.max_goal_distance}"
+            )
+
+
+@dataclass(frozen=True)
+class LidarConfig:
+    """2-D scanning lidar cast with ``rayTestBatch`` from the lidar link."""
+
+    num_rays: int = 36
+    """Rays per scan, evenly spaced over ``fov``."""
+    fov: float = 360.0
+    """Angular field of view (degrees), centred on the robot heading."""
+    max_range: float = 5.0
+    """Maximum range (m); rays that hit nothing read this value."""
+    min_range: float = 0.0
+    """Minimum range (m) the sensor can report."""
+    noise_std: float = 0.0
+    """Standard deviation of additive Gaussian range noise (m); 0 disables noise."""
+
+    def __post_init__(self) -> None:
+        if self.num_rays < 1:
+            raise ValueError(f"lidar num_rays must be >= 1, got {self.num_rays}")
+        if not 0.0 <= self.min_range < self.max_range:
+            raise ValueError(f"need 0 <= lidar min_range < max_range, got {self.min_range}, {self.max_range}")
+        if self.noise_std < 0:
+            raise ValueError(f"lidar noise_std must be >= 0, got {self.noise_std}")
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """RGB-D + segmentation camera on the camera mount link, rendered with TinyRenderer."""
+
+    width: int = 320
+    """Image width (pixels)."""
+    height: int = 240
+    """Image height (pixels)."""
+    fov: float = 60.0
+    """Vertical field of view (degrees)."""
+    near: float = 0.05
+    """Near clipping plane (m)."""
+    far: float = 20.0
+    """Far clipping plane (m); depth saturates here."""
+    pitch: float = -10.0
+    """Optical-axis pitch relative to the mount (degrees, negative looks down)."""
+
+    def __post_init__(self) -> None:
+        if self.width < 1 or self.height < 1:
+            raise ValueError(f"camera size must be positive, got {self.width}x{self.height}")
+        if not 0.0 < self.near < self.far:
+            raise ValueError(f"need 0 < camera near < far, got {self.near}, {self.far}")
+
+
+@dataclass(frozen=True)
+class ImuConfig:
+    """Accelerometer and gyroscope on the robot body."""
+
+    accel_noise_std: float = 0.05
+    """Accelerometer white-noise standard deviation (m/s^2)."""
+    gyro_noise_std: float = 0.01
+    """Gyroscope white-noise standard deviation (rad/s)."""
+    accel_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Constant accelerometer bias in the body frame (m/s^2)."""
+    gyro_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Constant gyroscope bias in the body frame (rad/s)."""
+
+    def __post_init__(self) -> None:
+        if self.accel_noise_std < 0 or self.gyro_noise_std < 0:
+            raise ValueError("IMU noise standard deviations must be >= 0")
+
+
+@dataclass(frozen=True)
+class OdometryConfig:
+    """Wheel odometry."""
+
+    encoder_noise_std: float = 0.0
+    """Gaussian noise on each wheel's angle increment per control step (rad); 0 = ideal encoders."""
+
+
+@dataclass(frozen=True)
+class SensorsConfig:
+    lidar: LidarConfig = field(default_factory=LidarConfig)
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    imu: ImuConfig = field(default_factory=ImuConfig)
+    odometry: OdometryConfig = field(default_factory=OdometryConfig)

@@ -1,0 +1,58 @@
+"""The sensor interface shared by lidar, camera, IMU and odometry."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Any
+
+import numpy as np
+
+from bulletnav.sim.client import Clock
+from bulletnav.sim.robot import Robot
+
+
+class Sensor(ABC):
+    """A sensor mounted on a robot in one physics client.
+
+    Life cycle, driven by the simulation: :meth:`reset` at every episode start with the
+    sensor's own ``numpy.random.Generator`` (so reading one sensor never shifts another's
+    noise), :meth:`update` once after every control step, and :meth:`read` whenever a
+    measurement is wanted. ``read`` is idempotent within a control step: it returns a fresh
+    copy of the same measurement, so extra reads change neither results nor random streams.
+    """
+
+    name: str = "sensor"
+
+    def __init__(self, robot: Robot, clock: Clock) -> None:
+        self.robot = robot
+        self.clock = clock
+        self.rng = np.random.default_rng(0)
+        self._stamp: tuple[int, int] | None = None
+        self._value: Any = None
+
+    def reset(self, rng: np.random.Generator) -> None:
+        """Start a new episode with noise drawn from ``rng``."""
+        self.rng = rng
+        self._stamp = None
+
+    def update(self) -> None:
+        """Advance internal state after a control step (stateless sensors do nothing)."""
+
+    def read(self) -> Any:
+        """The current measurement as fresh NumPy array(s)."""
+        if self._stamp != self.clock.stamp:
+            self._value = self.measure()
+            self._stamp = self.clock.stamp
+        return _copy(self._value)
+
+    @abstractmethod
+    def measure(self) -> Any:
+        """Take a new measurement (called at most once per control step by :meth:`read`)."""
+
+
+def _copy(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return value.copy()
+    if isinstance(value, tuple) and hasattr(value, "_fields"):
+        return type(value)(*(_copy(v) for v in value))
+    return value

@@ -1,0 +1,63 @@
+"""2-D scanning lidar: one ``rayTestBatch`` per scan, cast in the lidar link's frame."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pybullet as p
+
+from bulletnav.config import LidarConfig
+from bulletnav.sensors.base import Sensor
+from bulletnav.sim.client import Clock
+from bulletnav.sim.robot import Robot
+from bulletnav.sim.world import STATIC_GROUP
+
+
+class Lidar(Sensor):
+    """Ranges (m) along ``num_rays`` evenly spaced horizontal rays from the lidar link.
+
+    Ray ``i`` points at ``angles[i]`` radians from the robot heading (counter-clockwise),
+    starting at 0 (straight ahead) for a 360 deg scan. Rays are given in the link frame
+    (PyBullet's ``parentObjectUniqueId``), so they tilt with the robot, and test only the
+    static collision group: the robot never sees itself. Nothing hit reads ``max_range``.
+    """
+
+    name = "lidar"
+
+    def __init__(self, robot: Robot, clock: Clock, config: LidarConfig = LidarConfig()) -> None:
+        super().__init__(robot, clock)
+        self.config = config
+        fov = math.radians(config.fov)
+        if config.fov >= 360.0:
+            self.angles = np.arange(config.num_rays) * (2 * math.pi / config.num_rays)
+        else:
+            self.angles = np.linspace(-fov / 2, fov / 2, config.num_rays)
+        self.angles = np.where(self.angles > math.pi, self.angles - 2 * math.pi, self.angles)
+        directions = np.stack([np.cos(self.angles), np.sin(self.angles), np.zeros_like(self.angles)], axis=1)
+        self._ray_from = np.zeros((config.num_rays, 3)).tolist()
+        self._ray_to = (directions * config.max_range).tolist()
+
+    def cast(self) -> np.ndarray:
+        """Hit fractions of the rays in [0, 1] (1 = nothing within ``max_range``), noise-free."""
+        results = p.rayTestBatch(
+            self._ray_from, self._ray_to, parentObjectUniqueId=self.robot.body,
+            parentLinkIndex=self.robot.lidar_link, collisionFilterMask=STATIC_GROUP,
+            physicsClientId=self.robot.cid,
+        )
+        return np.fromiter((r[2] for r in results), dtype=np.float64, count=len(results))
+
+    def measure(self) -> np.ndarray:
+        cfg = self.config
+        ranges = self.cast() * cfg.max_range
+        if cfg.noise_std > 0:
+            ranges = ranges + self.rng.normal(0.0, cfg.noise_std, ranges.shape)
+        return np.clip(ranges, cfg.min_range, cfg.max_range).astype(np.float32)
+
+    def hit_points(self, ranges: np.ndarray) -> np.ndarray:
+        """World (x, y) of each ray's end point for ``ranges`` (for maps and drawing)."""
+        yaw = self.robot.pose()[2]
+        pos = p.getLinkState(self.robot.body, self.robot.lidar_link, physicsClientId=self.robot.cid)[4]
+        a = self.angles + yaw
+        r = np.asarray(ranges, dtype=np.float64)
+        return np.stack([pos[0] + r * np.cos(a), pos[1] + r * np.sin(a)], axis=1)

@@ -1,0 +1,1 @@
+"""Simulation core: client, world, robot, layouts and start/goal sampling."""

@@ -1,0 +1,379 @@
+"""Warehouse layouts: the pure-geometry description of a world, independent of PyBullet.
+
+A :class:`Layout` is a floor size plus a tuple of :class:`Obstacle` footprints. It comes
+from a YAML file (:func:`load_layout`) or from a seeded generator
+(:func:`generate_warehouse`), and can be rasterised into an occupancy grid
+(:meth:`Layout.occupancy`) for start/goal sampling, shortest paths and map checks.
+
+YAML format (stable; see README)::
+
+    name: aisle-test                 # optional
+    size: [12.0, 10.0]               # floor extent x, y (m), centred on the origin
+    wall_height: 2.0                 # optional
+    obstacles:                       # walls are not obstacles
+      - {type: box, center: [2.0, 1.5], size: [3.0, 0.6, 1.8], yaw: 0.0}
+      - {type: cylinder, center: [0.0, 0.0], radius: 0.2, height: 3.0}
+    start: [-5.0, -4.0, 0.0]         # optional x, y, yaw
+    goal: [5.0, 4.0]                 # optional x, y
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from bulletnav.config import WorldConfig
+from bulletnav.errors import LayoutError
+
+WALL_THICKNESS = 0.2
+"""Thickness of the enclosing walls (m); they stand just outside the floor extent."""
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """One static obstacle footprint extruded to a height.
+
+    ``kind`` is ``"box"`` (``size`` = full x, y, z extents in its own frame, rotated by
+    ``yaw``) or ``"cylinder"`` (``radius``, ``height``). ``center`` is the footprint centre
+    (x, y) in metres; every obstacle stands on the floor.
+    """
+
+    kind: str
+    center: tuple[float, float]
+    size: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    radius: float = 0.0
+    height: float = 0.0
+    yaw: float = 0.0
+    label: str = ""
+    """Free-form category (rack, pallet, box, column) used for colours and statistics."""
+
+    @property
+    def top(self) -> float:
+        """Height of the obstacle's top above the floor (m)."""
+        return self.size[2] if self.kind == "box" else self.height
+
+    def distance(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Euclidean distance from points (x, y) to the footprint (0 inside)."""
+        dx = x - self.center[0]
+        dy = y - self.center[1]
+        if self.kind == "cylinder":
+            return np.maximum(np.hypot(dx, dy) - self.radius, 0.0)
+        c, s = math.cos(self.yaw), math.sin(self.yaw)
+        lx = np.abs(c * dx + s * dy) - self.size[0] / 2
+        ly = np.abs(-s * dx + c * dy) - self.size[1] / 2
+        return np.hypot(np.maximum(lx, 0.0), np.maximum(ly, 0.0))
+
+    def bounding_radius(self) -> float:
+        """Radius of the smallest centred circle that holds the footprint (m)."""
+        if self.kind == "cylinder":
+            return self.radius
+        return 0.5 * math.hypot(self.size[0], self.size[1])
+
+
+@dataclass(frozen=True)
+class Layout:
+    """A warehouse floor with its static obstacles and optional fixed start and goal."""
+
+    size: tuple[float, float]
+    obstacles: tuple[Obstacle, ...] = ()
+    wall_height: float = 2.0
+    name: str = ""
+    start: tuple[float, float, float] | None = None
+    goal: tuple[float, float] | None = None
+    source: str = field(default="", compare=False)
+    """Where it came from (file path or ``procedural seed=...``), for messages only."""
+
+    @property
+    def half_extents(self) -> tuple[float, float]:
+        return self.size[0] / 2, self.size[1] / 2
+
+    def clearance(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Distance from points to the nearest obstacle or wall (m); <= 0 outside the floor."""
+        hx, hy = self.half_extents
+        d = np.minimum(np.minimum(hx - x, hx + x), np.minimum(hy - y, hy + y))
+        for obs in self.obstacles:
+            d = np.minimum(d, obs.distance(x, y))
+        return d
+
+    def grid_axes(self, resolution: float) -> tuple[np.ndarray, np.ndarray]:
+        """Cell-centre coordinates along x and y for a grid covering the floor."""
+        nx = int(math.ceil(self.size[0] / resolution - 1e-9))
+        ny = int(math.ceil(self.size[1] / resolution - 1e-9))
+        hx, hy = self.half_extents
+        xs = -hx + resolution * (np.arange(nx) + 0.5)
+        ys = -hy + resolution * (np.arange(ny) + 0.5)
+        return xs, ys
+
+    def occupancy(self, resolution: float, inflate: float = 0.0) -> np.ndarray:
+        """Boolean grid ``[ix, iy]`` over the floor: True where a cell centre lies within
+        ``inflate`` metres of an obstacle or wall (or inside one).
+
+        Cell (0, 0) is centred at ``(-size_x/2 + res/2, -size_y/2 + res/2)``.
+        """
+        xs, ys = self.grid_axes(resolution)
+        gx, gy = np.meshgrid(xs, ys, indexing="ij")
+        return self.clearance(gx, gy) <= inflate
+
+    def with_obstacles(self, obstacles: tuple[Obstacle, ...]) -> Layout:
+        return Layout(self.size, obstacles, self.wall_height, self.name, self.start, self.goal, self.source)
+
+
+# --------------------------------------------------------------------------- YAML
+
+
+def _num(value: Any, where: str, field_name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise LayoutError(f"{where}: field '{field_name}' must be a finite number, got {value!r}")
+    return float(value)
+
+
+def _vec(value: Any, n: int, where: str, field_name: str) -> tuple[float, ...]:
+    if not isinstance(value, (list, tuple)) or len(value) != n:
+        raise LayoutError(f"{where}: field '{field_name}' must be a list of {n} numbers, got {value!r}")
+    return tuple(_num(v, where, f"{field_name}[{i}]") for i, v in enumerate(value))
+
+
+def _positive(value: float, where: str, field_name: str) -> float:
+    if value <= 0:
+        raise LayoutError(f"{where}: field '{field_name}' must be > 0, got {value}")
+    return value
+
+
+def _parse_obstacle(raw: Any, where: str, index: int) -> Obstacle:
+    tag = f"obstacles[{index}]"
+    if not isinstance(raw, dict):
+        raise LayoutError(f"{where}: {tag} must be a mapping, got {raw!r}")
+    kind = raw.get("type")
+    if kind not in ("box", "cylinder"):
+        raise LayoutError(f"{where}: field '{tag}.type' must be 'box' or 'cylinder', got {kind!r}")
+    allowed = {"type", "center", "yaw", "label"} | ({"size"} if kind == "box" else {"radius", "height"})
+    unknown = sorted(set(raw) - allowed)
+    if unknown:
+        raise LayoutError(f"{where}: {tag} ({kind}) has unknown field(s) {unknown}; allowed: {sorted(allowed)}")
+    for required in ("center", "size") if kind == "box" else ("center", "radius", "height"):
+        if required not in raw:
+            raise LayoutError(f"{where}: field '{tag}.{required}' is missing")
+    center = _vec(raw["center"], 2, where, f"{tag}.center")
+    yaw = _num(raw.get("yaw", 0.0), where, f"{tag}.yaw")
+    label = str(raw.get("label", kind))
+    if kind == "box":
+        size = _vec(raw["size"], 3, where, f"{tag}.size")
+        for i, s in enumerate(size):
+            _positive(s, where, f"{tag}.size[{i}]")
+        return Obstacle("box", center, size=size, yaw=yaw, label=label)  # type: ignore[arg-type]
+    radius = _positive(_num(raw["radius"], where, f"{tag}.radius"), where, f"{tag}.radius")
+    height = _positive(_num(raw["height"], where, f"{tag}.height"), where, f"{tag}.height")
+    return Obstacle("cylinder", center, radius=radius, height=height, yaw=yaw, label=label)  # type: ignore[arg-type]
+
+
+def parse_layout(data: Any, where: str = "<layout>") -> Layout:
+    """Validate a decoded YAML document and build a :class:`Layout`.
+
+    Raises:
+        LayoutError: naming ``where`` (the file), the field and the problem.
+    """
+    if not isinstance(data, dict):
+        raise LayoutError(f"{where}: top level must be a mapping with 'size' and 'obstacles', got {type(data).__name__}")
+    unknown = sorted(set(data) - {"name", "size", "wall_height", "obstacles", "start", "goal"})
+    if unknown:
+        raise LayoutError(f"{where}: unknown top-level field(s) {unknown}")
+    if "size" not in data:
+        raise LayoutError(f"{where}: field 'size' is missing")
+    size = _vec(data["size"], 2, where, "size")
+    for i, s in enumerate(size):
+        if s <= 2.0:
+            raise LayoutError(f"{where}: field 'size[{i}]' must be > 2 m, got {s}")
+    wall_height = _positive(_num(data.get("wall_height", 2.0), where, "wall_height"), where, "wall_height")
+    raw_obstacles = data.get("obstacles", [])
+    if raw_obstacles is None:
+        raw_obstacles = []
+    if not isinstance(raw_obstacles, list):
+        raise LayoutError(f"{where}: field 'obstacles' must be a list, got {type(raw_obstacles).__name__}")
+    obstacles = tuple(_parse_obstacle(o, where, i) for i, o in enumerate(raw_obstacles))
+    hx, hy = size[0] / 2, size[1] / 2
+    for i, obs in enumerate(obstacles):
+        r = obs.bounding_radius() if obs.kind == "cylinder" else None
+        if obs.kind == "cylinder":
+            inside = abs(obs.center[0]) + r <= hx + 1e-9 and abs(obs.center[1]) + r <= hy + 1e-9  # type: ignore[operator]
+        else:
+            c, s = math.cos(obs.yaw), math.sin(obs.yaw)
+            ex = abs(c) * obs.size[0] / 2 + abs(s) * obs.size[1] / 2
+            ey = abs(s) * obs.size[0] / 2 + abs(c) * obs.size[1] / 2
+            inside = abs(obs.center[0]) + ex <= hx + 1e-9 and abs(obs.center[1]) + ey <= hy + 1e-9
+        if not inside:
+            raise LayoutError(
+                f"{where}: obstacles[{i}] at center {list(obs.center)} extends outside the floor "
+                f"(x in [{-hx}, {hx}], y in [{-hy}, {hy}])"
+            )
+    layout = Layout(size, obstacles, wall_height, str(data.get("name", "")), source=where)  # type: ignore[arg-type]
+    start = goal = None
+    if data.get("start") is not None:
+        start = _vec(data["start"], 3, where, "start")
+        _check_free(layout, start[:2], where, "start")
+    if data.get("goal") is not None:
+        goal = _vec(data["goal"], 2, where, "goal")
+        _check_free(layout, goal, where, "goal")
+    return Layout(size, obstacles, wall_height, layout.name, start, goal, where)  # type: ignore[arg-type]
+
+
+def _check_free(layout: Layout, xy: tuple[float, ...], where: str, field_name: str) -> None:
+    hx, hy = layout.half_extents
+    if not (abs(xy[0]) < hx and abs(xy[1]) < hy):
+        raise LayoutError(f"{where}: field '{field_name}' {list(xy)} lies outside the floor")
+    for i, obs in enumerate(layout.obstacles):
+        if float(obs.distance(np.array(xy[0]), np.array(xy[1]))) <= 0.0:
+            raise LayoutError(f"{where}: field '{field_name}' {list(xy)} lies inside obstacles[{i}]")
+
+
+def load_layout(path: str | Path) -> Layout:
+    """Read and validate a YAML layout file.
+
+    Raises:
+        LayoutError: the file is missing, is not YAML, or a field is wrong (named in the message).
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise LayoutError(f"{path}: cannot read layout file ({exc.strerror or exc})") from exc
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise LayoutError(f"{path}: not valid YAML ({exc})") from exc
+    return parse_layout(data, str(path))
+
+
+def layout_to_dict(layout: Layout) -> dict[str, Any]:
+    """The YAML-ready form of a layout (inverse of :func:`parse_layout`)."""
+    out: dict[str, Any] = {"name": layout.name, "size": list(layout.size), "wall_height": layout.wall_height}
+    obstacles = []
+    for o in layout.obstacles:
+        if o.kind == "box":
+            obstacles.append({"type": "box", "center": list(o.center), "size": list(o.size), "yaw": o.yaw, "label": o.label})
+        else:
+            obstacles.append({"type": "cylinder", "center": list(o.center), "radius": o.radius, "height": o.height, "label": o.label})
+    out["obstacles"] = obstacles
+    if layout.start is not None:
+        out["start"] = list(layout.start)
+    if layout.goal is not None:
+        out["goal"] = list(layout.goal)
+    return out
+
+
+# --------------------------------------------------------------------------- procedural
+
+
+_CATEGORY_SHARES = (("rack", 0.20), ("column", 0.13), ("pallet", 0.32))  # boxes take the rest
+
+
+def _category_counts(n: int) -> dict[str, int]:
+    counts = {name: int(round(share * n)) for name, share in _CATEGORY_SHARES}
+    while sum(counts.values()) > n:  # only possible for tiny n
+        largest = max(counts, key=counts.__getitem__)
+        counts[largest] -= 1
+    counts["box"] = n - sum(counts.values())
+    return counts
+
+
+def _draw_obstacle(kind: str, rng: np.random.Generator, aisle_yaw: float, center: tuple[float, float]) -> Obstacle:
+    if kind == "rack":  # shelving rack: long, shallow, tall, aligned with the aisles
+        return Obstacle("box", center, size=(float(rng.uniform(2.0, 3.5)), 0.6, 2.0), yaw=aisle_yaw, label="rack")
+    if kind == "column":
+        return Obstacle("cylinder", center, radius=float(rng.uniform(0.15, 0.25)), height=3.0, label="column")
+    if kind == "pallet":  # loaded pallet, 1.2 x 0.8 m, tall enough for the lidar plane to see it
+        yaw = aisle_yaw + float(rng.choice([0.0, math.pi / 2])) + float(rng.normal(0.0, 0.05))
+        return Obstacle("box", center, size=(1.2, 0.8, float(rng.uniform(0.4, 1.2))), yaw=yaw, label="pallet")
+    side = float(rng.uniform(0.3, 0.7))
+    return Obstacle("box", center, size=(side, side, float(rng.uniform(0.3, 0.8))),
+                    yaw=float(rng.uniform(-math.pi, math.pi)), label="box")
+
+
+def generate_warehouse(rng: np.random.Generator, config: WorldConfig = WorldConfig()) -> Layout:
+    """A seeded procedural warehouse: racks along aisles, columns, loaded pallets and boxes.
+
+    Obstacles are placed by rejection sampling so that every pair of footprints, and every
+    footprint and wall, is at least ``config.min_gap`` apart (checked on a 5 cm raster,
+    conservatively); with a gap wider than the robot the free space stays connected.
+
+    Raises:
+        LayoutError: when ``config.num_obstacles`` cannot be placed on the floor.
+    """
+    hx, hy = config.size[0] / 2, config.size[1] / 2
+    aisle_yaw = float(rng.choice([0.0, math.pi / 2]))
+    counts = _category_counts(config.num_obstacles)
+    claimed = _Raster(config.size, _RASTER)
+    placed: list[Obstacle] = []
+    gap = config.min_gap
+    for kind in ("rack", "pallet", "column", "box"):  # big things first: they are hardest to fit
+        for _ in range(counts[kind]):
+            for _try in range(config.max_placement_tries):
+                probe = _draw_obstacle(kind, rng, aisle_yaw, (0.0, 0.0))
+                r = probe.bounding_radius()
+                lo_x, lo_y = -hx + gap, -hy + gap
+                center = (float(rng.uniform(lo_x, -lo_x)), float(rng.uniform(lo_y, -lo_y)))
+                cand = Obstacle(probe.kind, center, probe.size, probe.radius, probe.height, probe.yaw, probe.label)
+                if abs(center[0]) + r > hx - gap or abs(center[1]) + r > hy - gap:
+                    if not _inside(cand, hx - gap, hy - gap):
+                        continue
+                if not claimed.any(cand, 0.0):
+                    claimed.mark(cand, gap + _RASTER)
+                    placed.append(cand)
+                    break
+            else:
+                raise LayoutError(
+                    f"procedural warehouse: could not place obstacle {len(placed) + 1} of {config.num_obstacles} "
+                    f"({kind}) on a {config.size[0]} x {config.size[1]} m floor with min_gap={config.min_gap} m; "
+                    "use fewer obstacles, a larger floor or a smaller gap"
+                )
+    return Layout(config.size, tuple(placed), config.wall_height, name="procedural", source="procedural")
+
+
+_RASTER = 0.05
+"""Cell size of the placement raster (m)."""
+
+
+def _inside(o: Obstacle, hx: float, hy: float) -> bool:
+    """True when the whole footprint lies within |x| <= hx, |y| <= hy."""
+    if o.kind == "cylinder":
+        return abs(o.center[0]) + o.radius <= hx and abs(o.center[1]) + o.radius <= hy
+    c, s = abs(math.cos(o.yaw)), abs(math.sin(o.yaw))
+    ex = c * o.size[0] / 2 + s * o.size[1] / 2
+    ey = s * o.size[0] / 2 + c * o.size[1] / 2
+    return abs(o.center[0]) + ex <= hx and abs(o.center[1]) + ey <= hy
+
+
+class _Raster:
+    """A boolean raster of claimed floor (footprints dilated by the gap) for fast placement tests."""
+
+    def __init__(self, size: tuple[float, float], res: float) -> None:
+        self.res = res
+        self.hx, self.hy = size[0] / 2, size[1] / 2
+        self.grid = np.zeros((int(math.ceil(size[0] / res)), int(math.ceil(size[1] / res))), dtype=bool)
+
+    def _window(self, o: Obstacle, pad: float) -> tuple[slice, slice, np.ndarray]:
+        r = o.bounding_radius() + pad
+        i0 = max(int((o.center[0] - r + self.hx) / self.res), 0)
+        i1 = min(int((o.center[0] + r + self.hx) / self.res) + 1, self.grid.shape[0])
+        j0 = max(int((o.center[1] - r + self.hy) / self.res), 0)
+        j1 = min(int((o.center[1] + r + self.hy) / self.res) + 1, self.grid.shape[1])
+        xs = -self.hx + self.res * (np.arange(i0, i1) + 0.5)
+        ys = -self.hy + self.res * (np.arange(j0, j1) + 0.5)
+        inside = o.distance(xs[:, None], ys[None, :]) <= pad
+        return slice(i0, i1), slice(j0, j1), inside
+
+    def any(self, o: Obstacle, pad: float) -> bool:
+        ci = min(int((o.center[0] + self.hx) / self.res), self.grid.shape[0] - 1)
+        cj = min(int((o.center[1] + self.hy) / self.res), self.grid.shape[1] - 1)
+        if self.grid[ci, cj]:  # the centre itself is taken: most rejections end here, cheaply
+            return True
+        sx, sy, inside = self._window(o, pad)
+        return bool(np.any(self.grid[sx, sy] & inside))
+
+    def mark(self, o: Obstacle, pad: float) -> None:
+        sx, sy, inside = self._window(o, pad)
+        self.grid[sx, sy] |= inside

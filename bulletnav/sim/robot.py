@@ -1,0 +1,148 @@
+"""The differential-drive robot: loading, (v, w) commands and ground-truth state."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pybullet as p
+
+from bulletnav.config import RobotConfig
+from bulletnav.sim.world import ROBOT_GROUP
+
+REST_HEIGHT = 0.07
+"""Height of the base origin above the floor when the robot rests on its wheels (m)."""
+
+
+class Robot:
+    """A differential-drive robot in physics client ``cid``.
+
+    Wheel radius and wheelbase are read from the loaded URDF, so the kinematics always
+    match the model. Call :meth:`load` after every :meth:`World.build`.
+    """
+
+    def __init__(self, cid: int, config: RobotConfig = RobotConfig()) -> None:
+        self.cid = cid
+        self.config = config
+        self.body = -1
+        self.left_joint = self.right_joint = -1
+        self.lidar_link = self.camera_link = self.caster_link = -1
+        self.wheel_radius = 0.0
+        """Wheel radius read from the URDF collision shape (m)."""
+        self.wheelbase = 0.0
+        """Distance between the wheel contact points, read from the URDF joints (m)."""
+        self._com_offset = np.zeros(3)
+
+    # ------------------------------------------------------------------ set-up
+    def load(self, pose: tuple[float, float, float]) -> None:
+        """Load the URDF at ``pose`` = (x, y, yaw) and configure motors and contacts."""
+        cid = self.cid
+        x, y, yaw = pose
+        self.body = p.loadURDF(
+            str(self.config.urdf_path()), [0, 0, 0], flags=p.URDF_USE_INERTIA_FROM_FILE | p.URDF_USE_IMPLICIT_CYLINDER,
+            physicsClientId=cid,
+        )
+        # PyBullet places and reports the base by its centre of mass; keep the offset to the
+        # URDF link frame so that poses refer to the body centre.
+        self._com_offset = np.asarray(p.getDynamicsInfo(self.body, -1, physicsClientId=cid)[3])
+        links = {}
+        joints = {}
+        for j in range(p.getNumJoints(self.body, physicsClientId=cid)):
+            info = p.getJointInfo(self.body, j, physicsClientId=cid)
+            joints[info[1].decode()] = j
+            links[info[12].decode()] = j
+        try:
+            self.left_joint = joints["left_wheel_joint"]
+            self.right_joint = joints["right_wheel_joint"]
+            self.lidar_link = links["lidar_link"]
+            self.camera_link = links["camera_link"]
+            self.caster_link = links["caster_wheel"]
+        except KeyError as exc:
+            raise ValueError(f"{self.config.urdf_path()}: robot URDF lacks joint/link {exc}") from exc
+        left = p.getJointInfo(self.body, self.left_joint, physicsClientId=cid)[14]
+        right = p.getJointInfo(self.body, self.right_joint, physicsClientId=cid)[14]
+        self.wheelbase = abs(left[1] - right[1])
+        shape = p.getCollisionShapeData(self.body, self.left_joint, physicsClientId=cid)[0]
+        self.wheel_radius = float(shape[3][1] if shape[2] == p.GEOM_CYLINDER else shape[3][0])  # implicit cylinder dimensions: (length, radius, 0)
+        for link in (-1, *range(p.getNumJoints(self.body, physicsClientId=cid))):
+            p.setCollisionFilterGroupMask(self.body, link, ROBOT_GROUP, 0xFFFF, physicsClientId=cid)
+        for wheel in (self.left_joint, self.right_joint):
+            p.changeDynamics(self.body, wheel, lateralFriction=self.config.wheel_friction,
+                             rollingFriction=0.0, spinningFriction=0.0, physicsClientId=cid)
+        p.changeDynamics(self.body, self.caster_link, lateralFriction=self.config.caster_friction,
+                         rollingFriction=0.0, spinningFriction=0.0, physicsClientId=cid)
+        self.reset_pose(pose)
+
+    def reset_pose(self, pose: tuple[float, float, float]) -> None:
+        """Teleport to ``pose`` at rest, wheels zeroed, motors stopped (no reload)."""
+        cid = self.cid
+        x, y, yaw = pose
+        c, s = math.cos(yaw), math.sin(yaw)
+        ox, oy, oz = self._com_offset
+        com = [x + c * ox - s * oy, y + s * ox + c * oy, REST_HEIGHT + oz]
+        p.resetBasePositionAndOrientation(self.body, com, p.getQuaternionFromEuler([0, 0, yaw]), physicsClientId=cid)
+        p.resetBaseVelocity(self.body, [0, 0, 0], [0, 0, 0], physicsClientId=cid)
+        for j in (self.left_joint, self.right_joint):
+            p.resetJointState(self.body, j, 0.0, 0.0, physicsClientId=cid)
+        self.stop()
+
+    # ------------------------------------------------------------------ commands
+    def wheel_speeds(self, v: float, w: float) -> tuple[float, float]:
+        """Inverse kinematics: body (v m/s, w rad/s) -> (left, right) wheel rates (rad/s)."""
+        half = self.wheelbase / 2
+        return (v - w * half) / self.wheel_radius, (v + w * half) / self.wheel_radius
+
+    def set_velocity(self, v: float, w: float) -> None:
+        """Command forward speed ``v`` (m/s) and yaw rate ``w`` (rad/s) through the wheel motors."""
+        if not (math.isfinite(v) and math.isfinite(w)):
+            raise ValueError(f"set_velocity needs finite values, got v={v}, w={w}")
+        left, right = self.wheel_speeds(v, w)
+        torque = self.config.max_wheel_torque
+        p.setJointMotorControlArray(
+            self.body, [self.left_joint, self.right_joint], p.VELOCITY_CONTROL,
+            targetVelocities=[left, right], forces=[torque, torque], physicsClientId=self.cid,
+        )
+
+    def stop(self) -> None:
+        self.set_velocity(0.0, 0.0)
+
+    # ------------------------------------------------------------------ state
+    def pose(self) -> np.ndarray:
+        """Ground-truth planar pose ``[x, y, yaw]`` of the base origin (m, m, rad)."""
+        pos, orn = self.pose3d()
+        x, y, z, w = orn
+        yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+        return np.array([pos[0], pos[1], yaw])
+
+    def pose3d(self) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+        """Position (m) of the base link frame (body centre) and its orientation quaternion (x, y, z, w)."""
+        com, orn = p.getBasePositionAndOrientation(self.body, physicsClientId=self.cid)
+        rot = np.reshape(p.getMatrixFromQuaternion(orn), (3, 3))
+        return np.asarray(com) - rot @ self._com_offset, orn
+
+    def world_velocity(self) -> tuple[np.ndarray, np.ndarray]:
+        """Linear velocity of the body centre (m/s) and angular velocity (rad/s), world frame."""
+        lin, ang = p.getBaseVelocity(self.body, physicsClientId=self.cid)
+        _, orn = p.getBasePositionAndOrientation(self.body, physicsClientId=self.cid)
+        rot = np.reshape(p.getMatrixFromQuaternion(orn), (3, 3))
+        ang = np.asarray(ang)
+        return np.asarray(lin) - np.cross(ang, rot @ -self._com_offset), ang
+
+    def velocity(self) -> np.ndarray:
+        """Ground-truth ``[v, w]``: forward speed along the heading (m/s) and yaw rate (rad/s)."""
+        lin, ang = self.world_velocity()
+        yaw = self.pose()[2]
+        return np.array([lin[0] * math.cos(yaw) + lin[1] * math.sin(yaw), ang[2]])
+
+    def wheel_states(self) -> tuple[np.ndarray, np.ndarray]:
+        """Wheel joint angles (rad) and rates (rad/s), ordered (left, right)."""
+        states = p.getJointStates(self.body, [self.left_joint, self.right_joint], physicsClientId=self.cid)
+        return np.array([states[0][0], states[1][0]]), np.array([states[0][1], states[1][1]])
+
+    def touching(self, bodies: list[int]) -> bool:
+        """True when any robot link is in contact with one of ``bodies``."""
+        contacts = p.getContactPoints(bodyA=self.body, physicsClientId=self.cid)
+        if not contacts:
+            return False
+        targets = set(bodies)
+        return any(c[2] in targets for c in contacts)

@@ -1,0 +1,94 @@
+"""The composed simulation: one physics client holding a world, a robot and its sensors.
+
+``Simulation.step`` is the physics half of an env step (dm_control's ``Physics``): apply
+the command, advance ``substeps`` physics steps, update the stateful sensors. The task
+(reward, termination) lives in :mod:`bulletnav.envs`.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import pybullet as p
+
+from bulletnav.config import PhysicsConfig, RobotConfig, SensorsConfig
+from bulletnav.sensors import Camera, Imu, Lidar, Odometry, Sensor
+from bulletnav.sim.client import Clock, connect
+from bulletnav.sim.layout import Layout
+from bulletnav.sim.robot import Robot
+from bulletnav.sim.world import World
+
+log = logging.getLogger(__name__)
+
+SENSOR_ORDER = ("lidar", "camera", "imu", "odometry")
+
+
+class Simulation:
+    """A private PyBullet client with a warehouse, the robot and its four sensors.
+
+    Args:
+        physics: rates and solver settings.
+        robot: robot model and motor settings.
+        sensors: per-sensor configs.
+        gui: open the PyBullet GUI instead of DIRECT (needs an X display).
+    """
+
+    def __init__(self, physics: PhysicsConfig = PhysicsConfig(), robot: RobotConfig = RobotConfig(),
+                 sensors: SensorsConfig = SensorsConfig(), gui: bool = False) -> None:
+        self.physics = physics
+        self.gui = gui
+        self.cid = connect(gui=gui)
+        self.clock = Clock(physics.physics_dt)
+        self.world = World(self.cid, physics)
+        self.robot = Robot(self.cid, robot)
+        self.sensors: dict[str, Sensor] = {
+            "lidar": Lidar(self.robot, self.clock, sensors.lidar),
+            "camera": Camera(self.robot, self.clock, sensors.camera),
+            "imu": Imu(self.robot, self.clock, sensors.imu, gravity=physics.gravity),
+            "odometry": Odometry(self.robot, self.clock, sensors.odometry),
+        }
+        self.rebuilds = 0
+        """How many times the scene was rebuilt (layout changes), for diagnostics."""
+
+    # ------------------------------------------------------------------ episodes
+    def reset(self, layout: Layout, start: tuple[float, float, float], rng: np.random.Generator) -> None:
+        """Start an episode in ``layout`` with the robot at rest at ``start`` = (x, y, yaw).
+
+        The scene is rebuilt only when the layout differs from the current one; otherwise
+        the robot is teleported. Each sensor gets its own generator drawn from ``rng``.
+        """
+        if self.world.layout != layout:
+            self.world.build(layout)
+            self.robot.load(start)
+            self.world.labels[self.robot.body] = "robot"
+            self.rebuilds += 1
+        else:
+            self.robot.reset_pose(start)
+        self.clock.tick = 0
+        self.clock.episode += 1
+        seeds = rng.integers(0, 2**63 - 1, size=len(SENSOR_ORDER))
+        for name, seed in zip(SENSOR_ORDER, seeds):
+            self.sensors[name].reset(np.random.default_rng(int(seed)))
+
+    def step(self, v: float, w: float) -> None:
+        """Command (v m/s, w rad/s) and advance one control period."""
+        self.robot.set_velocity(v, w)
+        cid = self.cid
+        for _ in range(self.physics.substeps):
+            p.stepSimulation(physicsClientId=cid)
+        self.clock.tick += self.physics.substeps
+        for name in ("imu", "odometry"):
+            self.sensors[name].update()
+
+    def in_collision(self) -> bool:
+        """True when the robot touches a wall or an obstacle (the floor does not count)."""
+        return self.robot.touching(self.world.static_ids)
+
+    def close(self) -> None:
+        if self.cid >= 0:
+            try:
+                p.disconnect(physicsClientId=self.cid)
+            except p.error:  # already gone (GUI window closed by the user)
+                pass
+            self.cid = -1

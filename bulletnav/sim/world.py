@@ -1,0 +1,104 @@
+"""The static scene in PyBullet: floor, enclosing walls and obstacles of a :class:`Layout`.
+
+A scene is built with ``resetSimulation`` and rebuilt only when the layout changes, so
+bodies are never added and removed per episode (PyBullet leaks memory that way).
+"""
+
+from __future__ import annotations
+
+import logging
+
+import pybullet as p
+
+from bulletnav.config import PhysicsConfig
+from bulletnav.sim.client import configure_physics
+from bulletnav.sim.layout import WALL_THICKNESS, Layout, Obstacle
+
+log = logging.getLogger(__name__)
+
+STATIC_GROUP = 1
+"""Collision-filter group of the floor, walls and obstacles (lidar rays test only this group)."""
+ROBOT_GROUP = 2
+"""Collision-filter group of the robot's links."""
+
+COLOURS = {
+    "rack": (0.85, 0.55, 0.15, 1.0),
+    "pallet": (0.65, 0.45, 0.25, 1.0),
+    "box": (0.8, 0.7, 0.45, 1.0),
+    "column": (0.6, 0.6, 0.65, 1.0),
+    "wall": (0.75, 0.75, 0.78, 1.0),
+    "floor": (0.35, 0.36, 0.38, 1.0),
+}
+
+
+class World:
+    """Builds a layout into the physics client ``cid`` and remembers what each body is."""
+
+    def __init__(self, cid: int, physics: PhysicsConfig) -> None:
+        self.cid = cid
+        self.physics = physics
+        self.layout: Layout | None = None
+        self.floor_id = -1
+        self.wall_ids: list[int] = []
+        self.obstacle_ids: list[int] = []
+        self.labels: dict[int, str] = {}
+        """Body id -> category (floor, wall, rack, pallet, box, column, robot)."""
+
+    def build(self, layout: Layout) -> None:
+        """Reset the simulation and create the floor, walls and obstacles of ``layout``.
+
+        Everything in the client, the robot included, is removed: load the robot after.
+        """
+        cid = self.cid
+        p.resetSimulation(physicsClientId=cid)
+        configure_physics(cid, self.physics)
+        self.layout = layout
+        self.labels = {}
+        hx, hy = layout.half_extents
+        margin = WALL_THICKNESS
+        floor_col = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid)
+        floor_vis = p.createVisualShape(
+            p.GEOM_BOX, halfExtents=[hx + margin, hy + margin, 0.005], visualFramePosition=[0, 0, -0.005],
+            rgbaColor=COLOURS["floor"], physicsClientId=cid,
+        )
+        self.floor_id = p.createMultiBody(0.0, floor_col, floor_vis, [0, 0, 0], physicsClientId=cid)
+        p.changeDynamics(self.floor_id, -1, lateralFriction=1.0, physicsClientId=cid)
+        self.labels[self.floor_id] = "floor"
+        h = layout.wall_height
+        t = WALL_THICKNESS
+        walls = (
+            ((0.0, hy + t / 2), (hx + t, t / 2)), ((0.0, -hy - t / 2), (hx + t, t / 2)),
+            ((hx + t / 2, 0.0), (t / 2, hy)), ((-hx - t / 2, 0.0), (t / 2, hy)),
+        )
+        self.wall_ids = [self._box(c, (e[0], e[1], h / 2), 0.0, COLOURS["wall"], "wall") for c, e in walls]
+        self.obstacle_ids = [self._obstacle(o) for o in layout.obstacles]
+        for body in [self.floor_id, *self.wall_ids, *self.obstacle_ids]:
+            p.setCollisionFilterGroupMask(body, -1, STATIC_GROUP, 0xFFFF, physicsClientId=cid)
+        log.debug("built layout %r: %d obstacles", layout.name or layout.source, len(self.obstacle_ids))
+
+    def _obstacle(self, o: Obstacle) -> int:
+        colour = COLOURS.get(o.label, COLOURS["box"])
+        if o.kind == "box":
+            return self._box(o.center, (o.size[0] / 2, o.size[1] / 2, o.size[2] / 2), o.yaw, colour, o.label)
+        cid = self.cid
+        col = p.createCollisionShape(p.GEOM_CYLINDER, radius=o.radius, height=o.height, physicsClientId=cid)
+        vis = p.createVisualShape(p.GEOM_CYLINDER, radius=o.radius, length=o.height, rgbaColor=colour, physicsClientId=cid)
+        body = p.createMultiBody(0.0, col, vis, [o.center[0], o.center[1], o.height / 2], physicsClientId=cid)
+        self.labels[body] = o.label or "column"
+        return body
+
+    def _box(self, center: tuple[float, float], half: tuple[float, float, float], yaw: float,
+             colour: tuple[float, ...], label: str) -> int:
+        cid = self.cid
+        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
+        vis = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=colour, physicsClientId=cid)
+        orn = p.getQuaternionFromEuler([0.0, 0.0, yaw])
+        body = p.createMultiBody(0.0, col, vis, [center[0], center[1], half[2]], orn, physicsClientId=cid)
+        self.labels[body] = label
+        return body
+
+    @property
+    def static_ids(self) -> list[int]:
+        """Walls and obstacles: what the robot must not touch (the floor excluded)."""
+        return [*self.wall_ids, *self.obstacle_ids]
+

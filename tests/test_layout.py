@@ -1,0 +1,159 @@
+"""Layouts: YAML validation, procedural generation, start/goal sampling."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.sparse import csgraph
+
+from bulletnav.config import SamplerConfig, WorldConfig, asset_path
+from bulletnav.errors import LayoutError, SamplingError
+from bulletnav.sim.layout import generate_warehouse, layout_to_dict, load_layout, parse_layout
+from bulletnav.sim.sampler import FreeSpace, sample_start_goal
+
+BASE = {"size": [10.0, 8.0], "obstacles": [{"type": "box", "center": [1.0, 1.0], "size": [1.0, 0.5, 1.0]}]}
+
+
+@pytest.mark.parametrize("name", ["aisles", "hall", "empty"])
+def test_sample_layouts_load_and_admit_start_goal_pairs(name):
+    layout = load_layout(asset_path("worlds", f"{name}.yaml"))
+    free = FreeSpace.build(layout, SamplerConfig())
+    start, goal = sample_start_goal(free, np.random.default_rng(0), SamplerConfig())
+    assert free.reachable(start[:2], goal)
+    if layout.start is not None:
+        assert free.reachable(layout.start[:2], layout.goal)
+
+
+@pytest.mark.parametrize(
+    "mutate, field",
+    [
+        (lambda d: d.pop("size"), "'size' is missing"),
+        (lambda d: d.update(size=[10.0, "wide"]), "'size[1]'"),
+        (lambda d: d["obstacles"][0].pop("center"), "'obstacles[0].center' is missing"),
+        (lambda d: d["obstacles"][0].update(type="cone"), "'obstacles[0].type'"),
+        (lambda d: d["obstacles"][0].update(size=[1.0, 0.5]), "'obstacles[0].size'"),
+        (lambda d: d["obstacles"][0].update(size=[1.0, -0.5, 1.0]), "'obstacles[0].size[1]' must be > 0"),
+        (lambda d: d["obstacles"][0].update(center=[4.8, 0.0]), "obstacles[0] at center [4.8, 0.0] extends outside the floor"),
+        (lambda d: d.update(start=[1.0, 1.0, 0.0]), "'start' [1.0, 1.0] lies inside obstacles[0]"),
+        (lambda d: d.update(goal=[9.0, 0.0]), "'goal' [9.0, 0.0] lies outside the floor"),
+        (lambda d: d.update(obstacles="many"), "'obstacles' must be a list"),
+        (lambda d: d.update(colour="red"), "unknown top-level field(s) ['colour']"),
+    ],
+)
+def test_bad_layout_files_name_file_and_field(tmp_path, mutate, field):
+    import copy
+
+    import yaml
+
+    data = copy.deepcopy(BASE)
+    mutate(data)
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(LayoutError) as err:
+        load_layout(path)
+    assert str(path) in str(err.value)
+    assert field in str(err.value)
+
+
+def test_unreadable_and_non_yaml_files(tmp_path):
+    with pytest.raises(LayoutError, match="cannot read layout file"):
+        load_layout(tmp_path / "missing.yaml")
+    bad = tmp_path / "broken.yaml"
+    bad.write_text("size: [1, 2\n")
+    with pytest.raises(LayoutError, match="not valid YAML"):
+        load_layout(bad)
+
+
+def test_layout_round_trips_through_dict():
+    layout = generate_warehouse(np.random.default_rng(3))
+    again = parse_layout(layout_to_dict(layout))
+    assert again == layout
+
+
+def test_same_seed_same_layout_and_different_seed_different_layout():
+    a = generate_warehouse(np.random.default_rng(7))
+    b = generate_warehouse(np.random.default_rng(7))
+    c = generate_warehouse(np.random.default_rng(8))
+    assert a == b
+    assert a != c
+    assert len(a.obstacles) == 31  # the article's count
+    assert {o.label for o in a.obstacles} == {"rack", "pallet", "column", "box"}
+
+
+@pytest.mark.parametrize("count", [0, 5, 40])
+def test_obstacle_count_is_configurable_and_gaps_hold(count):
+    cfg = WorldConfig(num_obstacles=count)
+    layout = generate_warehouse(np.random.default_rng(count), cfg)
+    assert len(layout.obstacles) == count
+    # Independent check of the gap on a fine grid: points within min_gap/2 of two different
+    # footprints would mean the footprints are closer than min_gap (up to grid error).
+    xs, ys = layout.grid_axes(0.02)
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")
+    near = np.stack([o.distance(gx, gy) < cfg.min_gap / 2 - 0.03 for o in layout.obstacles]) if count else np.zeros((0,))
+    if count:
+        assert near.sum(axis=0).max() <= 1
+        hx, hy = layout.half_extents
+        for o in layout.obstacles:
+            assert layout.clearance(np.array(o.center[0]), np.array(o.center[1])) <= 0  # centre inside itself
+            assert np.all(o.distance(np.array([hx, -hx]), np.array([0.0, 0.0])) >= cfg.min_gap - 0.06)
+
+
+def test_too_many_obstacles_raise_a_clear_error():
+    with pytest.raises(LayoutError, match="could not place obstacle"):
+        generate_warehouse(np.random.default_rng(0), WorldConfig(size=(4.0, 4.0), num_obstacles=40, max_placement_tries=200))
+
+
+def test_sampler_respects_distance_clearance_and_reachability():
+    cfg = SamplerConfig()
+    rng = np.random.default_rng(11)
+    for seed in range(10):
+        layout = generate_warehouse(np.random.default_rng(seed))
+        free = FreeSpace.build(layout, cfg)
+        for _ in range(5):
+            (sx, sy, syaw), (gx, gy) = sample_start_goal(free, rng, cfg)
+            d = math.hypot(gx - sx, gy - sy)
+            assert cfg.min_goal_distance <= d <= cfg.max_goal_distance
+            assert layout.clearance(np.array([sx, gx]), np.array([sy, gy])).min() >= cfg.clearance - 0.04
+            assert -math.pi <= syaw < math.pi
+            assert _reachable_independent(layout, (sx, sy), (gx, gy), cfg)
+
+
+def _reachable_independent(layout, a, b, cfg):
+    """Reachability by scipy connected components on a 4-connected graph of passable cells."""
+    passable = ~layout.occupancy(cfg.grid_resolution, inflate=cfg.robot_radius)
+    idx = -np.ones(passable.shape, dtype=int)
+    idx[passable] = np.arange(passable.sum())
+    rows, cols = [], []
+    for di, dj in ((1, 0), (0, 1), (1, 1), (1, -1)):
+        src = idx[max(0, -di):passable.shape[0] - max(0, di), max(0, -dj):passable.shape[1] - max(0, dj)]
+        dst = idx[max(0, di):, max(0, dj):][: src.shape[0], : src.shape[1]] if dj >= 0 else idx[di:, : passable.shape[1] + dj][: src.shape[0]]
+        ok = (src >= 0) & (dst >= 0)
+        rows += list(src[ok]); cols += list(dst[ok])
+    from scipy.sparse import coo_matrix
+
+    n = int(passable.sum())
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+    _, labels = csgraph.connected_components(graph, directed=False)
+    hx, hy = layout.half_extents
+    ca = idx[int((a[0] + hx) / cfg.grid_resolution), int((a[1] + hy) / cfg.grid_resolution)]
+    cb = idx[int((b[0] + hx) / cfg.grid_resolution), int((b[1] + hy) / cfg.grid_resolution)]
+    return ca >= 0 and cb >= 0 and labels[ca] == labels[cb]
+
+
+def test_layout_without_valid_pair_raises(write_layout):
+    # A wall of boxes splits the room; each half is too small for a 2 m start-goal distance.
+    layout = write_layout({"size": [2.5, 3.0], "obstacles": [{"type": "box", "center": [0.0, 0.0], "size": [2.5, 0.4, 1.0]}]})
+    with pytest.raises(SamplingError, match="no reachable start/goal pair"):
+        sample_start_goal(FreeSpace.build(layout, SamplerConfig()), np.random.default_rng(0), SamplerConfig(max_tries=50))
+
+
+def test_disconnected_halves_are_not_reachable(write_layout):
+    layout = write_layout({"size": [10.0, 4.0], "obstacles": [{"type": "box", "center": [0.0, 0.0], "size": [0.4, 4.0, 1.0]}]})
+    free = FreeSpace.build(layout, SamplerConfig())
+    assert not free.reachable((-3.0, 0.0), (3.0, 0.0))
+    assert free.reachable((-3.0, 0.0), (-1.0, 1.0))
+    for seed in range(20):
+        (sx, _, _), (gx, _) = sample_start_goal(free, np.random.default_rng(seed), SamplerConfig())
+        assert np.sign(sx) == np.sign(gx)

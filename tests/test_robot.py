@@ -1,0 +1,71 @@
+"""The robot drives like a differential-drive robot: distances, drift and yaw rates against physics."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from conftest import drive
+
+from bulletnav.sim.layout import Layout
+
+FLAT = Layout((30.0, 30.0))
+
+
+def test_geometry_is_read_from_the_urdf(make_sim, rng):
+    sim = make_sim()
+    sim.reset(FLAT, (0.0, 0.0, 0.0), rng)
+    assert sim.robot.wheel_radius == pytest.approx(0.05)
+    assert sim.robot.wheelbase == pytest.approx(0.22)
+    # Resting on wheels and caster, level, body origin 7 cm up.
+    drive(sim, 0.0, 0.0, 1.0)
+    pos, orn = sim.robot.pose3d()
+    assert pos[2] == pytest.approx(0.07, abs=2e-3)
+    assert np.allclose(sim.robot.pose(), [0.0, 0.0, 0.0], atol=2e-3)
+
+
+@pytest.mark.parametrize("yaw", [0.0, 2.0])
+def test_straight_line_covers_the_commanded_distance_without_drift(make_sim, rng, report, yaw):
+    sim = make_sim()
+    sim.reset(FLAT, (1.0, -2.0, yaw), rng)
+    drive(sim, 0.4, 0.0, 3.0)
+    x, y, _ = sim.robot.pose()
+    dx, dy = x - 1.0, y + 2.0
+    along = dx * math.cos(yaw) + dy * math.sin(yaw)
+    sideways = -dx * math.sin(yaw) + dy * math.cos(yaw)
+    report("distance in 3 s at 0.4 m/s (m)", f"{along:.4f}")
+    report("sideways drift (m)", f"{sideways:.4f}")
+    assert along == pytest.approx(1.2, rel=0.05)
+    assert abs(sideways) < 0.02
+
+
+@pytest.mark.parametrize("w", [1.0, -1.0, 0.5])
+def test_turn_in_place_reaches_the_commanded_yaw_rate(make_sim, rng, report, w):
+    sim = make_sim()
+    sim.reset(FLAT, (0.0, 0.0, 0.0), rng)
+    drive(sim, 0.0, w, 0.5)  # settle
+    yaws = []
+    for _ in range(48):  # 2 s
+        sim.step(0.0, w)
+        yaws.append(sim.robot.pose()[2])
+    rate = (np.unwrap(yaws)[-1] - yaws[0]) / (47 / 24)
+    report(f"yaw rate at w={w} (rad/s)", f"{rate:.4f}")
+    assert rate == pytest.approx(w, rel=0.05)
+    assert np.hypot(*sim.robot.pose()[:2]) < 0.03  # turned in place
+
+
+def test_arc_matches_kinematics(make_sim, rng):
+    sim = make_sim()
+    sim.reset(FLAT, (0.0, 0.0, 0.0), rng)
+    drive(sim, 0.3, 0.6, 1.0)
+    v, w = sim.robot.velocity()
+    assert v == pytest.approx(0.3, rel=0.05)
+    assert w == pytest.approx(0.6, rel=0.05)
+
+
+def test_non_finite_command_is_refused(make_sim, rng):
+    sim = make_sim()
+    sim.reset(FLAT, (0.0, 0.0, 0.0), rng)
+    with pytest.raises(ValueError, match="finite"):
+        sim.robot.set_velocity(float("nan"), 0.0)
