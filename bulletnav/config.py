@@ -201,3 +201,78 @@ class SensorsConfig:
     camera: CameraConfig = field(default_factory=CameraConfig)
     imu: ImuConfig = field(default_factory=ImuConfig)
     odometry: OdometryConfig = field(default_factory=OdometryConfig)
+
+
+@dataclass(frozen=True)
+class RewardConfig:
+    """Weights of the named reward terms (the article's values)."""
+
+    progress: float = 1.0
+    """Per metre of distance to the goal gained this step."""
+    goal: float = 50.0
+    """Once, when the goal is reached."""
+    collision: float = -10.0
+    """Once, on contact with a wall or obstacle."""
+    time: float = -0.01
+    """Every step."""
+    heading: float = 0.1
+    """Times (1 - |heading error| / pi) while farther than ``heading_distance`` from the goal."""
+    heading_distance: float = 1.0
+    """Heading and stuck terms apply only beyond this distance to the goal (m)."""
+    stuck: float = -0.1
+    """Every step while progress over the last ``stuck_window`` steps is under ``stuck_progress``."""
+    stuck_window: int = 20
+    """Steps over which progress is summed for the stuck test."""
+    stuck_progress: float = 0.1
+    """Progress (m) below which the robot counts as stuck."""
+    proximity: float = -1.0
+    """Times (proximity_distance - closest lidar range) while the closest range is under it."""
+    proximity_distance: float = 0.3
+    """Lidar range (m) under which the proximity penalty applies."""
+
+
+@dataclass(frozen=True)
+class TaskConfig:
+    """Episode rules and observation scaling."""
+
+    goal_radius: float = 0.5
+    """Distance to the goal (m) under which the episode terminates with success."""
+    max_speed: float = 0.5
+    """Top forward speed (m/s): action bound and velocity normalisation."""
+    max_turn_rate: float = 1.5
+    """Top yaw rate (rad/s): action bound and normalisation."""
+    distance_scale: float = 10.0
+    """Distance to the goal is divided by this in the observation (m)."""
+    pose_source: str = "truth"
+    """Where the robot's pose for heading/distance observations comes from: 'truth' or 'odometry'."""
+    reward: RewardConfig = field(default_factory=RewardConfig)
+
+    def __post_init__(self) -> None:
+        if self.pose_source not in ("truth", "odometry"):
+            raise ValueError(f"pose_source must be 'truth' or 'odometry', got {self.pose_source!r}")
+        if self.goal_radius <= 0:
+            raise ValueError(f"goal_radius must be > 0, got {self.goal_radius}")
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """Everything that defines a ``bulletnav/Warehouse-v0`` episode."""
+
+    physics: PhysicsConfig = field(default_factory=PhysicsConfig)
+    robot: RobotConfig = field(default_factory=RobotConfig)
+    world: WorldConfig = field(default_factory=WorldConfig)
+    sampler: SamplerConfig = field(default_factory=SamplerConfig)
+    sensors: SensorsConfig = field(default_factory=SensorsConfig)
+    task: TaskConfig = field(default_factory=TaskConfig)
+    layout_file: str | None = None
+    """YAML layout to use for every episode; None draws procedural warehouses."""
+    layouts_every: int = 1
+    """A procedural layout is redrawn every this many resets (always on a seeded reset)."""
+    camera_obs: bool = False
+    """Add the camera's RGB and depth images to the observation (Dict space; ~10 ms a frame)."""
+    normalize_actions: bool = False
+    """Expose actions as Box(-1, 1, (2,)) mapped onto (v, w) instead of physical units."""
+
+    def __post_init__(self) -> None:
+        if self.layouts_every < 1:
+            raise ValueError(f"layouts_every must be >= 1, got {self.layouts_every}")

@@ -69,3 +69,39 @@ def pytest_terminal_summary(terminalreporter):
         terminalreporter.section("measurements")
         for what, value in _MEASUREMENTS:
             terminalreporter.write_line(f"{what} = {value}")
+
+
+@pytest.fixture(scope="session")
+def display():
+    """An X display for GUI tests: the current one if it answers, else a private Xvfb."""
+    import os
+    import shutil
+    import subprocess
+    import time
+
+    from bulletnav.sim.client import display_available
+
+    if display_available():
+        yield os.environ["DISPLAY"]
+        return
+    if shutil.which("Xvfb") is None:
+        pytest.skip("no X display and Xvfb is not installed (apt-get install xvfb)")
+    number = 90 + os.getpid() % 500
+    proc = subprocess.Popen(["Xvfb", f":{number}", "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    old = os.environ.get("DISPLAY")
+    os.environ["DISPLAY"] = f":{number}"
+    for _ in range(100):
+        if display_available():
+            break
+        time.sleep(0.05)
+    else:
+        proc.kill()
+        pytest.skip("Xvfb did not start")
+    yield os.environ["DISPLAY"]
+    proc.terminate()
+    proc.wait(timeout=10)
+    if old is None:
+        os.environ.pop("DISPLAY", None)
+    else:
+        os.environ["DISPLAY"] = old

@@ -52,15 +52,22 @@ class Simulation:
         """How many times the scene was rebuilt (layout changes), for diagnostics."""
 
     # ------------------------------------------------------------------ episodes
-    def reset(self, layout: Layout, start: tuple[float, float, float], rng: np.random.Generator) -> None:
+    def reset(self, layout: Layout, start: tuple[float, float, float], rng: np.random.Generator,
+              rebuild: bool = False) -> None:
         """Start an episode in ``layout`` with the robot at rest at ``start`` = (x, y, yaw).
 
-        The scene is rebuilt only when the layout differs from the current one; otherwise
-        the robot is teleported. Each sensor gets its own generator drawn from ``rng``.
+        The scene is rebuilt when the layout differs from the current one or ``rebuild`` is
+        set; otherwise the robot is teleported (fast, but the solver keeps warm-start state,
+        so only a rebuild makes the next steps independent of history). Each sensor gets its
+        own generator drawn from ``rng``.
         """
-        if self.world.layout != layout:
+        if rebuild or self.world.layout != layout:
+            if self.gui:  # the GUI redraws after every body created: seconds for a warehouse
+                p.configureDebugVisualizer(p.COV_ENABLE_RENDERING, 0, physicsClientId=self.cid)
             self.world.build(layout)
             self.robot.load(start)
+            if self.gui:
+                p.configureDebugVisualizer(p.COV_ENABLE_RENDERING, 1, physicsClientId=self.cid)
             self.world.labels[self.robot.body] = "robot"
             self.rebuilds += 1
         else:

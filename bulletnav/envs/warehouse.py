@@ -1,0 +1,347 @@
+"""``bulletnav/Warehouse-v0``: drive a differential-drive robot to a goal through a warehouse."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import fields, replace
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pybullet as p
+from gymnasium import spaces
+
+from bulletnav.config import EnvConfig, RewardConfig
+from bulletnav.envs.task import REWARD_TERMS, NavigationTask
+from bulletnav.sim.layout import Layout, generate_warehouse, load_layout
+from bulletnav.sim.sampler import FreeSpace, sample_start_goal
+from bulletnav.sim.simulation import Simulation
+
+_KWARGS = {
+    # keyword -> (config section path, field)
+    "num_obstacles": (("world",), "num_obstacles"),
+    "world_size": (("world",), "size"),
+    "min_goal_distance": (("sampler",), "min_goal_distance"),
+    "max_goal_distance": (("sampler",), "max_goal_distance"),
+    "lidar_rays": (("sensors", "lidar"), "num_rays"),
+    "lidar_range": (("sensors", "lidar"), "max_range"),
+    "lidar_noise": (("sensors", "lidar"), "noise_std"),
+    "imu_accel_noise": (("sensors", "imu"), "accel_noise_std"),
+    "imu_gyro_noise": (("sensors", "imu"), "gyro_noise_std"),
+    "odometry_noise": (("sensors", "odometry"), "encoder_noise_std"),
+    "physics_hz": (("physics",), "physics_hz"),
+    "control_hz": (("physics",), "control_hz"),
+    "solver_iterations": (("physics",), "solver_iterations"),
+    "goal_radius": (("task",), "goal_radius"),
+    "pose_source": (("task",), "pose_source"),
+    "layouts_every": ((), "layouts_every"),
+    "camera_obs": ((), "camera_obs"),
+    "normalize_actions": ((), "normalize_actions"),
+}
+_REWARD_FIELDS = {f.name for f in fields(RewardConfig)}
+
+
+def make_config(config: EnvConfig | None = None, **kwargs: Any) -> EnvConfig:
+    """Build an :class:`EnvConfig` from flat keyword arguments on top of ``config``.
+
+    Besides the names in the env docstring, ``reward_<field>`` sets a :class:`RewardConfig`
+    field (e.g. ``reward_collision=-20``) and ``world`` names a YAML layout file.
+
+    Raises:
+        TypeError: an unknown keyword (the message lists the known ones).
+    """
+    cfg = config or EnvConfig()
+    for key, value in kwargs.items():
+        if key == "world":
+            cfg = replace(cfg, layout_file=None if value is None else str(value))
+        elif key.startswith("reward_") and key[7:] in _REWARD_FIELDS:
+            cfg = replace(cfg, task=replace(cfg.task, reward=replace(cfg.task.reward, **{key[7:]: value})))
+        elif key in _KWARGS:
+            path, name = _KWARGS[key]
+            if key == "world_size":
+                value = tuple(value)
+            cfg = _replace_at(cfg, path, name, value)
+        else:
+            known = sorted([*_KWARGS, "world", "config", "render_mode", *(f"reward_{f}" for f in _REWARD_FIELDS)])
+            raise TypeError(f"bulletnav/Warehouse-v0 got an unknown keyword argument {key!r}; known: {', '.join(known)}")
+    return cfg
+
+
+def _replace_at(obj: Any, path: tuple[str, ...], name: str, value: Any) -> Any:
+    if not path:
+        return replace(obj, **{name: value})
+    child = getattr(obj, path[0])
+    return replace(obj, **{path[0]: _replace_at(child, path[1:], name, value)})
+
+
+class WarehouseEnv(gym.Env):
+    """Drive a differential-drive robot to a goal through a cluttered warehouse.
+
+    ## Description
+    A procedural warehouse (walls, shelving racks, pallets, boxes, columns; 31 obstacles by
+    default) or a YAML layout. Each episode places the robot at rest at a start pose and a
+    goal 2-6 m away in reachable free space. PyBullet runs at ``physics_hz`` (240 Hz); one
+    action holds for ``physics_hz / control_hz`` (10) physics steps.
+
+    ## Action Space
+    ``Box(low=[0.0, -1.5], high=[0.5, 1.5], dtype=float32)``
+
+    | index | action | unit | range |
+    |---|---|---|---|
+    | 0 | forward speed v (forward only) | m/s | [0, 0.5] |
+    | 1 | yaw rate w (counter-clockwise +) | rad/s | [-1.5, 1.5] |
+
+    Out-of-range actions are clipped; a NaN or infinite action raises ``ValueError``. With
+    ``normalize_actions=True`` the space is ``Box(-1, 1, (2,))``, mapped linearly onto the
+    ranges above (what SB3 recommends for Gaussian policies).
+
+    ## Observation Space
+    ``Box(43,)`` float32 (``lidar_rays + 7`` in general), every entry clipped to its range:
+
+    | index | observation | unit before scaling | scaling | range |
+    |---|---|---|---|---|
+    | 0-35 | lidar ranges, ray i at 10 i deg counter-clockwise from the heading | m | / lidar_range (5 m) | [0, 1] |
+    | 36 | heading error: goal bearing minus robot heading | rad | / pi | [-1, 1] |
+    | 37 | forward speed v from wheel odometry | m/s | / 0.5 | [-2, 2] |
+    | 38 | yaw rate w from wheel odometry | rad/s | / 1.5 | [-2, 2] |
+    | 39 | IMU accelerometer x (body frame, specific force) | m/s^2 | / 9.81 | [-3, 3] |
+    | 40 | IMU accelerometer y | m/s^2 | / 9.81 | [-3, 3] |
+    | 41 | IMU gyroscope z | rad/s | / 1.5 | [-3, 3] |
+    | 42 | distance to the goal | m | / 10 | [0, 3] |
+
+    The robot's pose for entries 36 and 42 is ground truth (``pose_source="truth"``, as in
+    the article) or the odometry estimate (``pose_source="odometry"``). With
+    ``camera_obs=True`` the observation is a ``Dict`` with ``state`` (the vector above),
+    ``rgb`` (240, 320, 3) uint8 and ``depth`` (240, 320, 1) float32 metres.
+
+    ## Rewards
+    The sum of named terms, each in ``info`` as ``reward_<name>`` (weights are
+    ``reward_<name>`` keyword arguments):
+
+    | term | value |
+    |---|---|
+    | progress | +1.0 x metres gained toward the goal this step |
+    | goal | +50 when the goal is reached |
+    | collision | -10 on contact with a wall or obstacle |
+    | time | -0.01 every step |
+    | heading | +0.1 x (1 - abs(heading error) / pi) while farther than 1 m from the goal |
+    | stuck | -0.1 while progress over the last 20 steps is under 0.1 m and the goal is > 1 m away |
+    | proximity | -1.0 x (0.3 - closest lidar range) while the closest range is under 0.3 m |
+
+    ## Starting State
+    Robot at rest at a sampled (or given) start pose with uniform random yaw.
+
+    ## Episode End
+    - Termination: distance to the goal < 0.5 m (``info["is_success"] = True``).
+    - Truncation: a collision (any contact between the robot and a wall or obstacle), or
+      ``max_episode_steps`` (1000, Gymnasium's ``TimeLimit``; pass ``max_episode_steps`` to
+      ``gym.make`` to change it).
+
+    ## Info
+    The reward terms, ``distance_to_goal`` (m), ``collision``, ``is_success``,
+    ``path_length`` (m driven, ground truth), ``initial_distance`` (m), ``goal`` (x, y),
+    ``pose`` (x, y, yaw ground truth).
+
+    ## Arguments
+    ``gym.make("bulletnav/Warehouse-v0", **kwargs)`` with any of: ``num_obstacles`` (31),
+    ``world`` (YAML layout path or None), ``world_size`` ((14, 14) m),
+    ``min_goal_distance`` (2 m), ``max_goal_distance`` (6 m), ``lidar_rays`` (36),
+    ``lidar_range`` (5 m), ``lidar_noise`` (0 m), ``imu_accel_noise`` (0.05 m/s^2),
+    ``imu_gyro_noise`` (0.01 rad/s), ``odometry_noise`` (0 rad), ``physics_hz`` (240),
+    ``control_hz`` (24), ``solver_iterations``, ``goal_radius`` (0.5 m),
+    ``pose_source`` ("truth"), ``normalize_actions`` (False), ``layouts_every`` (1: a new procedural warehouse every
+    reset), ``camera_obs`` (False), ``reward_<term>`` weights, ``render_mode``
+    (``"human"``: PyBullet GUI, needs a display; ``"rgb_array"``: a chase-camera frame), and
+    ``config`` (an :class:`EnvConfig` the other keywords modify).
+
+    ``reset(seed, options)`` takes ``options={"start": (x, y, yaw), "goal": (x, y)}`` to
+    place either exactly. A seeded reset draws a new layout, start and goal from
+    ``self.np_random``.
+
+    ## Version History
+    - v0: initial release.
+    """
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 24}
+
+    def __init__(self, render_mode: str | None = None, config: EnvConfig | None = None, **kwargs: Any) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.config = cfg = make_config(config, **kwargs)
+        self.render_mode = render_mode
+        self.metadata = {**self.metadata, "render_fps": cfg.physics.control_hz}
+        self._fixed_layout: Layout | None = load_layout(cfg.layout_file) if cfg.layout_file else None
+        self.sim = Simulation(cfg.physics, cfg.robot, cfg.sensors, gui=render_mode == "human")
+        self.task = NavigationTask(cfg.task, cfg.sensors.lidar.max_range, cfg.sensors.lidar.num_rays, cfg.physics.gravity)
+        t = cfg.task
+        self._action_low = np.array([0.0, -t.max_turn_rate])
+        self._action_high = np.array([t.max_speed, t.max_turn_rate])
+        if cfg.normalize_actions:
+            self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
+        else:
+            self.action_space = spaces.Box(self._action_low.astype(np.float32), self._action_high.astype(np.float32),
+                                           dtype=np.float32)
+        state = spaces.Box(self.task.obs_low, self.task.obs_high, dtype=np.float32)
+        if cfg.camera_obs:
+            cam = cfg.sensors.camera
+            self.observation_space: spaces.Space = spaces.Dict({
+                "state": state,
+                "rgb": spaces.Box(0, 255, (cam.height, cam.width, 3), dtype=np.uint8),
+                "depth": spaces.Box(0.0, cam.far, (cam.height, cam.width, 1), dtype=np.float32),
+            })
+        else:
+            self.observation_space = state
+        self._layout: Layout | None = None
+        self._free: FreeSpace | None = None
+        self._resets_on_layout = 0
+        self._last_frame_time = 0.0
+        self.goal = (0.0, 0.0)
+        self.start = (0.0, 0.0, 0.0)
+
+    # ------------------------------------------------------------------ public parts
+    @property
+    def robot(self):
+        """The :class:`~bulletnav.sim.robot.Robot` (ground truth: ``pose()``, ``velocity()``)."""
+        return self.sim.robot
+
+    @property
+    def world(self):
+        """The :class:`~bulletnav.sim.world.World` (current ``layout``, body ids)."""
+        return self.sim.world
+
+    @property
+    def sensors(self):
+        """``{"lidar", "camera", "imu", "odometry"}`` -> sensor with ``read()``."""
+        return self.sim.sensors
+
+    @property
+    def layout(self) -> Layout | None:
+        return self._layout
+
+    @property
+    def free_space(self) -> FreeSpace | None:
+        """Free-space grids of the current layout (used for sampling and shortest paths)."""
+        return self._free
+
+    # ------------------------------------------------------------------ gym API
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        options = options or {}
+        cfg = self.config
+        rng = self.np_random
+        layout = self._fixed_layout
+        if layout is None:
+            if seed is not None or self._layout is None or self._resets_on_layout >= cfg.layouts_every:
+                self._layout = generate_warehouse(rng, cfg.world)
+                self._free = None
+                self._resets_on_layout = 0
+            layout = self._layout
+        elif self._layout is not layout:
+            self._layout, self._free = layout, None
+        self._resets_on_layout += 1
+        if self._free is None:
+            self._free = FreeSpace.build(layout, cfg.sampler)
+        start: tuple[float, float, float] | None = layout.start
+        goal: tuple[float, float] | None = layout.goal
+        if start is None or goal is None:
+            sampled_start, sampled_goal = sample_start_goal(self._free, rng, cfg.sampler)
+            start = start or sampled_start
+            goal = goal or sampled_goal
+        if "start" in options:
+            start = _pose_option(options["start"], 3, "start")
+        if "goal" in options:
+            goal = _pose_option(options["goal"], 2, "goal")  # type: ignore[assignment]
+        self.start, self.goal = start, goal  # type: ignore[assignment]
+        # A seeded reset rebuilds the scene so that it is bit-identical whatever came before.
+        self.sim.reset(layout, start, rng, rebuild=seed is not None)  # type: ignore[arg-type]
+        m = self.task.reset(self.sim, goal)  # type: ignore[arg-type]
+        if self.render_mode == "human":
+            self._follow_camera()
+        return self._observation(m), self._info(m, {name: 0.0 for name in REWARD_TERMS}, collision=False, success=False)
+
+    def step(self, action):
+        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        if a.shape != (2,):
+            raise ValueError(f"action must have 2 entries (v, w), got shape {np.shape(action)}")
+        if not np.all(np.isfinite(a)):
+            names = [n for n, v in zip(("v", "w"), a) if not math.isfinite(v)]
+            raise ValueError(f"action {a.tolist()} has non-finite entries: {', '.join(names)}")
+        v, w = self.command(a)
+        self.sim.step(v, w)
+        collision = self.sim.in_collision()
+        m = self.task.measure(self.sim)
+        terms, terminated, truncated = self.task.evaluate(self.sim, m, collision)
+        reward = float(sum(terms.values()))
+        if self.render_mode == "human":
+            self._follow_camera()
+            self._pace()
+        return self._observation(m), reward, terminated, truncated, self._info(m, terms, collision, terminated)
+
+    def command(self, action: np.ndarray) -> tuple[float, float]:
+        """The (v m/s, w rad/s) an action commands, after scaling and clipping."""
+        a0, a1 = float(action[0]), float(action[1])
+        if self.config.normalize_actions:  # [-1, 1] -> physical range
+            a0 = self._action_low[0] + (a0 + 1.0) * 0.5 * (self._action_high[0] - self._action_low[0])
+            a1 = self._action_low[1] + (a1 + 1.0) * 0.5 * (self._action_high[1] - self._action_low[1])
+        low, high = self._action_low, self._action_high
+        return min(max(a0, float(low[0])), float(high[0])), min(max(a1, float(low[1])), float(high[1]))
+
+    def render(self):
+        if self.render_mode == "rgb_array":
+            return self._chase_frame()
+        return None
+
+    def close(self) -> None:
+        self.sim.close()
+
+    # ------------------------------------------------------------------ helpers
+    def _observation(self, m):
+        state = self.task.observation(m)
+        if not self.config.camera_obs:
+            return state
+        image = self.sim.sensors["camera"].read()
+        return {"state": state, "rgb": image.rgb, "depth": image.depth[:, :, None]}
+
+    def _info(self, m, terms: dict[str, float], collision: bool, success: bool) -> dict[str, Any]:
+        info: dict[str, Any] = {f"reward_{k}": float(v) for k, v in terms.items()}
+        pose = self.sim.robot.pose()
+        info.update(
+            distance_to_goal=m.distance, collision=bool(collision), is_success=bool(success),
+            path_length=self.task.path_length, initial_distance=self.task.initial_distance,
+            goal=self.goal, pose=pose,
+        )
+        return info
+
+    def _chase_frame(self, width: int = 480, height: int = 360) -> np.ndarray:
+        x, y, yaw = self.sim.robot.pose()
+        eye = [x - 2.2 * math.cos(yaw), y - 2.2 * math.sin(yaw), 2.4]
+        view = p.computeViewMatrix(eye, [x + 0.8 * math.cos(yaw), y + 0.8 * math.sin(yaw), 0.0], [0, 0, 1],
+                                   physicsClientId=self.sim.cid)
+        proj = p.computeProjectionMatrixFOV(60.0, width / height, 0.05, 30.0, physicsClientId=self.sim.cid)
+        _, _, rgba, _, _ = p.getCameraImage(width, height, view, proj, renderer=p.ER_TINY_RENDERER,
+                                            flags=p.ER_NO_SEGMENTATION_MASK, physicsClientId=self.sim.cid)
+        return np.reshape(np.asarray(rgba, dtype=np.uint8), (height, width, 4))[:, :, :3].copy()
+
+    def _follow_camera(self) -> None:
+        x, y, yaw = self.sim.robot.pose()
+        p.resetDebugVisualizerCamera(3.5, math.degrees(yaw) - 90.0, -45.0, [x, y, 0.0], physicsClientId=self.sim.cid)
+
+    def _pace(self) -> None:
+        """Hold the GUI to real time (one control period per step)."""
+        period = self.config.physics.control_dt
+        now = time.perf_counter()
+        wait = self._last_frame_time + period - now
+        if wait > 0:
+            time.sleep(wait)
+        self._last_frame_time = time.perf_counter()
+
+
+def _pose_option(value: Any, n: int, name: str) -> tuple[float, ...]:
+    try:
+        out = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"options[{name!r}] must be {n} numbers, got {value!r}") from None
+    if len(out) != n or not all(math.isfinite(v) for v in out):
+        raise ValueError(f"options[{name!r}] must be {n} finite numbers, got {value!r}")
+    return out
