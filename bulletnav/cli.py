@@ -78,6 +78,32 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench(args: argparse.Namespace) -> int:
+    """Run a benchmark and print its JSON (``--json``) or a short table."""
+    if args.what == "env":
+        from bulletnav.bench.env_bench import bench_env
+
+        result = bench_env(steps=args.steps or 6000, seed=args.seed)
+        lines = [
+            f"env  {result['env_steps_per_s']:8.1f} steps/s   (gym.make, random actions, headless, lidar obs)",
+            f"raw  {result['raw_steps_per_s']:8.1f} steps/s   (same physics steps and ray casts, plain PyBullet)",
+            f"ratio env/raw {result['ratio']:.3f} (median over {result['steps'] // result['block']} blocks), "
+            f"overhead {result['env_overhead_us_per_step']:.1f} us/step, reset {result['reset_ms_mean']:.2f} ms",
+        ]
+    elif args.what == "physics":
+        from bulletnav.bench.physics_bench import bench_physics
+
+        result = bench_physics(steps=args.steps or 3000, seed=args.seed)
+        lines = [f"{'setting':34s} {'us/step':>8s} {'speed':>6s} {'3 s dist':>8s} {'drift mm':>8s} {'yaw err %':>9s}"]
+        for row in result["settings"]:
+            lines.append(f"{row['setting']:34s} {row['us_per_physics_step']:8.1f} {row['speed_vs_pybullet_default']:6.2f} "
+                         f"{row['straight_3s_distance_m']:8.4f} {row['max_sideways_drift_mm']:8.2f} {row['yaw_rate_error_pct']:9.2f}")
+    else:  # pragma: no cover - argparse restricts the choices
+        raise AssertionError(args.what)
+    print(json.dumps(result) if args.json else "\n".join(lines))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="bulletnav", description=__doc__)
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
@@ -89,6 +115,13 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--print-every", type=int, default=48, help="print a reading every N steps")
     demo.add_argument("--gui", action="store_true", help="watch in the PyBullet GUI (needs a display)")
     demo.set_defaults(func=cmd_demo)
+
+    bench = sub.add_parser("bench", help="benchmarks (print JSON with --json)")
+    bench.add_argument("what", choices=["env", "physics"], help="env: env vs raw PyBullet loop; physics: solver settings")
+    bench.add_argument("--json", action="store_true", help="print one JSON object")
+    bench.add_argument("--steps", type=int, default=0, help="steps to time (default: the benchmark's own)")
+    bench.add_argument("--seed", type=int, default=0)
+    bench.set_defaults(func=cmd_bench)
     return parser
 
 

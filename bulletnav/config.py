@@ -25,7 +25,11 @@ class PhysicsConfig:
     control_hz: int = 24
     """Control (agent action) steps per simulated second (Hz); must divide ``physics_hz``."""
     solver_iterations: int = 10
-    """Constraint-solver iterations per physics step (PyBullet ``numSolverIterations``)."""
+    """Constraint-solver iterations per physics step (PyBullet ``numSolverIterations``; its default is 50)."""
+    solver_residual_threshold: float = 1e-7
+    """The solver stops early once the residual falls below this (PyBullet ``solverResidualThreshold``)."""
+    cone_friction: bool = True
+    """Implicit friction cone (True, PyBullet's default) or the cheaper pyramid approximation."""
     gravity: float = 9.81
     """Magnitude of gravity (m/s^2), pointing down -z."""
 

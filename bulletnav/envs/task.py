@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -19,8 +19,7 @@ REWARD_TERMS = ("progress", "goal", "collision", "time", "heading", "stuck", "pr
 """Names of the reward terms; ``info`` carries each as ``reward_<name>``."""
 
 
-@dataclass(frozen=True)
-class Measurement:
+class Measurement(NamedTuple):
     """What the task reads from the simulation once per control step."""
 
     x: float
@@ -61,8 +60,8 @@ class NavigationTask:
         self.goal = (float(goal[0]), float(goal[1]))
         m = self.measure(sim)
         self.initial_distance = self._prev_distance = m.distance
-        x, y, _ = sim.robot.pose()
-        self._prev_xy = (float(x), float(y))
+        x, y, _ = sim.robot.planar_pose()
+        self._prev_xy = (x, y)
         self.path_length = 0.0
         self._progress.clear()
         return m
@@ -72,7 +71,7 @@ class NavigationTask:
         if self.config.pose_source == "odometry":
             x, y, yaw = (float(v) for v in odometry[:3])
         else:
-            x, y, yaw = (float(v) for v in sim.robot.pose())
+            x, y, yaw = sim.robot.planar_pose()
         dx, dy = self.goal[0] - x, self.goal[1] - y
         heading = math.remainder(math.atan2(dy, dx) - yaw, 2 * math.pi)
         return Measurement(x, y, yaw, sim.sensors["lidar"].read(), odometry, sim.sensors["imu"].read(),
@@ -91,14 +90,15 @@ class NavigationTask:
         obs[n + 4] = m.imu[1] / self.gravity
         obs[n + 5] = m.imu[5] / cfg.max_turn_rate
         obs[n + 6] = m.distance / cfg.distance_scale
-        return np.clip(obs, self.obs_low, self.obs_high, out=obs)
+        np.minimum(obs, self.obs_high, out=obs)
+        return np.maximum(obs, self.obs_low, out=obs)
 
     def evaluate(self, sim: Simulation, m: Measurement, collision: bool) -> tuple[dict[str, float], bool, bool]:
         """Reward terms for the step that led to ``m``, and (terminated, truncated)."""
         w = self.config.reward
         x, y = m.x, m.y
         if self.config.pose_source == "odometry":  # path length is always measured on the true path
-            x, y = (float(v) for v in sim.robot.pose()[:2])
+            x, y, _ = sim.robot.planar_pose()
         self.path_length += math.hypot(x - self._prev_xy[0], y - self._prev_xy[1])
         self._prev_xy = (x, y)
         progress = self._prev_distance - m.distance

@@ -305,7 +305,7 @@ class WarehouseEnv(gym.Env):
 
     def _info(self, m, terms: dict[str, float], collision: bool, success: bool) -> dict[str, Any]:
         info: dict[str, Any] = {f"reward_{k}": float(v) for k, v in terms.items()}
-        pose = self.sim.robot.pose()
+        pose = np.array((m.x, m.y, m.yaw)) if self.config.task.pose_source == "truth" else self.sim.robot.pose()
         info.update(
             distance_to_goal=m.distance, collision=bool(collision), is_success=bool(success),
             path_length=self.task.path_length, initial_distance=self.task.initial_distance,

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import pybullet as p
 
 from bulletnav.config import ImuConfig
 from bulletnav.sensors.base import Sensor
@@ -24,34 +23,43 @@ class Imu(Sensor):
     def __init__(self, robot: Robot, clock: Clock, config: ImuConfig = ImuConfig(), gravity: float = 9.81) -> None:
         super().__init__(robot, clock)
         self.config = config
-        self.gravity = np.array([0.0, 0.0, -gravity])
-        self._prev_velocity = np.zeros(3)
+        self._gravity = (0.0, 0.0, -gravity)
+        self._noise_std = np.repeat([config.accel_noise_std, config.gyro_noise_std], 3)
+        self._bias = np.concatenate([config.accel_bias, config.gyro_bias])
+        self._prev_velocity: tuple[float, ...] = (0.0, 0.0, 0.0)
         self._prev_time = 0.0
         self._latest = np.zeros(6, dtype=np.float32)
 
     def reset(self, rng: np.random.Generator) -> None:
         super().reset(rng)
-        self._prev_velocity, _ = self.robot.world_velocity()
+        self._prev_velocity, _, _ = self.robot.kinematics()
         self._prev_time = self.clock.time
-        self._latest = self._sample(np.zeros(3))
+        self._latest = self._sample((0.0, 0.0, 0.0))
 
     def update(self) -> None:
-        velocity, _ = self.robot.world_velocity()
+        kinematics = self.robot.kinematics()
+        velocity = kinematics[0]
         dt = self.clock.time - self._prev_time
-        accel = (velocity - self._prev_velocity) / dt if dt > 0 else np.zeros(3)
+        prev = self._prev_velocity
+        if dt > 0:
+            accel = ((velocity[0] - prev[0]) / dt, (velocity[1] - prev[1]) / dt, (velocity[2] - prev[2]) / dt)
+        else:
+            accel = (0.0, 0.0, 0.0)
         self._prev_velocity, self._prev_time = velocity, self.clock.time
-        self._latest = self._sample(accel)
+        self._latest = self._sample(accel, kinematics)
 
-    def _sample(self, accel_world: np.ndarray) -> np.ndarray:
-        cfg = self.config
-        _, orn = self.robot.pose3d()
-        rot = np.reshape(p.getMatrixFromQuaternion(orn), (3, 3))
-        _, omega = self.robot.world_velocity()
-        specific_force = rot.T @ (accel_world - self.gravity)
-        rate = rot.T @ omega
-        noise = self.rng.normal(0.0, 1.0, 6) * np.repeat([cfg.accel_noise_std, cfg.gyro_noise_std], 3)
-        bias = np.concatenate([cfg.accel_bias, cfg.gyro_bias])
-        return (np.concatenate([specific_force, rate]) + bias + noise).astype(np.float32)
+    def _sample(self, accel_world: tuple[float, ...], kinematics=None) -> np.ndarray:
+        _, omega, m = kinematics or self.robot.kinematics()
+        g = self._gravity
+        fx, fy, fz = accel_world[0] - g[0], accel_world[1] - g[1], accel_world[2] - g[2]
+        wx, wy, wz = omega
+        # body frame = R^T @ world vector (m is row-major R)
+        truth = np.array([
+            m[0] * fx + m[3] * fy + m[6] * fz, m[1] * fx + m[4] * fy + m[7] * fz, m[2] * fx + m[5] * fy + m[8] * fz,
+            m[0] * wx + m[3] * wy + m[6] * wz, m[1] * wx + m[4] * wy + m[7] * wz, m[2] * wx + m[5] * wy + m[8] * wz,
+        ])
+        noise = self.rng.normal(0.0, 1.0, 6) * self._noise_std
+        return (truth + self._bias + noise).astype(np.float32)
 
     def measure(self) -> np.ndarray:
         return self._latest

@@ -45,14 +45,17 @@ class Lidar(Sensor):
             parentLinkIndex=self.robot.lidar_link, collisionFilterMask=STATIC_GROUP,
             physicsClientId=self.robot.cid,
         )
-        return np.fromiter((r[2] for r in results), dtype=np.float64, count=len(results))
+        return np.array([r[2] for r in results])
 
     def measure(self) -> np.ndarray:
         cfg = self.config
         ranges = self.cast() * cfg.max_range
         if cfg.noise_std > 0:
-            ranges = ranges + self.rng.normal(0.0, cfg.noise_std, ranges.shape)
-        return np.clip(ranges, cfg.min_range, cfg.max_range).astype(np.float32)
+            ranges += self.rng.normal(0.0, cfg.noise_std, ranges.shape)
+            np.clip(ranges, cfg.min_range, cfg.max_range, out=ranges)
+        elif cfg.min_range > 0:
+            np.maximum(ranges, cfg.min_range, out=ranges)
+        return ranges.astype(np.float32)
 
     def hit_points(self, ranges: np.ndarray) -> np.ndarray:
         """World (x, y) of each ray's end point for ``ranges`` (for maps and drawing)."""

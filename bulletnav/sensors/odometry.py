@@ -26,31 +26,31 @@ class Odometry(Sensor):
     def __init__(self, robot: Robot, clock: Clock, config: OdometryConfig = OdometryConfig()) -> None:
         super().__init__(robot, clock)
         self.config = config
-        self.state = np.zeros(3)
-        """Integrated pose estimate [x, y, yaw], float64."""
-        self._prev_angles = np.zeros(2)
+        self.state: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        """Integrated pose estimate (x, y, yaw) in m, m, rad."""
+        self._prev_angles = (0.0, 0.0)
         self.distance = 0.0
         """Path length driven according to the encoders (m)."""
 
     def reset(self, rng: np.random.Generator) -> None:
         super().reset(rng)
-        self.state = self.robot.pose()
+        self.state = tuple(float(v) for v in self.robot.pose())  # type: ignore[assignment]
         self._prev_angles, _ = self.robot.wheel_states()
         self.distance = 0.0
 
     def update(self) -> None:
         angles, _ = self.robot.wheel_states()
-        delta = angles - self._prev_angles
+        d_left, d_right = angles[0] - self._prev_angles[0], angles[1] - self._prev_angles[1]
         self._prev_angles = angles
         if self.config.encoder_noise_std > 0:
-            delta = delta + self.rng.normal(0.0, self.config.encoder_noise_std, 2)
+            noise = self.rng.normal(0.0, self.config.encoder_noise_std, 2)
+            d_left, d_right = d_left + float(noise[0]), d_right + float(noise[1])
         r, base = self.robot.wheel_radius, self.robot.wheelbase
-        ds = r * (delta[0] + delta[1]) / 2
-        dyaw = r * (delta[1] - delta[0]) / base
+        ds = r * (d_left + d_right) / 2
+        dyaw = r * (d_right - d_left) / base
         x, y, yaw = self.state
         mid = yaw + dyaw / 2
-        self.state = np.array([x + ds * math.cos(mid), y + ds * math.sin(mid),
-                               math.atan2(math.sin(yaw + dyaw), math.cos(yaw + dyaw))])
+        self.state = (x + ds * math.cos(mid), y + ds * math.sin(mid), math.remainder(yaw + dyaw, 2 * math.pi))
         self.distance += abs(ds)
 
     def measure(self) -> np.ndarray:

@@ -72,6 +72,8 @@ def configure_physics(cid: int, physics: PhysicsConfig) -> None:
         fixedTimeStep=physics.physics_dt,
         numSubSteps=0,
         numSolverIterations=physics.solver_iterations,
+        solverResidualThreshold=physics.solver_residual_threshold,
+        enableConeFriction=int(physics.cone_friction),
         physicsClientId=cid,
     )
 

@@ -31,7 +31,7 @@ class Robot:
         """Wheel radius read from the URDF collision shape (m)."""
         self.wheelbase = 0.0
         """Distance between the wheel contact points, read from the URDF joints (m)."""
-        self._com_offset = np.zeros(3)
+        self._com_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     # ------------------------------------------------------------------ set-up
     def load(self, pose: tuple[float, float, float]) -> None:
@@ -44,7 +44,7 @@ class Robot:
         )
         # PyBullet places and reports the base by its centre of mass; keep the offset to the
         # URDF link frame so that poses refer to the body centre.
-        self._com_offset = np.asarray(p.getDynamicsInfo(self.body, -1, physicsClientId=cid)[3])
+        self._com_offset = tuple(p.getDynamicsInfo(self.body, -1, physicsClientId=cid)[3])
         links = {}
         joints = {}
         for j in range(p.getNumJoints(self.body, physicsClientId=cid)):
@@ -107,37 +107,60 @@ class Robot:
         self.set_velocity(0.0, 0.0)
 
     # ------------------------------------------------------------------ state
+    # Plain floats and tuples below: these run several times per control step, and NumPy's
+    # per-call overhead on 3-vectors (np.cross ~100 us) would dominate the step time.
+    def _frame(self) -> tuple[tuple[float, float, float], tuple[float, ...], tuple[float, ...]]:
+        """Body-centre position, orientation quaternion and row-major rotation matrix."""
+        com, orn = p.getBasePositionAndOrientation(self.body, physicsClientId=self.cid)
+        m = p.getMatrixFromQuaternion(orn)
+        ox, oy, oz = self._com_offset
+        pos = (com[0] - (m[0] * ox + m[1] * oy + m[2] * oz),
+               com[1] - (m[3] * ox + m[4] * oy + m[5] * oz),
+               com[2] - (m[6] * ox + m[7] * oy + m[8] * oz))
+        return pos, orn, m
+
     def pose(self) -> np.ndarray:
-        """Ground-truth planar pose ``[x, y, yaw]`` of the base origin (m, m, rad)."""
-        pos, orn = self.pose3d()
-        x, y, z, w = orn
-        yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-        return np.array([pos[0], pos[1], yaw])
+        """Ground-truth planar pose ``[x, y, yaw]`` of the body centre (m, m, rad)."""
+        return np.array(self.planar_pose())
+
+    def planar_pose(self) -> tuple[float, float, float]:
+        """:meth:`pose` as a tuple of floats (cheaper in per-step code)."""
+        pos, (x, y, z, w), _ = self._frame()
+        return pos[0], pos[1], math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
     def pose3d(self) -> tuple[np.ndarray, tuple[float, float, float, float]]:
         """Position (m) of the base link frame (body centre) and its orientation quaternion (x, y, z, w)."""
-        com, orn = p.getBasePositionAndOrientation(self.body, physicsClientId=self.cid)
-        rot = np.reshape(p.getMatrixFromQuaternion(orn), (3, 3))
-        return np.asarray(com) - rot @ self._com_offset, orn
+        pos, orn, _ = self._frame()
+        return np.array(pos), orn
+
+    def kinematics(self) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
+        """Body-centre linear velocity (m/s) and angular velocity (rad/s), world frame, and the
+        row-major body-to-world rotation matrix."""
+        lin, ang = p.getBaseVelocity(self.body, physicsClientId=self.cid)
+        _, orn = p.getBasePositionAndOrientation(self.body, physicsClientId=self.cid)
+        m = p.getMatrixFromQuaternion(orn)
+        ox, oy, oz = self._com_offset
+        rx, ry, rz = m[0] * ox + m[1] * oy + m[2] * oz, m[3] * ox + m[4] * oy + m[5] * oz, m[6] * ox + m[7] * oy + m[8] * oz
+        # v_centre = v_com + w x (p_centre - p_com) = v_com - w x (R @ offset)
+        wx, wy, wz = ang
+        lin = (lin[0] - (wy * rz - wz * ry), lin[1] - (wz * rx - wx * rz), lin[2] - (wx * ry - wy * rx))
+        return lin, ang, m
 
     def world_velocity(self) -> tuple[np.ndarray, np.ndarray]:
         """Linear velocity of the body centre (m/s) and angular velocity (rad/s), world frame."""
-        lin, ang = p.getBaseVelocity(self.body, physicsClientId=self.cid)
-        _, orn = p.getBasePositionAndOrientation(self.body, physicsClientId=self.cid)
-        rot = np.reshape(p.getMatrixFromQuaternion(orn), (3, 3))
-        ang = np.asarray(ang)
-        return np.asarray(lin) - np.cross(ang, rot @ -self._com_offset), ang
+        lin, ang, _ = self.kinematics()
+        return np.array(lin), np.array(ang)
 
     def velocity(self) -> np.ndarray:
         """Ground-truth ``[v, w]``: forward speed along the heading (m/s) and yaw rate (rad/s)."""
-        lin, ang = self.world_velocity()
-        yaw = self.pose()[2]
-        return np.array([lin[0] * math.cos(yaw) + lin[1] * math.sin(yaw), ang[2]])
+        lin, ang, m = self.kinematics()
+        # heading = body x axis = first column of R
+        return np.array([lin[0] * m[0] + lin[1] * m[3] + lin[2] * m[6], ang[2]])
 
-    def wheel_states(self) -> tuple[np.ndarray, np.ndarray]:
-        """Wheel joint angles (rad) and rates (rad/s), ordered (left, right)."""
-        states = p.getJointStates(self.body, [self.left_joint, self.right_joint], physicsClientId=self.cid)
-        return np.array([states[0][0], states[1][0]]), np.array([states[0][1], states[1][1]])
+    def wheel_states(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """Wheel joint angles (rad) and rates (rad/s), each ordered (left, right)."""
+        left, right = p.getJointStates(self.body, [self.left_joint, self.right_joint], physicsClientId=self.cid)
+        return (left[0], right[0]), (left[1], right[1])
 
     def touching(self, bodies: list[int]) -> bool:
         """True when any robot link is in contact with one of ``bodies``."""

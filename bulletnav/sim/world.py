@@ -16,10 +16,14 @@ from bulletnav.sim.layout import WALL_THICKNESS, Layout, Obstacle
 
 log = logging.getLogger(__name__)
 
-STATIC_GROUP = 1
-"""Collision-filter group of the floor, walls and obstacles (lidar rays test only this group)."""
+RAY_GROUP = 1
+"""Bullet's default filter group, which PyBullet's ray tests carry."""
 ROBOT_GROUP = 2
-"""Collision-filter group of the robot's links."""
+"""Collision-filter group of the robot's links (they collide with everything)."""
+STATIC_GROUP = 4
+"""Collision-filter group of the floor, walls and obstacles; lidar rays test only this group."""
+STATIC_MASK = ROBOT_GROUP | RAY_GROUP
+"""Static bodies meet the robot and rays, never each other."""
 
 COLOURS = {
     "rack": (0.85, 0.55, 0.15, 1.0),
@@ -72,8 +76,10 @@ class World:
         )
         self.wall_ids = [self._box(c, (e[0], e[1], h / 2), 0.0, COLOURS["wall"], "wall") for c, e in walls]
         self.obstacle_ids = [self._obstacle(o) for o in layout.obstacles]
+        # Static bodies collide only with the robot group: otherwise Bullet tracks and
+        # narrow-phases every floor-obstacle pair each step (70 us of a 100 us step here).
         for body in [self.floor_id, *self.wall_ids, *self.obstacle_ids]:
-            p.setCollisionFilterGroupMask(body, -1, STATIC_GROUP, 0xFFFF, physicsClientId=cid)
+            p.setCollisionFilterGroupMask(body, -1, STATIC_GROUP, STATIC_MASK, physicsClientId=cid)
         log.debug("built layout %r: %d obstacles", layout.name or layout.source, len(self.obstacle_ids))
 
     def _obstacle(self, o: Obstacle) -> int:

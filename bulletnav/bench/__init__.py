@@ -1,0 +1,1 @@
+"""Benchmarks that return JSON-ready dicts (the CLI prints them)."""

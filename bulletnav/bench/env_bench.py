@@ -1,0 +1,120 @@
+"""Env throughput against a raw PyBullet loop doing the same physics steps and ray casts.
+
+Both loops live in one process, in the same warehouse, fed the same random actions. They
+run in alternating blocks of ``block`` steps, so that the machine's speed drifting over
+the run (these machines are noisy) hits both alike; the headline ``ratio`` is the median
+over blocks of (raw time / env time), robust to bursts of load from other processes. Episode resets of the env are mirrored in the raw loop (teleporting its robot to
+the same start) and are left out of both step timings (their mean is reported apart).
+"""
+
+from __future__ import annotations
+
+import math
+import platform
+import time
+from dataclasses import replace
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pybullet as p
+
+from bulletnav.config import EnvConfig
+from bulletnav.sim.client import connect
+from bulletnav.sim.robot import Robot
+from bulletnav.sim.world import STATIC_GROUP, World
+
+
+class _RawLoop:
+    """The env's physics work written directly against PyBullet: motors, substeps, one ray batch."""
+
+    def __init__(self, cfg: EnvConfig, layout, start) -> None:
+        self.cid = cid = connect()
+        World(cid, cfg.physics).build(layout)
+        self.robot = robot = Robot(cid, cfg.robot)
+        robot.load(start)
+        self.joints = [robot.left_joint, robot.right_joint]
+        self.torque = [cfg.robot.max_wheel_torque] * 2
+        self.half, self.r = robot.wheelbase / 2, robot.wheel_radius
+        lidar = cfg.sensors.lidar
+        angles = np.arange(lidar.num_rays) * (2 * math.pi / lidar.num_rays)
+        self.ray_from = [[0.0, 0.0, 0.0]] * lidar.num_rays
+        self.ray_to = [[lidar.max_range * math.cos(a), lidar.max_range * math.sin(a), 0.0] for a in angles]
+        self.substeps = cfg.physics.substeps
+
+    def run(self, actions: np.ndarray) -> float:
+        cid, body, link = self.cid, self.robot.body, self.robot.lidar_link
+        half, r, joints, torque, substeps = self.half, self.r, self.joints, self.torque, self.substeps
+        step_sim, motors, rays = p.stepSimulation, p.setJointMotorControlArray, p.rayTestBatch
+        t0 = time.perf_counter()
+        for v, w in actions.tolist():
+            motors(body, joints, p.VELOCITY_CONTROL, targetVelocities=[(v - w * half) / r, (v + w * half) / r],
+                   forces=torque, physicsClientId=cid)
+            for _ in range(substeps):
+                step_sim(physicsClientId=cid)
+            rays(self.ray_from, self.ray_to, parentObjectUniqueId=body, parentLinkIndex=link,
+                 collisionFilterMask=STATIC_GROUP, physicsClientId=cid)
+        return time.perf_counter() - t0
+
+    def close(self) -> None:
+        p.disconnect(physicsClientId=self.cid)
+
+
+def bench_env(steps: int = 6000, block: int = 100, seed: int = 0, config: EnvConfig | None = None) -> dict[str, Any]:
+    """Steps per second of ``bulletnav/Warehouse-v0`` (as made by ``gym.make``) and of the raw
+    loop, with their ratio. Random uniform actions, headless, lidar-only observation."""
+    import bulletnav  # noqa: F401  (registers the env)
+
+    cfg = replace(config or EnvConfig(), layouts_every=10**9)  # one warehouse for the whole run
+    env = gym.make("bulletnav/Warehouse-v0", config=cfg)
+    env.reset(seed=seed)
+    raw = _RawLoop(cfg, env.unwrapped.layout, env.unwrapped.start)
+    rng = np.random.default_rng(seed)
+    actions = rng.uniform(env.action_space.low, env.action_space.high, size=(steps, 2)).astype(np.float32)
+    env_time = raw_time = reset_time = 0.0
+    episodes = 0
+    block_ratios = []
+    clock = time.perf_counter
+    for b in range(0, steps, block):
+        chunk = actions[b:b + block]
+        pending: list[tuple[int, tuple]] = []
+        t_env = 0.0
+        for i, a in enumerate(chunk):
+            t0 = clock()
+            _, _, terminated, truncated, _ = env.step(a)
+            t_env += clock() - t0
+            if terminated or truncated:
+                t0 = clock()
+                env.reset()
+                reset_time += clock() - t0
+                episodes += 1
+                pending.append((i + 1, tuple(env.unwrapped.start)))
+        # The raw loop replays the chunk, teleporting where the env reset (untimed).
+        t_raw, start = 0.0, 0
+        for end, pose in [*pending, (len(chunk), None)]:
+            t_raw += raw.run(chunk[start:end])
+            if pose is not None:
+                raw.robot.reset_pose(pose)
+            start = end
+        env_time += t_env
+        raw_time += t_raw
+        block_ratios.append(t_raw / t_env)
+    env.close()
+    raw.close()
+    return {
+        "benchmark": "env",
+        "steps": steps,
+        "block": block,
+        "env_steps_per_s": round(steps / env_time, 1),
+        "raw_steps_per_s": round(steps / raw_time, 1),
+        "ratio": round(float(np.median(block_ratios)), 4),
+        "ratio_of_totals": round(raw_time / env_time, 4),
+        "env_overhead_us_per_step": round((env_time - raw_time) / steps * 1e6, 1),
+        "episodes": episodes,
+        "reset_ms_mean": round(reset_time / max(episodes, 1) * 1e3, 2),
+        "physics_hz": cfg.physics.physics_hz,
+        "control_hz": cfg.physics.control_hz,
+        "solver_iterations": cfg.physics.solver_iterations,
+        "lidar_rays": cfg.sensors.lidar.num_rays,
+        "machine": f"{platform.machine()} {platform.system()} python {platform.python_version()}",
+    }
