@@ -261,13 +261,13 @@ class WarehouseEnv(gym.Env):
         return self._observation(m), self._info(m, {name: 0.0 for name in REWARD_TERMS}, collision=False, success=False)
 
     def step(self, action):
-        a = np.asarray(action, dtype=np.float64).reshape(-1)
-        if a.shape != (2,):
+        if np.size(action) != 2:
             raise ValueError(f"action must have 2 entries (v, w), got shape {np.shape(action)}")
-        if not np.all(np.isfinite(a)):
-            names = [n for n, v in zip(("v", "w"), a) if not math.isfinite(v)]
-            raise ValueError(f"action {a.tolist()} has non-finite entries: {', '.join(names)}")
-        v, w = self.command(a)
+        a0, a1 = (float(x) for x in np.ravel(action))
+        if not (math.isfinite(a0) and math.isfinite(a1)):
+            names = [n for n, x in (("v", a0), ("w", a1)) if not math.isfinite(x)]
+            raise ValueError(f"action {[a0, a1]} has non-finite entries: {', '.join(names)}")
+        v, w = self.command((a0, a1))
         self.sim.step(v, w)
         collision = self.sim.in_collision()
         m = self.task.measure(self.sim)
@@ -278,7 +278,7 @@ class WarehouseEnv(gym.Env):
             self._pace()
         return self._observation(m), reward, terminated, truncated, self._info(m, terms, collision, terminated)
 
-    def command(self, action: np.ndarray) -> tuple[float, float]:
+    def command(self, action) -> tuple[float, float]:
         """The (v m/s, w rad/s) an action commands, after scaling and clipping."""
         a0, a1 = float(action[0]), float(action[1])
         if self.config.normalize_actions:  # [-1, 1] -> physical range

@@ -29,9 +29,11 @@ class Imu(Sensor):
         self._prev_velocity: tuple[float, ...] = (0.0, 0.0, 0.0)
         self._prev_time = 0.0
         self._latest = np.zeros(6, dtype=np.float32)
+        self._offsets: list[list[float]] = []
 
     def reset(self, rng: np.random.Generator) -> None:
         super().reset(rng)
+        self._offsets = []
         self._prev_velocity, _, _ = self.robot.kinematics()
         self._prev_time = self.clock.time
         self._latest = self._sample((0.0, 0.0, 0.0))
@@ -53,13 +55,16 @@ class Imu(Sensor):
         g = self._gravity
         fx, fy, fz = accel_world[0] - g[0], accel_world[1] - g[1], accel_world[2] - g[2]
         wx, wy, wz = omega
+        if not self._offsets:  # noise + bias drawn in blocks: one Generator call per 256 steps
+            block = self.rng.normal(0.0, 1.0, (256, 6)) * self._noise_std + self._bias
+            self._offsets = block.tolist()[::-1]
+        e = self._offsets.pop()
         # body frame = R^T @ world vector (m is row-major R)
-        truth = np.array([
-            m[0] * fx + m[3] * fy + m[6] * fz, m[1] * fx + m[4] * fy + m[7] * fz, m[2] * fx + m[5] * fy + m[8] * fz,
-            m[0] * wx + m[3] * wy + m[6] * wz, m[1] * wx + m[4] * wy + m[7] * wz, m[2] * wx + m[5] * wy + m[8] * wz,
-        ])
-        noise = self.rng.normal(0.0, 1.0, 6) * self._noise_std
-        return (truth + self._bias + noise).astype(np.float32)
+        return np.array([
+            m[0] * fx + m[3] * fy + m[6] * fz + e[0], m[1] * fx + m[4] * fy + m[7] * fz + e[1],
+            m[2] * fx + m[5] * fy + m[8] * fz + e[2], m[0] * wx + m[3] * wy + m[6] * wz + e[3],
+            m[1] * wx + m[4] * wy + m[7] * wz + e[4], m[2] * wx + m[5] * wy + m[8] * wz + e[5],
+        ], dtype=np.float32)
 
     def measure(self) -> np.ndarray:
         return self._latest

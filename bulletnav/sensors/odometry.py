@@ -15,7 +15,8 @@ from bulletnav.sim.robot import Robot
 class Odometry(Sensor):
     """Reads ``[x, y, yaw, v, w]`` (m, m, rad, m/s, rad/s).
 
-    ``v = r (wl + wr) / 2`` and ``w = r (wr - wl) / L`` come from the wheel joint rates.
+    ``v = r (wl + wr) / 2`` and ``w = r (wr - wl) / L`` come from the wheel joint rates
+    sampled at the last :meth:`update` (every control step).
     The pose starts at the true pose at reset and is integrated in :meth:`update` from the
     wheel angle increments (as real encoders count them), exact for constant-curvature
     motion between steps; its error against ground truth is wheel slip and nothing else.
@@ -29,17 +30,18 @@ class Odometry(Sensor):
         self.state: tuple[float, float, float] = (0.0, 0.0, 0.0)
         """Integrated pose estimate (x, y, yaw) in m, m, rad."""
         self._prev_angles = (0.0, 0.0)
+        self._rates = (0.0, 0.0)
         self.distance = 0.0
         """Path length driven according to the encoders (m)."""
 
     def reset(self, rng: np.random.Generator) -> None:
         super().reset(rng)
         self.state = tuple(float(v) for v in self.robot.pose())  # type: ignore[assignment]
-        self._prev_angles, _ = self.robot.wheel_states()
+        self._prev_angles, self._rates = self.robot.wheel_states()
         self.distance = 0.0
 
     def update(self) -> None:
-        angles, _ = self.robot.wheel_states()
+        angles, self._rates = self.robot.wheel_states()
         d_left, d_right = angles[0] - self._prev_angles[0], angles[1] - self._prev_angles[1]
         self._prev_angles = angles
         if self.config.encoder_noise_std > 0:
@@ -54,7 +56,7 @@ class Odometry(Sensor):
         self.distance += abs(ds)
 
     def measure(self) -> np.ndarray:
-        _, rates = self.robot.wheel_states()
+        rates = self._rates  # sampled with the angles in the last update
         r, base = self.robot.wheel_radius, self.robot.wheelbase
         v = r * (rates[0] + rates[1]) / 2
         w = r * (rates[1] - rates[0]) / base
