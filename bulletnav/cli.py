@@ -104,6 +104,138 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def _make_env(args: argparse.Namespace, **extra):
+    import gymnasium as gym
+
+    import bulletnav  # noqa: F401  (registers the env)
+
+    kwargs = dict(num_obstacles=args.obstacles, **extra)
+    if args.world:
+        kwargs["world"] = args.world
+    return gym.make("bulletnav/Warehouse-v0", render_mode="human" if getattr(args, "gui", False) else None, **kwargs)
+
+
+def _outcome(r) -> str:
+    return "SUCCESS" if r.success else ("COLLISION" if r.collision else "TIMEOUT")
+
+
+def _fmt(x: float, spec: str = ".2f") -> str:
+    return "n/a" if x != x else format(x, spec)  # NaN when nothing to average
+
+
+def cmd_navigate(args: argparse.Namespace) -> int:
+    """Classical navigation (PID, optionally with A* or RRT) scored on env episodes."""
+    from bulletnav.control.navigator import Navigator, NavigatorConfig
+    from bulletnav.evaluation import run_episodes, summarize
+    from bulletnav.planning import warmup
+
+    warmup()  # compile the planners before timing them
+    env = _make_env(args)
+    nav = Navigator(NavigatorConfig(planner=args.planner, pose_source=args.pose))
+
+    def line(r) -> None:
+        if not args.json:
+            plans = f"plan {_fmt(float(np.median(r.plan_ms)), '.3f')} ms x{len(r.plan_ms)}" if r.plan_ms else "no planner"
+            print(f"episode {r.episode:3d}/{args.episodes} seed {r.seed}: {_outcome(r):9s} steps {r.steps:4d} "
+                  f"sim {r.sim_time:5.1f} s  driven {r.path_length:5.2f} m  shortest {r.shortest_path:5.2f} m  "
+                  f"SPL {r.spl:.2f}  {plans}  replans {r.replans}")
+
+    try:
+        results = run_episodes(env, nav, args.episodes, args.seed, on_episode=line)
+    finally:
+        env.close()
+    summary = summarize(results)
+    summary.update(planner=args.planner, seed=args.seed, pose_source=args.pose,
+                   world=args.world or f"procedural ({args.obstacles} obstacles)")
+    if args.json:
+        print(json.dumps(summary))
+        return 0
+    print(f"\nplanner {args.planner} | {summary['world']} | episodes {summary['episodes']} | seed {args.seed}")
+    print(f"success rate   {summary['success_rate'] * 100:5.1f} %   collisions {summary['collision_rate'] * 100:5.1f} %   "
+          f"SPL {summary['spl']:.3f}")
+    print(f"steps          {summary['mean_length']:.1f} +/- {summary['std_length']:.1f}   "
+          f"sim time to goal {_fmt(summary['mean_sim_time_success'])} s   "
+          f"path length {_fmt(summary['mean_path_length_success'])} m (successes)")
+    print(f"planning       median {_fmt(summary['plan_ms_median'], '.3f')} ms  p95 {_fmt(summary['plan_ms_p95'], '.3f')} ms  "
+          f"calls {summary['plan_calls']}  replans/episode {summary['replans_mean']:.1f}")
+    return 0
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from bulletnav.rl.train import TrainConfig, command_line, train
+
+    cfg = TrainConfig(
+        algo=args.algo, timesteps=args.timesteps, out=Path(args.out), seed=args.seed, n_envs=args.n_envs,
+        resume=args.resume, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
+        checkpoint_freq=args.checkpoint_freq, progress_bar=not args.no_progress, vec_env=args.vec_env,
+        command=command_line(),
+    )
+    record = train(cfg)
+    final = record.get("final_eval") or {}
+    print(f"trained {args.algo.upper()} for {record['total_timesteps']} timesteps in {record['wall_time_s']:.0f} s "
+          f"({record['n_envs']} envs, seed {args.seed})")
+    if final:
+        print(f"final evaluation ({args.eval_episodes} unseen episodes): success {final['success_rate'] * 100:.0f} %, "
+              f"collisions {final['collision_rate'] * 100:.0f} %, mean reward {final['mean_reward']:.1f}")
+    print(f"model:          {cfg.out / 'model.zip'}")
+    print(f"run record:     {cfg.out / 'run.json'}")
+    print(f"learning curve: {cfg.out / 'learning_curve.png'}")
+    print(f"tensorboard:    tensorboard --logdir {cfg.out / 'tb'}")
+    return 0
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from bulletnav.evaluation import run_episodes, summarize
+    from bulletnav.rl.common import SB3Policy, load_model
+
+    model, meta, vecnorm = load_model(args.model, algo=args.algo)
+    env_kwargs = dict(meta.get("env_kwargs", {}))
+    env_kwargs["num_obstacles"] = args.obstacles
+    if args.world:
+        env_kwargs["world"] = args.world
+    import gymnasium as gym
+
+    import bulletnav  # noqa: F401
+
+    env = gym.make("bulletnav/Warehouse-v0", render_mode="human" if args.gui else None, **env_kwargs)
+    bar = "=" * 60
+    if not args.json:
+        print(f"{bar}\nRunning {args.episodes} evaluation episodes ({meta.get('algo', args.algo or '?').upper()} "
+              f"{args.model}, seed {args.seed})\n{bar}")
+
+    def line(r) -> None:
+        if args.json:
+            return
+        mark = "\u2713 SUCCESS" if r.success else ("\u2717 COLLISION" if r.collision else "\u2717 TIMEOUT")
+        print(f"--- Episode {r.episode}/{args.episodes} (seed {r.seed}) ---")
+        print(f"Initial distance to goal: {r.initial_distance:.2f}m")
+        print(f"{mark} | Steps: {r.steps} | Reward: {r.reward:.1f} | Final distance: {r.final_distance:.2f}m | "
+              f"Distance traveled: {r.path_length:.2f}m")
+
+    try:
+        results = run_episodes(env, SB3Policy(model, vecnorm), args.episodes, args.seed, on_episode=line)
+    finally:
+        env.close()
+    s = summarize(results)
+    keys = ("episodes", "success_rate", "mean_reward", "std_reward", "mean_length", "std_length", "mean_distance",
+            "std_distance", "collision_rate", "spl", "per_episode")
+    out = {k: s[k] for k in keys}
+    out.update(model=str(args.model), seed=args.seed, world=args.world or f"procedural ({args.obstacles} obstacles)")
+    if args.json:
+        print(json.dumps(out))
+        return 0
+    n_success = round(s["success_rate"] * s["episodes"])
+    print(f"\n{bar}\nEVALUATION RESULTS\n"
+          f"Success rate: {n_success}/{s['episodes']} ({s['success_rate'] * 100:.1f}%)\n"
+          f"Average reward:         {s['mean_reward']:.2f} \u00b1 {s['std_reward']:.2f}\n"
+          f"Average episode length: {s['mean_length']:.1f} \u00b1 {s['std_length']:.1f} steps\n"
+          f"Average distance:        {s['mean_distance']:.2f}m \u00b1 {s['std_distance']:.2f}m\n"
+          f"Collision rate: {s['collision_rate'] * 100:.1f}%   SPL: {s['spl']:.3f}\n{bar}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="bulletnav", description=__doc__)
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
@@ -115,6 +247,41 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--print-every", type=int, default=48, help="print a reading every N steps")
     demo.add_argument("--gui", action="store_true", help="watch in the PyBullet GUI (needs a display)")
     demo.set_defaults(func=cmd_demo)
+
+    nav = sub.add_parser("navigate", help="classical navigation (PID, A*, RRT) scored on env episodes")
+    nav.add_argument("--planner", choices=["none", "astar", "rrt"], default="astar")
+    nav.add_argument("--episodes", type=int, default=10)
+    _add_world_args(nav)
+    nav.add_argument("--pose", choices=["truth", "odometry"], default="truth", help="pose for mapping and steering")
+    nav.add_argument("--gui", action="store_true", help="watch in the PyBullet GUI (needs a display)")
+    nav.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
+    nav.set_defaults(func=cmd_navigate)
+
+    tr = sub.add_parser("train", help="train an SB3 agent (hyperparameters from rl/hyperparams/<algo>.yml)")
+    tr.add_argument("--algo", choices=["ppo", "sac", "td3", "a2c"], default="ppo")
+    tr.add_argument("--timesteps", type=int, default=500_000)
+    tr.add_argument("--n-envs", type=int, default=None, help="parallel envs (default: the hyperparameter file's, 4)")
+    tr.add_argument("--seed", type=int, default=0)
+    tr.add_argument("--out", required=True, metavar="DIR", help="run directory, e.g. runs/ppo")
+    tr.add_argument("--resume", action="store_true", help="continue from DIR/checkpoints/last.zip")
+    tr.add_argument("--eval-freq", type=int, default=25_000, help="evaluate every N timesteps")
+    tr.add_argument("--eval-episodes", type=int, default=20)
+    tr.add_argument("--checkpoint-freq", type=int, default=25_000)
+    tr.add_argument("--vec-env", choices=["subproc", "dummy"], default="subproc")
+    tr.add_argument("--no-progress", action="store_true", help="no progress bar")
+    tr.set_defaults(func=cmd_train)
+
+    ev = sub.add_parser("evaluate", help="evaluate a trained model (deterministic actions)")
+    ev.add_argument("--model", required=True, metavar="PATH")
+    ev.add_argument("--algo", choices=["ppo", "sac", "td3", "a2c"], default=None,
+                    help="only needed when the .json beside the model is missing")
+    ev.add_argument("--episodes", type=int, default=10)
+    ev.add_argument("--world", metavar="FILE", help="YAML layout (default: procedural warehouse)")
+    ev.add_argument("--obstacles", type=int, default=31)
+    ev.add_argument("--seed", type=int, default=1000, help="episode k uses env seed S + k (default 1000)")
+    ev.add_argument("--gui", action="store_true")
+    ev.add_argument("--json", action="store_true")
+    ev.set_defaults(func=cmd_evaluate)
 
     bench = sub.add_parser("bench", help="benchmarks (print JSON with --json)")
     bench.add_argument("what", choices=["env", "physics"], help="env: env vs raw PyBullet loop; physics: solver settings")

@@ -1,0 +1,1 @@
+"""Classical control: PID and the navigator."""

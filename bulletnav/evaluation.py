@@ -1,0 +1,139 @@
+"""Scoring episodes the same way for every controller, classical or learned.
+
+Episode ``k`` of a run with seed ``S`` is ``env.reset(seed=S + k)``: the same warehouse,
+start and goal for every controller given the same env settings. SPL is success weighted by
+path length (Anderson et al. 2018, as in Habitat): ``S_i * l_i / max(p_i, l_i)`` with
+``l_i`` the shortest collision-free path on the true map and ``p_i`` the driven length.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Any, Callable, Protocol
+
+import numpy as np
+
+from bulletnav.planning import OccupancyGrid, astar
+from bulletnav.sim.layout import Layout
+
+
+class Policy(Protocol):
+    def reset(self, env: Any, rng: np.random.Generator) -> None: ...
+    def act(self, obs: np.ndarray) -> np.ndarray: ...
+
+
+@dataclass
+class EpisodeResult:
+    episode: int
+    seed: int
+    initial_distance: float
+    """Straight-line start-goal distance (m)."""
+    shortest_path: float
+    """Shortest collision-free path on the true map (m)."""
+    steps: int
+    reward: float
+    final_distance: float
+    path_length: float
+    """Metres driven (ground truth)."""
+    success: bool
+    collision: bool
+    spl: float
+    sim_time: float
+    """Simulated seconds to the end of the episode."""
+    wall_time: float
+    plan_ms: list[float] = field(default_factory=list)
+    replans: int = 0
+
+
+def shortest_path_length(layout: Layout, start: tuple[float, float], goal: tuple[float, float],
+                         radius: float = 0.2, resolution: float = 0.05) -> float:
+    """Length (m) of the shortest path for a disc of ``radius`` on the true map: A* on a fine
+    grid, then shortened by line-of-sight shortcuts. NaN when no path exists."""
+    occ = layout.occupancy(resolution, inflate=radius)
+    xs, ys = layout.grid_axes(resolution)
+    grid = OccupancyGrid(occ, resolution, (float(xs[0]), float(ys[0])))
+    # the start and goal have clearance by construction, but a user-placed one may not
+    for point in (start, goal):
+        ix, iy = grid.world_to_cell(point)
+        occ[ix, iy] = False
+    path = astar(OccupancyGrid(occ, resolution, grid.origin), start, goal)
+    if path is None:
+        return math.nan
+    pts = [path[0]]
+    i = 0
+    free = OccupancyGrid(occ, resolution, grid.origin)
+    while i < len(path) - 1:
+        j = len(path) - 1
+        while j > i + 1 and not free.segment_free(path[i], path[j]):
+            j -= 1
+        pts.append(path[j])
+        i = j
+    return float(sum(math.dist(a, b) for a, b in zip(pts[:-1], pts[1:])))
+
+
+def run_episodes(env, policy: Policy, episodes: int, seed: int,
+                 on_episode: Callable[[EpisodeResult], None] | None = None,
+                 on_step: Callable[[Any, dict], None] | None = None) -> list[EpisodeResult]:
+    """Run ``episodes`` episodes of ``policy`` in ``env`` (made with ``gym.make``)."""
+    results = []
+    u = env.unwrapped
+    for k in range(episodes):
+        obs, info = env.reset(seed=seed + k)
+        policy.reset(env, np.random.default_rng(seed + k))
+        shortest = shortest_path_length(u.layout, u.start[:2], u.goal)
+        total, steps = 0.0, 0
+        t0 = time.perf_counter()
+        while True:
+            action = policy.act(obs)
+            obs, reward, terminated, truncated, info = env.step(action)
+            total += reward
+            steps += 1
+            if on_step is not None:
+                on_step(env, info)
+            if terminated or truncated:
+                break
+        success = bool(info["is_success"])
+        driven = float(info["path_length"])
+        spl = (shortest / max(driven, shortest)) if success and shortest > 0 else 0.0
+        result = EpisodeResult(
+            episode=k + 1, seed=seed + k, initial_distance=float(info["initial_distance"]), shortest_path=shortest,
+            steps=steps, reward=total, final_distance=float(info["distance_to_goal"]), path_length=driven,
+            success=success, collision=bool(info["collision"]), spl=spl,
+            sim_time=steps * u.config.physics.control_dt, wall_time=time.perf_counter() - t0,
+            plan_ms=[t * 1e3 for t in getattr(policy, "plan_times", [])], replans=int(getattr(policy, "replans", 0)),
+        )
+        results.append(result)
+        if on_episode is not None:
+            on_episode(result)
+    return results
+
+
+def summarize(results: list[EpisodeResult]) -> dict[str, Any]:
+    """The article's summary plus collision rate, SPL and planning statistics."""
+    n = len(results)
+    rewards = np.array([r.reward for r in results])
+    lengths = np.array([r.steps for r in results])
+    dists = np.array([r.path_length for r in results])
+    success = [r for r in results if r.success]
+    plan = np.array([t for r in results for t in r.plan_ms])
+    return {
+        "episodes": n,
+        "success_rate": len(success) / n if n else 0.0,
+        "collision_rate": sum(r.collision for r in results) / n if n else 0.0,
+        "mean_reward": float(rewards.mean()) if n else 0.0,
+        "std_reward": float(rewards.std()) if n else 0.0,
+        "mean_length": float(lengths.mean()) if n else 0.0,
+        "std_length": float(lengths.std()) if n else 0.0,
+        "mean_distance": float(dists.mean()) if n else 0.0,
+        "std_distance": float(dists.std()) if n else 0.0,
+        "spl": float(np.mean([r.spl for r in results])) if n else 0.0,
+        "mean_sim_time_success": float(np.mean([r.sim_time for r in success])) if success else math.nan,
+        "mean_path_length_success": float(np.mean([r.path_length for r in success])) if success else math.nan,
+        "plan_ms_median": float(np.median(plan)) if plan.size else math.nan,
+        "plan_ms_p95": float(np.percentile(plan, 95)) if plan.size else math.nan,
+        "plan_calls": int(plan.size),
+        "replans_mean": float(np.mean([r.replans for r in results])) if n else 0.0,
+        "per_episode": [{k: v for k, v in asdict(r).items() if k != "plan_ms"} for r in results],
+    }
