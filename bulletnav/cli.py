@@ -98,6 +98,20 @@ def cmd_bench(args: argparse.Namespace) -> int:
         for row in result["settings"]:
             lines.append(f"{row['setting']:34s} {row['us_per_physics_step']:8.1f} {row['speed_vs_pybullet_default']:6.2f} "
                          f"{row['straight_3s_distance_m']:8.4f} {row['max_sideways_drift_mm']:8.2f} {row['yaw_rate_error_pct']:9.2f}")
+    elif args.what == "planners":
+        from bulletnav.bench.planner_bench import bench_navigation
+
+        result = bench_navigation(episodes=args.episodes, seed=args.seed or 1000)
+        micro = result["standard_problems"]
+        lines = ["standard problems (ms per plan): " + ", ".join(f"{k} {v}" for k, v in micro.items()),
+                 f"navigation, {result['episodes']} episodes (seed {result['seed']}), PID follower + lidar map:",
+                 f"{'planner':8s} {'success':>7s} {'coll.':>6s} {'SPL':>6s} {'plan med ms':>11s} {'p95 ms':>7s} "
+                 f"{'replans':>7s} {'sim time s':>10s} {'path m':>7s}"]
+        for name, row in result["navigation"].items():
+            lines.append(f"{name:8s} {row['success_rate']:7.2f} {row['collision_rate']:6.2f} {row['spl']:6.3f} "
+                         f"{row['plan_ms_median']:11.3f} {row['plan_ms_p95']:7.3f} {row['replans_per_episode']:7.1f} "
+                         f"{row['sim_time_to_goal_s']:10.2f} {row['path_length_m']:7.2f}")
+        lines.append(f"paired: {result['paired']}")
     else:  # pragma: no cover - argparse restricts the choices
         raise AssertionError(args.what)
     print(json.dumps(result) if args.json else "\n".join(lines))
@@ -284,7 +298,9 @@ def build_parser() -> argparse.ArgumentParser:
     ev.set_defaults(func=cmd_evaluate)
 
     bench = sub.add_parser("bench", help="benchmarks (print JSON with --json)")
-    bench.add_argument("what", choices=["env", "physics"], help="env: env vs raw PyBullet loop; physics: solver settings")
+    bench.add_argument("what", choices=["env", "physics", "planners"],
+                       help="env: env vs raw PyBullet loop; physics: solver settings; planners: A* vs RRT")
+    bench.add_argument("--episodes", type=int, default=50, help="navigation episodes per planner (planners)")
     bench.add_argument("--json", action="store_true", help="print one JSON object")
     bench.add_argument("--steps", type=int, default=0, help="steps to time (default: the benchmark's own)")
     bench.add_argument("--seed", type=int, default=0)

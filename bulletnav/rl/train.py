@@ -1,0 +1,268 @@
+"""``bulletnav train``: Stable-Baselines3 on ``bulletnav/Warehouse-v0`` with periodic evaluation,
+atomic checkpoints, resume, run metadata and a learning curve."""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import platform
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from bulletnav import ENV_ID
+from bulletnav.errors import ModelError
+from bulletnav.evaluation import run_episodes, summarize
+from bulletnav.rl.common import (
+    EVAL_SEED_BASE,
+    SB3Policy,
+    algo_class,
+    atomic_save_model,
+    atomic_save_vecnormalize,
+    atomic_write_json,
+    load_hyperparams,
+    make_env_fn,
+    sidecar_path,
+    vecnormalize_path,
+)
+
+log = logging.getLogger(__name__)
+
+_ENV_KEYS = {"policy", "n_envs", "env_kwargs", "collision_terminal", "normalize", "action_noise"}
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    algo: str
+    timesteps: int
+    out: Path
+    seed: int = 0
+    n_envs: int | None = None
+    """Parallel envs (SubprocVecEnv); None takes the hyperparameter file's value."""
+    resume: bool = False
+    eval_freq: int = 25_000
+    """Evaluate every this many timesteps (summed over envs)."""
+    eval_episodes: int = 20
+    checkpoint_freq: int = 25_000
+    progress_bar: bool = True
+    vec_env: str = "subproc"
+    """'subproc' (one process per env) or 'dummy' (all in this process)."""
+    env_overrides: dict | None = None
+    """Extra env keyword arguments on top of the hyperparameter file's."""
+    command: str = ""
+
+
+def git_commit() -> str:
+    try:
+        root = Path(__file__).resolve().parents[2]
+        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=10)
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
+                               capture_output=True, text=True, timeout=10)
+        if sha.returncode != 0:
+            return "unknown"
+        return sha.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+def machine() -> str:
+    return f"{platform.machine()} {platform.system()}, {os.cpu_count()} cores, python {platform.python_version()}"
+
+
+def _make_vec_env(cfg: TrainConfig, hp: dict[str, Any], env_kwargs: dict[str, Any], n_envs: int):
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
+
+    fns = [make_env_fn(env_kwargs, bool(hp.get("collision_terminal", False))) for _ in range(n_envs)]
+    venv = SubprocVecEnv(fns, start_method="forkserver") if cfg.vec_env == "subproc" and n_envs > 1 else DummyVecEnv(fns)
+    venv.seed(cfg.seed)
+    venv = VecMonitor(venv)
+    return venv
+
+
+def _model_kwargs(hp: dict[str, Any], n_actions: int) -> dict[str, Any]:
+    kwargs = {k: v for k, v in hp.items() if k not in _ENV_KEYS}
+    noise = hp.get("action_noise")
+    if noise:
+        from stable_baselines3.common.noise import NormalActionNoise
+
+        kwargs["action_noise"] = NormalActionNoise(np.zeros(n_actions), float(noise["sigma"]) * np.ones(n_actions))
+    return kwargs
+
+
+def _callback(cfg: TrainConfig, env_kwargs: dict[str, Any], history: list[dict[str, Any]], vecnorm_ref: list):
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class EvalAndCheckpoint(BaseCallback):
+        """Every ``eval_freq`` steps: evaluate on unseen seeds and log; every
+        ``checkpoint_freq`` steps: write ``checkpoints/last.zip`` atomically."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.next_eval = 0
+            self.next_ckpt = 0
+            self.eval_env = None
+
+        def _on_training_start(self) -> None:
+            self.next_eval = (self.num_timesteps // cfg.eval_freq + 1) * cfg.eval_freq
+            self.next_ckpt = (self.num_timesteps // cfg.checkpoint_freq + 1) * cfg.checkpoint_freq
+
+        def _on_step(self) -> bool:
+            if self.num_timesteps >= self.next_ckpt:
+                self.next_ckpt += cfg.checkpoint_freq
+                save_checkpoint(self.model, cfg.out, vecnorm_ref[0])
+            if self.num_timesteps >= self.next_eval:
+                self.next_eval += cfg.eval_freq
+                self.evaluate()
+            return True
+
+        def evaluate(self) -> dict[str, Any]:
+            if self.eval_env is None:
+                import bulletnav  # noqa: F401
+
+                self.eval_env = gym.make(ENV_ID, **env_kwargs)
+            results = run_episodes(self.eval_env, SB3Policy(self.model, vecnorm_ref[0]), cfg.eval_episodes,
+                                   EVAL_SEED_BASE)
+            s = summarize(results)
+            row = {"timesteps": int(self.num_timesteps), "wall_time": time.time() - t_start[0],
+                   **{k: s[k] for k in ("success_rate", "collision_rate", "mean_reward", "std_reward",
+                                        "mean_length", "spl")}}
+            history.append(row)
+            for k in ("success_rate", "collision_rate", "mean_reward", "mean_length", "spl"):
+                self.logger.record(f"eval/{k}", row[k])
+            self.logger.dump(self.num_timesteps)
+            atomic_write_json(cfg.out / "eval_history.json", history)
+            log.info("eval at %d: success %.2f collisions %.2f reward %.1f", row["timesteps"],
+                     row["success_rate"], row["collision_rate"], row["mean_reward"])
+            return row
+
+        def _on_training_end(self) -> None:
+            if self.eval_env is not None:
+                self.eval_env.close()
+
+    t_start = [time.time()]
+    return EvalAndCheckpoint(), t_start
+
+
+def save_checkpoint(model, out: Path, vecnorm) -> None:
+    ckpt = out / "checkpoints" / "last.zip"
+    atomic_save_model(model, ckpt)
+    if vecnorm is not None:
+        atomic_save_vecnormalize(vecnorm, vecnormalize_path(ckpt))
+    atomic_write_json(out / "checkpoints" / "last.json", {"timesteps": int(model.num_timesteps)})
+
+
+def train(cfg: TrainConfig) -> dict[str, Any]:
+    """Train, evaluate and save; returns the run record (also written to ``out/run.json``)."""
+    import torch
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    torch.set_num_threads(1)  # 2 cores: more threads slow PPO down and starve the env workers
+    hp = load_hyperparams(cfg.algo)
+    n_envs = int(cfg.n_envs or hp.get("n_envs", 4))
+    env_kwargs = {**hp.get("env_kwargs", {}), **(cfg.env_overrides or {})}
+    cfg.out.mkdir(parents=True, exist_ok=True)
+    venv = _make_vec_env(cfg, hp, env_kwargs, n_envs)
+    normalize = hp.get("normalize") or None
+    cls = algo_class(cfg.algo)
+    ckpt = cfg.out / "checkpoints" / "last.zip"
+    history: list[dict[str, Any]] = []
+    start_steps = 0
+    if cfg.resume:
+        if not ckpt.is_file():
+            raise ModelError(f"{ckpt}: no checkpoint to resume from")
+        if normalize:
+            venv = VecNormalize.load(str(vecnormalize_path(ckpt)), venv)
+        model = cls.load(ckpt, env=venv, device="cpu")
+        start_steps = int(model.num_timesteps)
+        hist_file = cfg.out / "eval_history.json"
+        if hist_file.is_file():
+            history = [row for row in json.loads(hist_file.read_text()) if row["timesteps"] <= start_steps]
+    else:
+        if normalize:
+            venv = VecNormalize(venv, **normalize)
+        model = cls(hp["policy"], venv, seed=cfg.seed, device="cpu", verbose=0,
+                    tensorboard_log=str(cfg.out / "tb"), **_model_kwargs(hp, venv.action_space.shape[0]))
+    vecnorm_ref = [venv if isinstance(venv, VecNormalize) else None]
+    callback, t_start = _callback(cfg, env_kwargs, history, vecnorm_ref)
+    record: dict[str, Any] = {
+        "command": cfg.command, "algo": cfg.algo, "env_id": ENV_ID, "seed": cfg.seed, "timesteps": cfg.timesteps,
+        "n_envs": n_envs, "vec_env": cfg.vec_env, "hyperparams": hp, "env_kwargs": env_kwargs,
+        "git_commit": git_commit(), "machine": machine(), "torch_threads": torch.get_num_threads(),
+        "resumed_from": start_steps or None,
+        "versions": _versions(),
+    }
+    atomic_write_json(cfg.out / "config.json", record)
+    t0 = time.time()
+    remaining = max(cfg.timesteps - start_steps, 0)
+    if remaining:
+        model.learn(total_timesteps=remaining, callback=callback, progress_bar=cfg.progress_bar,
+                    reset_num_timesteps=not cfg.resume, tb_log_name=cfg.algo)
+    wall = time.time() - t0
+    save_checkpoint(model, cfg.out, vecnorm_ref[0])
+    final_path = cfg.out / "model.zip"
+    atomic_save_model(model, final_path)
+    if vecnorm_ref[0] is not None:
+        atomic_save_vecnormalize(vecnorm_ref[0], vecnormalize_path(final_path))
+    if not history or history[-1]["timesteps"] != model.num_timesteps:
+        callback.model = model
+        callback.num_timesteps = model.num_timesteps
+        callback.evaluate()
+    venv.close()
+    record.update(wall_time_s=round(wall, 1), total_timesteps=int(model.num_timesteps),
+                  final_eval=history[-1] if history else None, eval_seeds=f"{EVAL_SEED_BASE}..")
+    atomic_write_json(sidecar_path(final_path), {"algo": cfg.algo, "env_id": ENV_ID, "env_kwargs": env_kwargs,
+                                                 "seed": cfg.seed, "timesteps": int(model.num_timesteps),
+                                                 "git_commit": record["git_commit"], "command": cfg.command})
+    atomic_write_json(cfg.out / "run.json", record)
+    if history:
+        plot_learning_curve(history, cfg.out / "learning_curve.png", title=f"{cfg.algo.upper()} seed {cfg.seed}")
+    return record
+
+
+def _versions() -> dict[str, str]:
+    import gymnasium
+    import pybullet  # noqa: F401
+    import stable_baselines3
+    import torch
+
+    return {"python": platform.python_version(), "torch": torch.__version__, "stable_baselines3": stable_baselines3.__version__,
+            "gymnasium": gymnasium.__version__, "numpy": np.__version__}
+
+
+def plot_learning_curve(history: list[dict[str, Any]], path: Path, title: str = "") -> None:
+    """Success rate and mean evaluation reward against timesteps, one PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    steps = [h["timesteps"] for h in history]
+    fig, ax1 = plt.subplots(figsize=(7, 4), dpi=100)
+    ax1.plot(steps, [h["success_rate"] for h in history], "o-", color="tab:green", label="success rate")
+    ax1.plot(steps, [h["collision_rate"] for h in history], "s--", color="tab:red", label="collision rate")
+    ax1.set_xlabel("timesteps")
+    ax1.set_ylabel("rate")
+    ax1.set_ylim(-0.02, 1.02)
+    ax2 = ax1.twinx()
+    ax2.plot(steps, [h["mean_reward"] for h in history], "^-", color="tab:blue", label="mean reward")
+    ax2.set_ylabel("mean evaluation reward")
+    lines = ax1.get_lines() + ax2.get_lines()
+    ax1.legend(lines, [ln.get_label() for ln in lines], loc="lower right")
+    ax1.grid(alpha=0.3)
+    ax1.set_title(title)
+    fig.tight_layout()
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    fig.savefig(tmp)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
+def command_line() -> str:
+    return " ".join(["bulletnav", *sys.argv[1:]]) if sys.argv and sys.argv[0].endswith("bulletnav") else " ".join(sys.argv)
