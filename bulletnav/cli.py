@@ -114,7 +114,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         lines.append(f"paired: {result['paired']}")
     else:  # pragma: no cover - argparse restricts the choices
         raise AssertionError(args.what)
-    print(json.dumps(result) if args.json else "\n".join(lines))
+    print(_json(result) if args.json else "\n".join(lines))
     return 0
 
 
@@ -127,6 +127,21 @@ def _make_env(args: argparse.Namespace, **extra):
     if args.world:
         kwargs["world"] = args.world
     return gym.make("bulletnav/Warehouse-v0", render_mode="human" if getattr(args, "gui", False) else None, **kwargs)
+
+
+def _json(obj) -> str:
+    """Strict JSON: NaN (nothing to average) becomes null."""
+
+    def clean(o):
+        if isinstance(o, float) and o != o:
+            return None
+        if isinstance(o, dict):
+            return {k: clean(v) for k, v in o.items()}
+        if isinstance(o, (list, tuple)):
+            return [clean(v) for v in o]
+        return o
+
+    return json.dumps(clean(obj), allow_nan=False)
 
 
 def _outcome(r) -> str:
@@ -162,7 +177,7 @@ def cmd_navigate(args: argparse.Namespace) -> int:
     summary.update(planner=args.planner, seed=args.seed, pose_source=args.pose,
                    world=args.world or f"procedural ({args.obstacles} obstacles)")
     if args.json:
-        print(json.dumps(summary))
+        print(_json(summary))
         return 0
     print(f"\nplanner {args.planner} | {summary['world']} | episodes {summary['episodes']} | seed {args.seed}")
     print(f"success rate   {summary['success_rate'] * 100:5.1f} %   collisions {summary['collision_rate'] * 100:5.1f} %   "
@@ -238,7 +253,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     out = {k: s[k] for k in keys}
     out.update(model=str(args.model), seed=args.seed, world=args.world or f"procedural ({args.obstacles} obstacles)")
     if args.json:
-        print(json.dumps(out))
+        print(_json(out))
         return 0
     n_success = round(s["success_rate"] * s["episodes"])
     print(f"\n{bar}\nEVALUATION RESULTS\n"

@@ -50,6 +50,8 @@ class NavigationTask:
         n = num_rays
         self.obs_low = np.array([0.0] * n + [-1.0, -2.0, -2.0, -3.0, -3.0, -3.0, 0.0], dtype=np.float32)
         self.obs_high = np.array([1.0] * n + [1.0, 2.0, 2.0, 3.0, 3.0, 3.0, 3.0], dtype=np.float32)
+        self._scalar_low = self.obs_low[n:].tolist()
+        self._scalar_high = self.obs_high[n:].tolist()
 
     @property
     def obs_size(self) -> int:
@@ -80,18 +82,21 @@ class NavigationTask:
     def observation(self, m: Measurement) -> np.ndarray:
         """The observation vector (see the env docstring for the table)."""
         cfg = self.config
-        obs = np.empty(self.obs_size, dtype=np.float32)
         n = self.num_rays
-        obs[:n] = m.ranges / self.lidar_range
-        obs[n] = m.heading_error / math.pi
-        obs[n + 1] = m.odometry[3] / cfg.max_speed
-        obs[n + 2] = m.odometry[4] / cfg.max_turn_rate
-        obs[n + 3] = m.imu[0] / self.gravity
-        obs[n + 4] = m.imu[1] / self.gravity
-        obs[n + 5] = m.imu[5] / cfg.max_turn_rate
-        obs[n + 6] = m.distance / cfg.distance_scale
-        np.minimum(obs, self.obs_high, out=obs)
-        return np.maximum(obs, self.obs_low, out=obs)
+        obs = np.empty(self.obs_size, dtype=np.float32)
+        np.divide(m.ranges, self.lidar_range, out=obs[:n])  # lidar ranges are within [0, max]
+        lo, hi = self._scalar_low, self._scalar_high
+        values = (
+            m.heading_error / math.pi,
+            float(m.odometry[3]) / cfg.max_speed,
+            float(m.odometry[4]) / cfg.max_turn_rate,
+            float(m.imu[0]) / self.gravity,
+            float(m.imu[1]) / self.gravity,
+            float(m.imu[5]) / cfg.max_turn_rate,
+            m.distance / cfg.distance_scale,
+        )
+        obs[n:] = [min(max(v, a), b) for v, a, b in zip(values, lo, hi)]
+        return obs
 
     def evaluate(self, sim: Simulation, m: Measurement, collision: bool) -> tuple[dict[str, float], bool, bool]:
         """Reward terms for the step that led to ``m``, and (terminated, truncated)."""

@@ -261,9 +261,12 @@ class WarehouseEnv(gym.Env):
         return self._observation(m), self._info(m, {name: 0.0 for name in REWARD_TERMS}, collision=False, success=False)
 
     def step(self, action):
-        if np.size(action) != 2:
-            raise ValueError(f"action must have 2 entries (v, w), got shape {np.shape(action)}")
-        a0, a1 = (float(x) for x in np.ravel(action))
+        try:
+            a0, a1 = float(action[0]), float(action[1])
+            if len(action) != 2:
+                raise IndexError
+        except (IndexError, TypeError, ValueError):
+            raise ValueError(f"action must have 2 entries (v, w), got {action!r} of shape {np.shape(action)}") from None
         if not (math.isfinite(a0) and math.isfinite(a1)):
             names = [n for n, x in (("v", a0), ("w", a1)) if not math.isfinite(x)]
             raise ValueError(f"action {[a0, a1]} has non-finite entries: {', '.join(names)}")
