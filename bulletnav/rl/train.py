@@ -86,8 +86,21 @@ def _make_vec_env(cfg: TrainConfig, hp: dict[str, Any], env_kwargs: dict[str, An
     return venv
 
 
+def linear_schedule(initial: float):
+    """RL Zoo's ``lin_<value>``: the value decays linearly from ``initial`` to 0 over training."""
+
+    def schedule(progress_remaining: float) -> float:
+        return progress_remaining * initial
+
+    return schedule
+
+
 def _model_kwargs(hp: dict[str, Any], n_actions: int) -> dict[str, Any]:
     kwargs = {k: v for k, v in hp.items() if k not in _ENV_KEYS}
+    for key in ("learning_rate", "clip_range"):
+        value = kwargs.get(key)
+        if isinstance(value, str) and value.startswith("lin_"):
+            kwargs[key] = linear_schedule(float(value[4:]))
     noise = hp.get("action_noise")
     if noise:
         from stable_baselines3.common.noise import NormalActionNoise
