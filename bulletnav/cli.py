@@ -20,64 +20,6 @@ def _add_world_args(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
 
-def cmd_demo(args: argparse.Namespace) -> int:
-    """Interim demo: build a warehouse, drive a scripted go-to-goal route, print sensor readings."""
-    from bulletnav.config import SamplerConfig, WorldConfig
-    from bulletnav.sim.layout import generate_warehouse, load_layout
-    from bulletnav.sim.sampler import FreeSpace, sample_start_goal
-    from bulletnav.sim.simulation import Simulation
-
-    rng = np.random.default_rng(args.seed)
-    layout = load_layout(args.world) if args.world else generate_warehouse(rng, WorldConfig(num_obstacles=args.obstacles))
-    free = FreeSpace.build(layout, SamplerConfig())
-    start, goal = sample_start_goal(free, rng, SamplerConfig())
-    if layout.start is not None:
-        start = layout.start
-    if layout.goal is not None:
-        goal = layout.goal
-    sim = Simulation(gui=args.gui)
-    try:
-        sim.reset(layout, start, rng)
-        print(f"warehouse {layout.name or 'procedural'}: {len(layout.obstacles)} obstacles on "
-              f"{layout.size[0]:g} x {layout.size[1]:g} m (seed {args.seed})")
-        print(f"start ({start[0]:.2f}, {start[1]:.2f}, {start[2]:.2f})  goal ({goal[0]:.2f}, {goal[1]:.2f})")
-        print(f"{'t[s]':>5} {'x':>6} {'y':>6} {'yaw':>6} | {'odo x':>6} {'odo y':>6} | {'lidar min':>9} "
-              f"{'ahead':>6} | {'gyro z':>6} {'acc x':>6} | {'depth c':>7}")
-        for step in range(args.steps):
-            x, y, yaw = sim.robot.pose()
-            ranges = sim.sensors["lidar"].read()
-            heading = math.remainder(math.atan2(goal[1] - y, goal[0] - x) - yaw, 2 * math.pi)
-            # Scripted route: turn toward the goal; when something is close ahead, blend in a
-            # turn toward the side with more room (the article's simple avoidance).
-            ahead = float(min(ranges[0], ranges[1], ranges[-1]))
-            safety = 0.9
-            if ahead < safety:
-                n = len(ranges)
-                left, right = float(ranges[1 : n // 4].mean()), float(ranges[-(n // 4) :].mean())
-                weight = 1.0 - ahead / safety
-                heading = (1 - weight) * heading + weight * (math.pi / 2 if left >= right else -math.pi / 2)
-            v = 0.0 if abs(heading) > 0.8 else 0.4 * min(1.0, max(0.05, (ahead - 0.25) / 0.75))
-            w = float(np.clip(2.0 * heading, -1.5, 1.5))
-            if step % args.print_every == 0:
-                odo = sim.sensors["odometry"].read()
-                imu = sim.sensors["imu"].read()
-                depth = sim.sensors["camera"].read().depth
-                print(f"{sim.clock.time:5.1f} {x:6.2f} {y:6.2f} {yaw:6.2f} | {odo[0]:6.2f} {odo[1]:6.2f} | "
-                      f"{ranges.min():9.2f} {ahead:6.2f} | {imu[5]:6.2f} {imu[0]:6.2f} | {depth[120, 160]:7.2f}")
-            if math.hypot(goal[0] - x, goal[1] - y) < 0.5:
-                print(f"goal reached after {sim.clock.time:.1f} s")
-                break
-            if sim.in_collision():
-                print(f"collision at t={sim.clock.time:.1f} s")
-                break
-            sim.step(v, w)
-        else:
-            print(f"stopped after {args.steps} steps, {math.hypot(goal[0] - x, goal[1] - y):.2f} m from the goal")
-    finally:
-        sim.close()
-    return 0
-
-
 def cmd_bench(args: argparse.Namespace) -> int:
     """Run a benchmark and print its JSON (``--json``) or a short table."""
     if args.what == "env":
@@ -144,6 +86,74 @@ def _json(obj) -> str:
     return json.dumps(clean(obj), allow_nan=False)
 
 
+class _Visuals:
+    """Optional episode video, trajectory plot and GUI dashboard, fed by run_episodes' hooks.
+
+    They only read the simulation, so switching them on leaves the episodes unchanged."""
+
+    def __init__(self, env, policy, video: str | None, plot: str | None, gui: bool) -> None:
+        from bulletnav.viz import Dashboard, EpisodeRecorder, TrajectoryLog
+
+        self.policy = policy
+        self.recorder = EpisodeRecorder(video) if video else None
+        self.log = TrajectoryLog() if plot else None
+        self.plot = plot
+        self.dashboard = Dashboard(env) if gui else None
+
+    def _path(self):
+        return getattr(self.policy, "path", None)
+
+    def on_reset(self, env) -> None:
+        if self.recorder is not None:
+            self.recorder.on_reset(env, self._path())
+        if self.log is not None:
+            self.log.on_reset(env)
+        if self.dashboard is not None:
+            self.dashboard.on_reset()
+
+    def on_step(self, env, info) -> None:
+        if self.recorder is not None:
+            self.recorder.on_step(env, info, self._path())
+        if self.log is not None:
+            self.log.on_step(env, info)
+        if self.dashboard is not None:
+            self.dashboard.on_step(self._path())
+
+    def on_episode(self, result) -> None:
+        if self.log is not None:
+            self.log.on_episode(result)
+
+    def close(self, title: str = "") -> list[str]:
+        from bulletnav.viz import plot_trajectories
+
+        written = []
+        if self.recorder is not None:
+            self.recorder.close()
+            written.append(f"video:      {self.recorder.path} ({self.recorder.frames_written} frames)")
+        if self.log is not None and self.plot:
+            plot_trajectories(self.log, self.plot, title=title)
+            written.append(f"trajectory: {self.plot}")
+        return written
+
+
+def _run_with_visuals(args, env, policy, line, title: str):
+    from bulletnav.evaluation import run_episodes
+
+    visuals = _Visuals(env, policy, getattr(args, "video", None), getattr(args, "plot", None), getattr(args, "gui", False))
+
+    def on_episode(r) -> None:
+        visuals.on_episode(r)
+        line(r)
+
+    try:
+        results = run_episodes(env, policy, args.episodes, args.seed, on_episode=on_episode,
+                               on_step=visuals.on_step, on_reset=visuals.on_reset)
+    finally:
+        written = visuals.close(title)
+        env.close()
+    return results, written
+
+
 def _outcome(r) -> str:
     return "SUCCESS" if r.success else ("COLLISION" if r.collision else "TIMEOUT")
 
@@ -155,7 +165,7 @@ def _fmt(x: float, spec: str = ".2f") -> str:
 def cmd_navigate(args: argparse.Namespace) -> int:
     """Classical navigation (PID, optionally with A* or RRT) scored on env episodes."""
     from bulletnav.control.navigator import Navigator, NavigatorConfig
-    from bulletnav.evaluation import run_episodes, summarize
+    from bulletnav.evaluation import summarize
     from bulletnav.planning import warmup
 
     warmup()  # compile the planners before timing them
@@ -169,10 +179,7 @@ def cmd_navigate(args: argparse.Namespace) -> int:
                   f"sim {r.sim_time:5.1f} s  driven {r.path_length:5.2f} m  shortest {r.shortest_path:5.2f} m  "
                   f"SPL {r.spl:.2f}  {plans}  replans {r.replans}")
 
-    try:
-        results = run_episodes(env, nav, args.episodes, args.seed, on_episode=line)
-    finally:
-        env.close()
+    results, written = _run_with_visuals(args, env, nav, line, f"PID + {args.planner} (seed {args.seed})")
     summary = summarize(results)
     summary.update(planner=args.planner, seed=args.seed, pose_source=args.pose,
                    world=args.world or f"procedural ({args.obstacles} obstacles)")
@@ -187,6 +194,8 @@ def cmd_navigate(args: argparse.Namespace) -> int:
           f"path length {_fmt(summary['mean_path_length_success'])} m (successes)")
     print(f"planning       median {_fmt(summary['plan_ms_median'], '.3f')} ms  p95 {_fmt(summary['plan_ms_p95'], '.3f')} ms  "
           f"calls {summary['plan_calls']}  replans/episode {summary['replans_mean']:.1f}")
+    for w in written:
+        print(w)
     return 0
 
 
@@ -215,24 +224,24 @@ def cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_evaluate(args: argparse.Namespace) -> int:
-    from bulletnav.evaluation import run_episodes, summarize
+def _evaluate_report(args: argparse.Namespace, model_path: str) -> dict:
+    """Evaluate ``model_path`` as ``args`` say; print the article's report (or JSON)."""
+    import gymnasium as gym
+
+    import bulletnav  # noqa: F401
+    from bulletnav.evaluation import summarize
     from bulletnav.rl.common import SB3Policy, load_model
 
-    model, meta, vecnorm = load_model(args.model, algo=args.algo)
+    model, meta, vecnorm = load_model(model_path, algo=getattr(args, "algo", None))
     env_kwargs = dict(meta.get("env_kwargs", {}))
     env_kwargs["num_obstacles"] = args.obstacles
     if args.world:
         env_kwargs["world"] = args.world
-    import gymnasium as gym
-
-    import bulletnav  # noqa: F401
-
     env = gym.make("bulletnav/Warehouse-v0", render_mode="human" if args.gui else None, **env_kwargs)
+    algo = str(meta.get("algo", getattr(args, "algo", None) or "?")).upper()
     bar = "=" * 60
     if not args.json:
-        print(f"{bar}\nRunning {args.episodes} evaluation episodes ({meta.get('algo', args.algo or '?').upper()} "
-              f"{args.model}, seed {args.seed})\n{bar}")
+        print(f"{bar}\nRunning {args.episodes} evaluation episodes ({algo} {model_path}, seed {args.seed})\n{bar}")
 
     def line(r) -> None:
         if args.json:
@@ -243,18 +252,15 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         print(f"{mark} | Steps: {r.steps} | Reward: {r.reward:.1f} | Final distance: {r.final_distance:.2f}m | "
               f"Distance traveled: {r.path_length:.2f}m")
 
-    try:
-        results = run_episodes(env, SB3Policy(model, vecnorm), args.episodes, args.seed, on_episode=line)
-    finally:
-        env.close()
+    results, written = _run_with_visuals(args, env, SB3Policy(model, vecnorm), line, f"{algo} (seed {args.seed})")
     s = summarize(results)
     keys = ("episodes", "success_rate", "mean_reward", "std_reward", "mean_length", "std_length", "mean_distance",
             "std_distance", "collision_rate", "spl", "per_episode")
     out = {k: s[k] for k in keys}
-    out.update(model=str(args.model), seed=args.seed, world=args.world or f"procedural ({args.obstacles} obstacles)")
+    out.update(model=str(model_path), seed=args.seed, world=args.world or f"procedural ({args.obstacles} obstacles)")
     if args.json:
         print(_json(out))
-        return 0
+        return out
     n_success = round(s["success_rate"] * s["episodes"])
     print(f"\n{bar}\nEVALUATION RESULTS\n"
           f"Success rate: {n_success}/{s['episodes']} ({s['success_rate'] * 100:.1f}%)\n"
@@ -262,6 +268,70 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
           f"Average episode length: {s['mean_length']:.1f} \u00b1 {s['std_length']:.1f} steps\n"
           f"Average distance:        {s['mean_distance']:.2f}m \u00b1 {s['std_distance']:.2f}m\n"
           f"Collision rate: {s['collision_rate'] * 100:.1f}%   SPL: {s['spl']:.3f}\n{bar}")
+    for w in written:
+        print(w)
+    return out
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    _evaluate_report(args, args.model)
+    return 0
+
+
+DEFAULT_MODEL = "models/ppo_warehouse.zip"
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    """The main job: the shipped PPO policy on evaluation episodes, with video and plot."""
+    import time
+    from pathlib import Path
+
+    from bulletnav.errors import ModelError
+
+    model = Path(args.model)
+    if not model.is_file():
+        packaged = Path(__file__).resolve().parent.parent / DEFAULT_MODEL
+        if args.model == DEFAULT_MODEL and packaged.is_file():
+            model = packaged
+        else:
+            raise ModelError(f"{args.model}: model file not found (train one with `bulletnav train`)")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    args.video = args.video or str(out / "episodes.mp4")
+    args.plot = str(out / "trajectories.png")
+    t0 = time.perf_counter()
+    _evaluate_report(args, str(model))
+    print(f"demo finished in {time.perf_counter() - t0:.0f} s; results in {out}/")
+    return 0
+
+
+def cmd_view(args: argparse.Namespace) -> int:
+    """Open a warehouse in the PyBullet GUI with the dashboard; the robot turns in place."""
+    import time
+
+    import gymnasium as gym
+
+    import bulletnav  # noqa: F401
+    from bulletnav.viz import Dashboard
+
+    kwargs = {"num_obstacles": args.obstacles}
+    if args.world:
+        kwargs["world"] = args.world
+    env = gym.make("bulletnav/Warehouse-v0", render_mode="human", **kwargs)
+    try:
+        env.reset(seed=args.seed)
+        dashboard = Dashboard(env)
+        dashboard.on_reset()
+        t_end = time.perf_counter() + args.seconds
+        steps = 0
+        while time.perf_counter() < t_end:
+            env.unwrapped.step([0.0, 0.5])  # turning in place shows the lidar sweep and camera
+            dashboard.on_step()
+            steps += 1
+        print(f"viewed {env.unwrapped.layout.name or 'procedural'} warehouse for {args.seconds:g} s "
+              f"({steps} control steps, {steps / args.seconds:.1f} steps/s with the dashboard)")
+    finally:
+        env.close()
     return 0
 
 
@@ -270,12 +340,6 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
     sub = parser.add_subparsers(dest="command", required=True)
 
-    demo = sub.add_parser("demo", help="build a warehouse and drive the robot, printing sensor readings")
-    _add_world_args(demo)
-    demo.add_argument("--steps", type=int, default=600, help="control steps at most (24 per second)")
-    demo.add_argument("--print-every", type=int, default=48, help="print a reading every N steps")
-    demo.add_argument("--gui", action="store_true", help="watch in the PyBullet GUI (needs a display)")
-    demo.set_defaults(func=cmd_demo)
 
     nav = sub.add_parser("navigate", help="classical navigation (PID, A*, RRT) scored on env episodes")
     nav.add_argument("--planner", choices=["none", "astar", "rrt"], default="astar")
@@ -284,6 +348,8 @@ def build_parser() -> argparse.ArgumentParser:
     nav.add_argument("--pose", choices=["truth", "odometry"], default="truth", help="pose for mapping and steering")
     nav.add_argument("--gui", action="store_true", help="watch in the PyBullet GUI (needs a display)")
     nav.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
+    nav.add_argument("--video", metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
+    nav.add_argument("--plot", metavar="PNG", help="write all episodes' paths over their maps")
     nav.set_defaults(func=cmd_navigate)
 
     tr = sub.add_parser("train", help="train an SB3 agent (hyperparameters from rl/hyperparams/<algo>.yml)")
@@ -310,7 +376,28 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--seed", type=int, default=1000, help="episode k uses env seed S + k (default 1000)")
     ev.add_argument("--gui", action="store_true")
     ev.add_argument("--json", action="store_true")
+    ev.add_argument("--video", metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
+    ev.add_argument("--plot", metavar="PNG", help="write all episodes' paths over their maps")
     ev.set_defaults(func=cmd_evaluate)
+
+    demo = sub.add_parser("demo", help="the main job: the shipped PPO policy, report, video and trajectory plot")
+    demo.add_argument("--model", default=DEFAULT_MODEL)
+    demo.add_argument("--episodes", type=int, default=5)
+    demo.add_argument("--seed", type=int, default=2024, help="episode k uses env seed S + k")
+    demo.add_argument("--world", metavar="FILE")
+    demo.add_argument("--obstacles", type=int, default=31)
+    demo.add_argument("--out", default="runs/demo", metavar="DIR")
+    demo.add_argument("--video", metavar="PATH", help="default: DIR/episodes.mp4")
+    demo.add_argument("--gui", action="store_true", help="watch live in the PyBullet GUI")
+    demo.add_argument("--json", action="store_true")
+    demo.set_defaults(func=cmd_demo, algo=None)
+
+    view = sub.add_parser("view", help="look at a warehouse in the PyBullet GUI")
+    view.add_argument("--world", metavar="FILE")
+    view.add_argument("--obstacles", type=int, default=31)
+    view.add_argument("--seed", type=int, default=0)
+    view.add_argument("--seconds", type=float, default=30.0)
+    view.set_defaults(func=cmd_view)
 
     bench = sub.add_parser("bench", help="benchmarks (print JSON with --json)")
     bench.add_argument("what", choices=["env", "physics", "planners"],

@@ -75,13 +75,20 @@ def shortest_path_length(layout: Layout, start: tuple[float, float], goal: tuple
 
 def run_episodes(env, policy: Policy, episodes: int, seed: int,
                  on_episode: Callable[[EpisodeResult], None] | None = None,
-                 on_step: Callable[[Any, dict], None] | None = None) -> list[EpisodeResult]:
-    """Run ``episodes`` episodes of ``policy`` in ``env`` (made with ``gym.make``)."""
+                 on_step: Callable[[Any, dict], None] | None = None,
+                 on_reset: Callable[[Any], None] | None = None) -> list[EpisodeResult]:
+    """Run ``episodes`` episodes of ``policy`` in ``env`` (made with ``gym.make``).
+
+    Hooks (for recording and drawing; they must only read): ``on_reset(env)`` after each
+    reset, ``on_step(env, info)`` after each step, ``on_episode(result)`` at each end.
+    """
     results = []
     u = env.unwrapped
     for k in range(episodes):
         obs, info = env.reset(seed=seed + k)
         policy.reset(env, np.random.default_rng(seed + k))
+        if on_reset is not None:
+            on_reset(env)
         shortest = shortest_path_length(u.layout, u.start[:2], u.goal)
         total, steps = 0.0, 0
         t0 = time.perf_counter()
