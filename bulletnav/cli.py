@@ -273,6 +273,26 @@ def _evaluate_report(args: argparse.Namespace, model_path: str) -> dict:
     return out
 
 
+def cmd_compare(args: argparse.Namespace) -> int:
+    """Learning curves of several training runs in one PNG and a table of their results."""
+    from pathlib import Path
+
+    from bulletnav.rl.train import compare_runs
+
+    rows = compare_runs([Path(r) for r in args.runs], Path(args.out))
+    if args.json:
+        print(_json(rows))
+        return 0
+    print("| algorithm | seed | timesteps | wall time (s) | final success | final collisions | final reward | best success (at) |")
+    print("|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        print(f"| {r['algo'].upper()} | {r['seed']} | {r['timesteps']} | {r['wall_time_s']:.0f} | "
+              f"{r['final_success'] * 100:.0f} % | {r['final_collisions'] * 100:.0f} % | {r['final_reward']:.1f} | "
+              f"{r['best_success'] * 100:.0f} % ({r['best_at']}) |")
+    print(f"\nlearning curves: {args.out}")
+    return 0
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     _evaluate_report(args, args.model)
     return 0
@@ -379,6 +399,12 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--video", metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
     ev.add_argument("--plot", metavar="PNG", help="write all episodes' paths over their maps")
     ev.set_defaults(func=cmd_evaluate)
+
+    cmp_ = sub.add_parser("compare", help="plot several training runs' learning curves and tabulate them")
+    cmp_.add_argument("runs", nargs="+", metavar="RUN_DIR")
+    cmp_.add_argument("--out", default="docs/algorithms.png", metavar="PNG")
+    cmp_.add_argument("--json", action="store_true")
+    cmp_.set_defaults(func=cmd_compare)
 
     demo = sub.add_parser("demo", help="the main job: the shipped PPO policy, report, video and trajectory plot")
     demo.add_argument("--model", default=DEFAULT_MODEL)

@@ -19,3 +19,7 @@ class DisplayError(BulletnavError, RuntimeError):
 
 class ModelError(BulletnavError, ValueError):
     """A model file is missing, truncated or of the wrong kind."""
+
+
+class RunError(BulletnavError, ValueError):
+    """A training-run directory is missing or incomplete."""

@@ -146,3 +146,12 @@ def test_interrupted_checkpoint_write_leaves_the_old_model_intact(ppo_run, tmp_p
     assert [p.name for p in tmp_path.iterdir()] == ["last.zip"]  # no temp file left behind
     (tmp_path / "last.json").write_text(json.dumps({"algo": "ppo"}))
     load_model(target)  # still a valid model
+
+
+def test_compare_plots_runs_and_tabulates(ppo_run, tmp_path, capsys):
+    png = tmp_path / "curves.png"
+    assert main(["compare", str(ppo_run), "--out", str(png)]) == 0
+    text = capsys.readouterr().out
+    assert "| PPO | 0 | 1024 |" in text and png.stat().st_size > 10_000
+    assert main(["compare", str(tmp_path / "missing"), "--out", str(png)]) == 2
+    assert "not a finished training run" in capsys.readouterr().err

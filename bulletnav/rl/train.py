@@ -18,7 +18,7 @@ import gymnasium as gym
 import numpy as np
 
 from bulletnav import ENV_ID
-from bulletnav.errors import ModelError
+from bulletnav.errors import ModelError, RunError
 from bulletnav.evaluation import run_episodes, summarize
 from bulletnav.rl.common import (
     EVAL_SEED_BASE,
@@ -279,3 +279,45 @@ def plot_learning_curve(history: list[dict[str, Any]], path: Path, title: str = 
 
 def command_line() -> str:
     return " ".join(["bulletnav", *sys.argv[1:]]) if sys.argv and sys.argv[0].endswith("bulletnav") else " ".join(sys.argv)
+
+
+def compare_runs(run_dirs: list[Path], out_png: Path) -> list[dict[str, Any]]:
+    """Learning curves of several runs in one PNG (success rate and mean reward against
+    timesteps) and one summary row per run: final and best evaluation, wall time."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = []
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4), dpi=100)
+    for run in run_dirs:
+        for name in ("eval_history.json", "run.json"):
+            if not (run / name).is_file():
+                raise RunError(f"{run}: not a finished training run (no {name})")
+        history = json.loads((run / "eval_history.json").read_text())
+        record = json.loads((run / "run.json").read_text())
+        label = f"{record['algo'].upper()} seed {record['seed']}"
+        steps = [h["timesteps"] for h in history]
+        ax1.plot(steps, [h["success_rate"] for h in history], "o-", label=label)
+        ax2.plot(steps, [h["mean_reward"] for h in history], "o-", label=label)
+        final = history[-1]
+        best = max(history, key=lambda h: h["success_rate"])
+        rows.append({"run": str(run), "algo": record["algo"], "seed": record["seed"],
+                     "timesteps": record["total_timesteps"], "wall_time_s": record["wall_time_s"],
+                     "final_success": final["success_rate"], "final_collisions": final["collision_rate"],
+                     "final_reward": round(final["mean_reward"], 2), "best_success": best["success_rate"],
+                     "best_at": best["timesteps"]})
+    for ax, name in ((ax1, "success rate (20 unseen episodes)"), (ax2, "mean evaluation reward")):
+        ax.set_xlabel("timesteps")
+        ax.set_ylabel(name)
+        ax.grid(alpha=0.3)
+    ax1.set_ylim(-0.02, 1.02)
+    ax1.legend(loc="upper left")
+    fig.tight_layout()
+    out_png.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out_png.with_name(f".{out_png.name}.tmp.png")
+    fig.savefig(tmp)
+    plt.close(fig)
+    os.replace(tmp, out_png)
+    return rows
