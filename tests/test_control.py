@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
@@ -44,7 +43,7 @@ def test_pid_integral_limit_derivative_and_reset():
 
 
 def test_lidar_map_matches_the_layout(make_sim, write_layout, report):
-    from bulletnav.planning.mapping import FREE, OCCUPIED, UNKNOWN, LidarMapper
+    from bulletnav.planning.mapping import OCCUPIED, UNKNOWN, LidarMapper
 
     layout = write_layout({
         "size": [8.0, 6.0],

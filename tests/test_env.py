@@ -177,10 +177,10 @@ EMPTY = str(asset_path("worlds", "empty.yaml"))
 
 def test_scripted_drive_to_a_nearby_goal_terminates_with_the_goal_term(make_env):
     env = make_env(world=EMPTY)
-    env.reset(seed=0, options={"start": (-2.0, 0.0, 0.0), "goal": (0.0, 0.3)})
+    obs, _ = env.reset(seed=0, options={"start": (-2.0, 0.0, 0.0), "goal": (0.0, 0.3)})
     total, steps = 0.0, 0
     while True:
-        obs, reward, terminated, truncated, info = env.step(np.array([0.5, 2.0 * obs[36] * math.pi if steps else 0.0]))
+        obs, reward, terminated, truncated, info = env.step(np.array([0.5, 2.0 * obs[36] * math.pi]))
         total += reward
         steps += 1
         if terminated or truncated:
@@ -242,7 +242,7 @@ def test_options_place_start_and_goal_exactly(make_env):
     obs, info = env.reset(seed=2)
     layout = env.unwrapped.layout
     free = env.unwrapped.free_space
-    (sx, sy, syaw), goal = info["pose"], info["goal"]
+    (sx, sy, _), goal = info["pose"], info["goal"]
     _, info2 = env.reset(options={"start": (float(sx), float(sy), 0.5), "goal": goal})
     assert env.unwrapped.layout is layout and free is env.unwrapped.free_space
     np.testing.assert_allclose(info2["pose"], [sx, sy, 0.5], atol=1e-9)

@@ -6,7 +6,6 @@ import json
 import math
 
 import gymnasium as gym
-import numpy as np
 import pytest
 
 import bulletnav  # noqa: F401

@@ -1,0 +1,56 @@
+"""The main job and the GUI commands, run as a user runs them."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import imageio.v3 as iio
+import pytest
+
+from bulletnav.cli import DEFAULT_MODEL, main
+
+ROOT = Path(__file__).resolve().parents[1]
+MODEL = ROOT / DEFAULT_MODEL
+needs_model = pytest.mark.skipif(not MODEL.is_file(), reason=f"{DEFAULT_MODEL} is not in this checkout")
+needs_xvfb = pytest.mark.skipif(shutil.which("xvfb-run") is None, reason="xvfb-run not installed (apt-get install xvfb)")
+
+
+def _cli(*args: str, timeout: int = 300) -> subprocess.CompletedProcess:
+    return subprocess.run(["xvfb-run", "-a", sys.executable, "-m", "bulletnav.cli", *args], cwd=ROOT,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+@needs_xvfb
+def test_view_runs_under_xvfb():
+    done = _cli("view", "--seconds", "5")
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "viewed procedural warehouse for 5 s" in done.stdout
+
+
+@needs_xvfb
+@needs_model
+def test_demo_with_gui_runs_under_xvfb(tmp_path):
+    done = _cli("demo", "--gui", "--episodes", "1", "--out", str(tmp_path / "demo"))
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "EVALUATION RESULTS" in done.stdout
+
+
+@needs_model
+def test_demo_prints_the_report_and_leaves_video_and_plot(tmp_path, capsys):
+    out = tmp_path / "demo"
+    assert main(["demo", "--episodes", "1", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    for piece in ("Running 1 evaluation episodes", "EVALUATION RESULTS", "Success rate:", str(out)):
+        assert piece in text
+    video, plot = out / "episodes.mp4", out / "trajectories.png"
+    assert video.stat().st_size > 10_000 and plot.stat().st_size > 10_000
+    frames = iio.imread(video)
+    assert frames.shape[1:] == (528, 960, 3) and len(frames) > 10
+
+
+def test_demo_without_a_model_says_so(tmp_path, capsys):
+    assert main(["demo", "--model", str(tmp_path / "none.zip"), "--out", str(tmp_path / "d")]) == 2
+    assert "model file not found" in capsys.readouterr().err
