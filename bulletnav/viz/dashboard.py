@@ -1,0 +1,323 @@
+"""A throttled live dashboard in the PyBullet GUI (``render_mode="human"``).
+
+Everything drawn in the GUI is a round trip to its render thread, and under a software
+renderer (Xvfb, no GPU) those are slow. Measured on a busy 2-core machine: adding a debug
+line 80-230 ms (it waits for a GUI frame), replacing one in place 4-15 ms, a 320 x 240
+``getCameraImage`` 100-480 ms. Hence three rules: draw only every few control steps, draw a
+subset of the lidar rays, and never add a debug item per step -- items are created once and
+then moved with ``replaceItemUniqueId``.
+
+Use::
+
+    env = gym.make("bulletnav/Warehouse-v0", render_mode="human")
+    obs, info = env.reset(seed=0)
+    dash = Dashboard(env)
+    while True:
+        obs, r, term, trunc, info = env.step(nav.act(obs))
+        dash.on_step(nav.path)
+        if term or trunc:
+            obs, info = env.reset(); dash.on_reset()
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+import pybullet as p
+
+log = logging.getLogger(__name__)
+
+GOAL_COLOUR = (0.1, 0.9, 0.3)
+RAY_FREE_COLOUR = (0.1, 0.85, 0.2)
+"""Rays that hit nothing within the lidar's range."""
+RAY_HIT_COLOUR = (0.95, 0.15, 0.1)
+PATH_COLOUR = (0.9, 0.3, 0.9)
+_HIDDEN = ((0.0, 0.0, -5.0), (0.0, 0.0, -5.0))
+"""A zero-length line under the floor: how unused path segments are hidden (removing is slow)."""
+_PREVIEW_FLAGS = ("COV_ENABLE_GUI", "COV_ENABLE_RGB_BUFFER_PREVIEW", "COV_ENABLE_DEPTH_BUFFER_PREVIEW",
+                  "COV_ENABLE_SEGMENTATION_MARK_PREVIEW")
+
+
+@dataclass(frozen=True)
+class DashboardConfig:
+    """How often the dashboard draws; periods are in control steps (1/24 s each by default)."""
+
+    camera_every: int = 10
+    """Control steps between robot-camera renders into the GUI's RGB/depth/segmentation preview tabs."""
+    lidar_every: int = 10
+    """Control steps between redraws of the lidar rays."""
+    lidar_ray_stride: int = 10
+    """Draw rays 0, stride, 2 stride, ... (36 rays / 10 -> 4 rays)."""
+    path_every: int = 10
+    """Control steps between redraws of the planned path (when one is given)."""
+    follow_camera: bool = True
+    """True: keep the env's chase view (the env re-aims the GUI camera every step in human mode).
+    False: a top-down view of the whole floor, re-applied after every step because the env re-aims it."""
+    max_path_segments: int = 40
+    """Longest path polyline drawn (segments, ~4 ms each per redraw); longer plans are thinned."""
+    line_width: float = 2.0
+    """Debug line width (px)."""
+    hardware_camera: bool = True
+    """Render the preview with ``ER_BULLET_HARDWARE_OPENGL`` through the GUI's OpenGL context
+    (fast with a GPU); False uses the CPU TinyRenderer, often faster under Xvfb's software GL.
+    Both fill the preview tabs."""
+
+    def __post_init__(self) -> None:
+        for name in ("camera_every", "lidar_every", "lidar_ray_stride", "path_every", "max_path_segments"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"DashboardConfig.{name} must be >= 1, got {getattr(self, name)}")
+
+    @classmethod
+    def unthrottled(cls, follow_camera: bool = True) -> DashboardConfig:
+        """Everything every step, every ray: the naive dashboard, for comparison."""
+        return cls(camera_every=1, lidar_every=1, lidar_ray_stride=1, path_every=1, follow_camera=follow_camera)
+
+
+class Dashboard:
+    """Camera preview, lidar rays, planned path and goal marker in the PyBullet GUI.
+
+    Construction turns on the GUI panels and the RGB, depth and segmentation preview tabs
+    and, when the env has been reset, calls :meth:`on_reset`. Call :meth:`on_reset` after
+    every ``env.reset`` and :meth:`on_step` after every ``env.step``.
+
+    Counters (for tests and profiling):
+        camera_renders: ``getCameraImage`` calls made (one every ``camera_every`` steps; none at reset).
+        debug_draw_calls: ``addUserDebugLine`` calls made, replacements included.
+        debug_items: debug items this dashboard currently owns.
+
+    Per episode of ``n`` steps with a path of ``s`` segments: ``n // camera_every`` renders
+    and ``3 + (n // lidar_every) * ceil(rays / lidar_ray_stride) + (n // path_every) * s``
+    line calls (3 for the goal marker), plus one call per visible ray or path segment hidden
+    at a reset that keeps the scene.
+    """
+
+    def __init__(self, env: Any, config: DashboardConfig = DashboardConfig()) -> None:
+        u = env.unwrapped
+        if getattr(u, "render_mode", None) != "human":
+            raise ValueError("Dashboard draws in the PyBullet GUI: make the env with render_mode='human'")
+        self.env = env
+        self.config = config
+        self.sim = u.sim
+        self.camera_renders = 0
+        self.debug_draw_calls = 0
+        self.steps = 0
+        """Control steps since the last reset."""
+        self._goal_ids: list[int] = []
+        self._ray_ids: list[int] = []
+        self._path_ids: list[int] = []
+        self._path_visible = 0
+        self._rays_visible = False
+        self._rebuilds = -1
+        self._episode = -1
+        cid = self.sim.cid
+        for name in _PREVIEW_FLAGS:
+            p.configureDebugVisualizer(getattr(p, name), 1, physicsClientId=cid)
+        if u.layout is not None:
+            self.on_reset()
+
+    @property
+    def debug_items(self) -> int:
+        return len(self._goal_ids) + len(self._ray_ids) + len(self._path_ids)
+
+    # ------------------------------------------------------------------ hooks
+    def on_reset(self) -> None:
+        """Start an episode: (re)draw the goal marker and hide last episode's rays and path."""
+        u = self.env.unwrapped
+        self.steps = 0
+        self._episode = self.sim.clock.episode
+        if self.sim.rebuilds != self._rebuilds:
+            # resetSimulation (seeded reset or new layout) deleted every debug item and
+            # restarts their ids: forget ours, replacing a stale id would draw nothing
+            self._goal_ids, self._ray_ids, self._path_ids = [], [], []
+            self._path_visible, self._rays_visible = 0, False
+            self._rebuilds = self.sim.rebuilds
+        else:
+            if self._rays_visible:
+                for i in range(len(self._ray_ids)):
+                    self._line(self._ray_ids, i, *_HIDDEN, RAY_FREE_COLOUR)
+                self._rays_visible = False
+            self._hide_path_from(0)
+        gx, gy = u.goal
+        r = u.config.task.goal_radius
+        marker = [((gx, gy, 0.0), (gx, gy, 1.0)),  # a post, visible from afar
+                  ((gx - r, gy, 0.02), (gx + r, gy, 0.02)), ((gx, gy - r, 0.02), (gx, gy + r, 0.02))]  # the success zone
+        for i, (a, b) in enumerate(marker):
+            self._line(self._goal_ids, i, a, b, GOAL_COLOUR, width=3.0)
+        if not self.config.follow_camera:
+            self._overview()
+
+    def on_step(self, path: Sequence[tuple[float, float]] | None = None) -> None:
+        """Account for one ``env.step`` and draw whatever is due; ``path`` is the current plan (x, y) list."""
+        if self.sim.clock.episode != self._episode:
+            log.debug("new episode without Dashboard.on_reset(): resetting now")
+            self.on_reset()
+        self.steps += 1
+        cfg = self.config
+        if self.steps % cfg.camera_every == 0:
+            self._render_camera()
+        if self.steps % cfg.lidar_every == 0:
+            self._draw_rays()
+        if path is not None and self.steps % cfg.path_every == 0:
+            self._draw_path(path)
+        if not cfg.follow_camera:
+            self._overview()
+
+    # ------------------------------------------------------------------ drawing
+    def _line(self, ids: list[int], i: int, a: Sequence[float], b: Sequence[float], colour: Sequence[float],
+              width: float | None = None) -> None:
+        """Draw line ``i`` of a group: replace it in place when it exists, else create it."""
+        kwargs = dict(lineColorRGB=colour, lineWidth=width or self.config.line_width, physicsClientId=self.sim.cid)
+        if i < len(ids):
+            self.debug_draw_calls += 1
+            new = p.addUserDebugLine(a, b, replaceItemUniqueId=ids[i], **kwargs)
+            if new >= 0:
+                ids[i] = new
+                return
+            log.debug("debug item %d vanished; drawing it anew", ids[i])
+        self.debug_draw_calls += 1
+        new = p.addUserDebugLine(a, b, **kwargs)
+        if i < len(ids):
+            ids[i] = new
+        else:
+            ids.append(new)
+
+    def _render_camera(self) -> None:
+        # in GUI mode every getCameraImage also fills the RGB / depth / segmentation preview
+        # tabs, which is all we want here; the sensor's cached read() is left alone
+        cam = self.sim.sensors["camera"]
+        view, _, _ = cam.view_matrix()
+        renderer = p.ER_BULLET_HARDWARE_OPENGL if self.config.hardware_camera else p.ER_TINY_RENDERER
+        p.getCameraImage(cam.config.width, cam.config.height, view, cam.projection, renderer=renderer,
+                         physicsClientId=self.sim.cid)
+        self.camera_renders += 1
+
+    def _draw_rays(self) -> None:
+        lidar = self.sim.sensors["lidar"]
+        ranges = lidar.read()  # cached for this control step: no extra ray cast, no random draws
+        robot = self.sim.robot
+        origin = p.getLinkState(robot.body, robot.lidar_link, physicsClientId=self.sim.cid)[4]
+        yaw = robot.planar_pose()[2]
+        max_range = lidar.config.max_range
+        for slot, i in enumerate(range(0, len(ranges), self.config.lidar_ray_stride)):
+            a = yaw + float(lidar.angles[i])
+            r = float(ranges[i])
+            end = (origin[0] + r * math.cos(a), origin[1] + r * math.sin(a), origin[2])
+            colour = RAY_FREE_COLOUR if r >= max_range - 1e-6 else RAY_HIT_COLOUR
+            self._line(self._ray_ids, slot, origin, end, colour)
+        self._rays_visible = True
+
+    def _draw_path(self, path: Sequence[tuple[float, float]]) -> None:
+        pts = simplify_path(path, self.config.max_path_segments)
+        for i, (a, b) in enumerate(zip(pts[:-1], pts[1:])):
+            self._line(self._path_ids, i, (a[0], a[1], 0.03), (b[0], b[1], 0.03), PATH_COLOUR)
+        self._path_visible = max(self._path_visible, len(pts) - 1)
+        self._hide_path_from(max(len(pts) - 1, 0))
+
+    def _hide_path_from(self, first: int) -> None:
+        for i in range(first, self._path_visible):
+            self._line(self._path_ids, i, *_HIDDEN, PATH_COLOUR)
+        self._path_visible = min(self._path_visible, first)
+
+    def _overview(self) -> None:
+        hx, hy = self.env.unwrapped.layout.half_extents
+        p.resetDebugVisualizerCamera(1.2 * max(hx, hy) + 2.0, 0.0, -89.0, [0.0, 0.0, 0.0],
+                                     physicsClientId=self.sim.cid)
+
+
+def simplify_path(path: Sequence[tuple[float, float]], max_segments: int) -> list[tuple[float, float]]:
+    """Drop points where the path goes straight on, then thin evenly to ``max_segments`` segments.
+
+    Grid plans step cell by cell; only their corners need a debug line.
+    """
+    pts = [(float(x), float(y)) for x, y in path]
+    if len(pts) <= 2:
+        return pts
+    keep = [pts[0]]
+    for prev, cur, nxt in zip(pts[:-2], pts[1:-1], pts[2:]):
+        cross = (cur[0] - prev[0]) * (nxt[1] - cur[1]) - (cur[1] - prev[1]) * (nxt[0] - cur[0])
+        if abs(cross) > 1e-9:
+            keep.append(cur)
+    keep.append(pts[-1])
+    if len(keep) - 1 > max_segments:
+        idx = np.linspace(0, len(keep) - 1, max_segments + 1).round().astype(int)
+        keep = [keep[i] for i in idx]
+    return keep
+
+
+def gui_fps(env: Any, policy: Any, steps: int, config: DashboardConfig | None = DashboardConfig(),
+            seed: int = 0, real_time: bool = False, warmup: int = 10) -> float:
+    """Env steps per wall-clock second in the GUI, with a dashboard (``config=None``: without).
+
+    The env is reset with ``seed`` first (and ``seed + k`` when an episode ends; resets are
+    not timed). ``policy`` is a callable ``obs -> action`` or an object with ``act(obs)`` and
+    optionally ``reset(env, rng)``; its ``path`` attribute, when present, is drawn.
+
+    Args:
+        steps: timed env steps.
+        real_time: keep the env's real-time pacing (``WarehouseEnv._pace``, at most
+            ``control_hz`` steps/s). False switches it off for the measurement, so the figure
+            is the cost of simulating and drawing, not the pacing cap.
+        warmup: untimed steps first; the default (10) covers the first draw, which creates
+            the debug items (~0.1-0.2 s each under Xvfb, once per scene), so the figure is
+            the steady state.
+    """
+    u = env.unwrapped
+    if u.render_mode != "human":
+        raise ValueError("gui_fps needs an env made with render_mode='human'")
+    act = policy.act if hasattr(policy, "act") else policy
+    shadowed = "_pace" in vars(u)
+    saved = vars(u).get("_pace")
+    if not real_time:
+        u._pace = lambda: None  # instance attribute shadows the method, for this measurement only
+    try:
+        episode = 0
+
+        def start() -> Any:
+            obs, _ = env.reset(seed=seed + episode)
+            if hasattr(policy, "reset"):
+                policy.reset(env, np.random.default_rng(seed + episode))
+            return obs
+
+        obs = start()
+        dash = Dashboard(env, config) if config is not None else None
+        elapsed = 0.0
+        for k in range(warmup + steps):
+            t0 = time.perf_counter()
+            obs, _, terminated, truncated, _ = env.step(act(obs))
+            if dash is not None:
+                dash.on_step(getattr(policy, "path", None))
+            if k >= warmup:
+                elapsed += time.perf_counter() - t0
+            if terminated or truncated:
+                episode += 1
+                obs = start()
+                if dash is not None:
+                    dash.on_reset()
+        return steps / elapsed
+    finally:
+        if not real_time:
+            if shadowed:
+                u._pace = saved
+            else:
+                del u._pace
+
+
+def compare_gui_fps(env: Any, policy: Any, steps: int, seed: int = 0, real_time: bool = False,
+                    repeats: int = 1) -> dict[str, float]:
+    """Median :func:`gui_fps` without a dashboard, with the default throttled one, and unthrottled.
+
+    The three run interleaved ``repeats`` times (seeds ``seed, seed + 1, ...``), so that a
+    change in machine load does not favour one of them.
+    """
+    configs = {"no_dashboard": None, "throttled": DashboardConfig(), "unthrottled": DashboardConfig.unthrottled()}
+    runs: dict[str, list[float]] = {name: [] for name in configs}
+    for r in range(repeats):
+        for name, cfg in configs.items():
+            runs[name].append(gui_fps(env, policy, steps, cfg, seed + r, real_time))
+    log.info("gui fps runs: %s", runs)
+    return {name: float(np.median(v)) for name, v in runs.items()}

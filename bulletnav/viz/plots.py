@@ -1,0 +1,236 @@
+"""Trajectory maps: log ground-truth paths per episode and plot them over the warehouse.
+
+Use with :func:`bulletnav.evaluation.run_episodes`::
+
+    log = TrajectoryLog()
+    run_episodes(env, with_reset_hooks(policy, log.on_reset), 10, seed=0,
+                 on_step=log.on_step, on_episode=log.on_episode)
+    plot_trajectories(log, "runs/trajectories.png", title="A* navigator")
+
+Without the reset hook the log still works: it notices each new episode in ``on_step`` and
+starts it at ``env.unwrapped.start``.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from bulletnav.sim.layout import WALL_THICKNESS, Layout
+from bulletnav.sim.world import COLOURS
+from bulletnav.viz.video import box_corners
+
+log = logging.getLogger(__name__)
+
+OUTCOME_COLOURS = {"success": "#2ca02c", "collision": "#d62728", "timeout": "#ff7f0e", "unfinished": "#7f7f7f"}
+"""Path colour per episode outcome (matplotlib colours)."""
+GOAL_COLOUR = "#1f77b4"
+PANEL_IN = 3.0
+"""Side of one small-multiple panel (inches); the single map is 7 x 7 in."""
+LEGEND_IN = 0.5
+"""Extra height (inches) for the legend row under the small multiples."""
+
+
+@dataclass
+class EpisodeTrajectory:
+    """One episode's ground-truth track."""
+
+    layout: Layout
+    start: tuple[float, float, float]
+    """Start pose (x m, y m, yaw rad)."""
+    goal: tuple[float, float]
+    """Goal (x, y) in metres."""
+    goal_radius: float
+    """Success radius around the goal (m)."""
+    points: list[tuple[float, float]] = field(default_factory=list)
+    """Body-centre positions (m): at reset, then after every step."""
+    outcome: str = "unfinished"
+    """'success', 'collision', 'timeout' or 'unfinished' (stopped by the caller)."""
+    result: Any = None
+    """The :class:`~bulletnav.evaluation.EpisodeResult`, when ``on_episode`` was called."""
+
+
+class TrajectoryLog:
+    """Collects :class:`EpisodeTrajectory` records through env hooks (see the module docstring)."""
+
+    def __init__(self) -> None:
+        self.episodes: list[EpisodeTrajectory] = []
+        self._stamp: int | None = None
+        self._steps = 0
+
+    def __len__(self) -> int:
+        return len(self.episodes)
+
+    def on_reset(self, env: Any) -> None:
+        """Start an episode; call right after ``env.reset``."""
+        self._begin(env)
+        x, y, _ = env.unwrapped.robot.planar_pose()
+        self.episodes[-1].points.append((x, y))
+
+    def on_step(self, env: Any, info: dict[str, Any]) -> None:
+        """Record the pose after a step; call after every ``env.step`` (``run_episodes``' ``on_step``)."""
+        u = env.unwrapped
+        if u.sim.clock.episode != self._stamp:  # no on_reset: the robot was placed exactly at start
+            self._begin(env)
+            self.episodes[-1].points.append((float(u.start[0]), float(u.start[1])))
+        self._steps += 1
+        x, y, _ = u.robot.planar_pose()
+        ep = self.episodes[-1]
+        ep.points.append((x, y))
+        if info.get("is_success"):
+            ep.outcome = "success"
+        elif info.get("collision"):
+            ep.outcome = "collision"
+        else:
+            spec = getattr(env, "spec", None) or getattr(u, "spec", None)
+            limit = getattr(spec, "max_episode_steps", None)
+            if limit is not None and self._steps >= limit:
+                ep.outcome = "timeout"
+
+    def on_episode(self, result: Any) -> None:
+        """Attach ``run_episodes``' result to the latest episode (its outcome wins)."""
+        if not self.episodes:
+            return
+        ep = self.episodes[-1]
+        ep.result = result
+        ep.outcome = "success" if result.success else "collision" if result.collision else "timeout"
+
+    def _begin(self, env: Any) -> None:
+        u = env.unwrapped
+        self._stamp = u.sim.clock.episode
+        self._steps = 0
+        sx, sy, syaw = (float(v) for v in u.start)
+        self.episodes.append(EpisodeTrajectory(
+            layout=u.layout, start=(sx, sy, syaw), goal=(float(u.goal[0]), float(u.goal[1])),
+            goal_radius=float(u.config.task.goal_radius),
+        ))
+
+
+def figure_size(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory], max_panels: int = 25,
+                dpi: int = 100) -> tuple[int, int]:
+    """(width, height) in pixels of the PNG :func:`plot_trajectories` writes."""
+    episodes = _episodes(log_or_episodes)
+    if _shared_layout(episodes):
+        return 7 * dpi, 7 * dpi
+    cols, rows = _grid(min(len(episodes), max_panels))
+    return int(round(cols * PANEL_IN * dpi)), int(round((rows * PANEL_IN + LEGEND_IN) * dpi))
+
+
+def plot_trajectories(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory], path: str | Path,
+                      title: str = "", max_panels: int = 25, dpi: int = 100) -> Path:
+    """Write a PNG of the logged trajectories over their warehouse maps (atomically).
+
+    Episodes that all share one layout go on one 7 x 7 in map; otherwise each gets a
+    3 x 3 in panel in a grid (the first ``max_panels``). Paths are green (success), red
+    (collision), orange (timeout) or grey (unfinished); the start is a white dot with a
+    heading tick, the goal a blue circle of the success radius.
+
+    Raises:
+        ValueError: nothing was logged.
+    """
+    from matplotlib.figure import Figure  # no pyplot: no global state, no GUI backend
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    episodes = _episodes(log_or_episodes)
+    if not episodes:
+        raise ValueError("plot_trajectories: the log holds no episodes")
+    width, height = figure_size(episodes, max_panels, dpi)
+    fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi, layout="constrained")
+    if _shared_layout(episodes):
+        ax = fig.add_subplot()
+        _draw_layout(ax, episodes[0].layout)
+        for ep in episodes:
+            _draw_episode(ax, ep, linewidth=1.8)
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+        shown = episodes
+    else:
+        shown = episodes[:max_panels]
+        if len(episodes) > max_panels:
+            log.info("plot_trajectories: drawing the first %d of %d episodes", max_panels, len(episodes))
+        cols, rows = _grid(len(shown))
+        for i, ep in enumerate(shown):
+            ax = fig.add_subplot(rows, cols, i + 1)
+            _draw_layout(ax, ep.layout)
+            _draw_episode(ax, ep, linewidth=1.4)
+            ax.set_title(f"episode {i + 1}: {ep.outcome}", fontsize=8)
+            ax.set_xticks([])
+            ax.set_yticks([])
+    # the three outcomes always, so the colour key reads the same on every plot
+    outcomes = [o for o in OUTCOME_COLOURS if o != "unfinished" or any(ep.outcome == o for ep in shown)]
+    handles = [Line2D([], [], color=OUTCOME_COLOURS[o], lw=2, label=o) for o in outcomes]
+    handles += [Line2D([], [], ls="", marker="o", mfc="white", mec="black", label="start"),
+                Patch(facecolor=GOAL_COLOUR, alpha=0.3, edgecolor=GOAL_COLOUR, label="goal zone")]
+    fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), fontsize=8, frameon=False)
+    if title:
+        fig.suptitle(title + ("" if len(shown) == len(episodes) else f" (first {len(shown)} of {len(episodes)})"))
+    return _save_atomic(fig, Path(path), dpi)
+
+
+def _episodes(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory]) -> list[EpisodeTrajectory]:
+    return list(log_or_episodes.episodes if isinstance(log_or_episodes, TrajectoryLog) else log_or_episodes)
+
+
+def _shared_layout(episodes: list[EpisodeTrajectory]) -> bool:
+    return all(ep.layout == episodes[0].layout for ep in episodes[1:])
+
+
+def _grid(n: int) -> tuple[int, int]:
+    cols = max(1, math.ceil(math.sqrt(n)))
+    return cols, max(1, math.ceil(n / cols))
+
+
+def _draw_layout(ax: Any, layout: Layout) -> None:
+    from matplotlib.patches import Circle, Polygon, Rectangle
+
+    hx, hy = layout.half_extents
+    t = WALL_THICKNESS
+    ax.add_patch(Rectangle((-hx - t, -hy - t), 2 * (hx + t), 2 * (hy + t), color=COLOURS["wall"][:3], zorder=0))
+    ax.add_patch(Rectangle((-hx, -hy), 2 * hx, 2 * hy, color=(0.93, 0.93, 0.94), zorder=0))
+    for o in layout.obstacles:
+        colour = COLOURS.get(o.label, COLOURS["box"])[:3]
+        if o.kind == "cylinder":
+            patch = Circle(o.center, o.radius, facecolor=colour, edgecolor="0.3", lw=0.5)
+        else:
+            patch = Polygon(box_corners(o), closed=True, facecolor=colour, edgecolor="0.3", lw=0.5)
+        ax.add_patch(patch)
+    ax.set_xlim(-hx - t, hx + t)
+    ax.set_ylim(-hy - t, hy + t)
+    ax.set_aspect("equal")
+
+
+def _draw_episode(ax: Any, ep: EpisodeTrajectory, linewidth: float) -> None:
+    from matplotlib.patches import Circle
+
+    ax.add_patch(Circle(ep.goal, ep.goal_radius, facecolor=GOAL_COLOUR, alpha=0.25, edgecolor="none", zorder=2))
+    ax.add_patch(Circle(ep.goal, ep.goal_radius, fill=False, edgecolor=GOAL_COLOUR, lw=1.2, zorder=2))
+    if ep.points:
+        xs, ys = zip(*ep.points)
+        ax.plot(xs, ys, color=OUTCOME_COLOURS.get(ep.outcome, "0.5"), lw=linewidth, zorder=3)
+    sx, sy, syaw = ep.start
+    ax.plot([sx, sx + 0.4 * math.cos(syaw)], [sy, sy + 0.4 * math.sin(syaw)], color="black", lw=1.2, zorder=4)
+    ax.plot(sx, sy, ls="", marker="o", ms=5, mfc="white", mec="black", zorder=5)
+
+
+def _save_atomic(fig: Any, path: Path, dpi: int) -> Path:
+    """Write to a temp file in the target folder, then rename: readers never see half a PNG."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fig.savefig(fh, format="png", dpi=dpi)
+        os.chmod(tmp, 0o644)  # mkstemp makes it private; a plot is meant to be shared
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    return path

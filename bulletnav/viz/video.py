@@ -1,0 +1,471 @@
+"""Episode videos: one composed dashboard frame per recorded control step, as MP4 or GIF.
+
+Frame layout (960 x 528 px, both divisible by 16 so H.264 needs no resizing)::
+
+    +--------------------------+----------------+--------+
+    | top-down map   480 x 480 | camera RGB     | legend |
+    | (static layout cached,   | 320 x 240      | and    |
+    |  trajectory, lidar hits, +----------------+ depth  |
+    |  planned path, robot)    | depth 0-6 m    | scale  |
+    |                          | 320 x 240      | 160 px |
+    +--------------------------+----------------+--------+
+    | text strip 960 x 48: episode, step, distance, return, outcome |
+    +--------------------------------------------------------------+
+
+Frames are drawn with PIL and NumPy only (matplotlib is used once, for the depth colour
+table). Recording only reads the robot's pose and its cached sensor readings, so an episode
+with a recorder attached is bit-identical to one without.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections import OrderedDict
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+from PIL import Image, ImageDraw, ImageFont
+
+from bulletnav.sim.layout import WALL_THICKNESS, Layout, Obstacle
+from bulletnav.sim.world import COLOURS
+
+log = logging.getLogger(__name__)
+
+FRAME_SIZE = (960, 528)
+"""Composed frame (width, height) in pixels."""
+MAP_PX = 480
+"""Side of the square top-down map panel (px)."""
+CAMERA_PX = (320, 240)
+"""Size of each camera panel (width, height) in pixels; other camera sizes are resized to it."""
+SIDE_X = MAP_PX + CAMERA_PX[0]
+"""Left edge of the legend column (px)."""
+STRIP_Y = MAP_PX
+"""Top edge of the text strip (px)."""
+DEPTH_MAX = 6.0
+"""Depth mapped to the far end of the colour scale (m); farther is clipped."""
+MAP_MARGIN = 8
+"""Blank border around the map drawing (px)."""
+_SUPERSAMPLE = 2
+"""The static map is drawn at this multiple and downsampled once: smooth edges for free."""
+
+BACKGROUND = (22, 24, 28)
+TEXT = (230, 232, 236)
+DIM_TEXT = (150, 154, 162)
+GOAL = (60, 220, 90)
+TRAJECTORY = (0, 190, 255)
+PATH = (240, 90, 240)
+LIDAR = (255, 70, 60)
+ROBOT = (255, 255, 255)
+START = (255, 225, 70)
+OUTCOME_COLOURS = {"success": GOAL, "collision": LIDAR, "timeout": (255, 160, 40)}
+
+
+def _rgb(category: str) -> tuple[int, int, int]:
+    r, g, b, _ = COLOURS.get(category, COLOURS["box"])
+    return int(r * 255), int(g * 255), int(b * 255)
+
+
+def box_corners(obstacle: Obstacle) -> np.ndarray:
+    """(4, 2) world corners (m) of a box obstacle's footprint, counter-clockwise."""
+    hx, hy = obstacle.size[0] / 2, obstacle.size[1] / 2
+    c, s = math.cos(obstacle.yaw), math.sin(obstacle.yaw)
+    local = np.array([(-hx, -hy), (hx, -hy), (hx, hy), (-hx, hy)])
+    rot = np.array([[c, -s], [s, c]])
+    return local @ rot.T + np.asarray(obstacle.center)
+
+
+def _font(size: int) -> ImageFont.ImageFont | ImageFont.FreeTypeFont:
+    try:  # Pillow >= 10.1 with FreeType: the bundled scalable default font
+        return ImageFont.load_default(size=size)
+    except (TypeError, OSError):  # older Pillow or no FreeType: the fixed bitmap font
+        return ImageFont.load_default()
+
+
+_DEPTH_LUT: np.ndarray | None = None
+
+
+def depth_colours() -> np.ndarray:
+    """(256, 3) uint8 colour table for depth: index 0 = 0 m (red, near) ... 255 = ``DEPTH_MAX`` (blue, far)."""
+    global _DEPTH_LUT
+    if _DEPTH_LUT is None:
+        from matplotlib import colormaps  # once per process; frames only index the table
+
+        _DEPTH_LUT = (colormaps["turbo"](np.linspace(1.0, 0.0, 256))[:, :3] * 255).round().astype(np.uint8)
+    return _DEPTH_LUT
+
+
+def colourize_depth(depth: np.ndarray, max_depth: float = DEPTH_MAX) -> np.ndarray:
+    """(H, W, 3) uint8 image of a depth map (m), clipped to [0, ``max_depth``]."""
+    index = np.clip(np.asarray(depth, dtype=np.float32) * (255.0 / max_depth), 0.0, 255.0).astype(np.uint8)
+    return depth_colours()[index]
+
+
+class MapView:
+    """World (m) <-> map-panel pixel transform for one layout, and its static raster.
+
+    The floor and its enclosing walls are fitted into a ``size`` x ``size`` pixel square,
+    x to the right and y up.
+    """
+
+    def __init__(self, layout: Layout, size: int = MAP_PX, margin: int = MAP_MARGIN) -> None:
+        self.layout = layout
+        self.size = size
+        hx, hy = layout.half_extents
+        ex, ey = hx + WALL_THICKNESS, hy + WALL_THICKNESS
+        self.scale = (size - 2 * margin) / (2 * max(ex, ey))
+        """Pixels per metre."""
+
+    def to_px(self, xy: Any, scale: float = 1.0) -> list[tuple[float, float]]:
+        """Pixel coordinates of world points ``xy`` ((N, 2) or one (x, y)), optionally on a ``scale``-times canvas."""
+        pts = np.atleast_2d(np.asarray(xy, dtype=np.float64))
+        c = self.size / 2 * scale
+        s = self.scale * scale
+        return list(zip((c + s * pts[:, 0]).tolist(), (c - s * pts[:, 1]).tolist()))
+
+    def metres(self, d: float, scale: float = 1.0) -> float:
+        return d * self.scale * scale
+
+    def render_static(self) -> Image.Image:
+        """The layout without anything that moves: background, walls, floor, obstacles, 1 m grid."""
+        k = _SUPERSAMPLE
+        img = Image.new("RGB", (self.size * k, self.size * k), BACKGROUND)
+        draw = ImageDraw.Draw(img)
+        hx, hy = self.layout.half_extents
+        t = WALL_THICKNESS
+        draw.rectangle(self._rect(-hx - t, -hy - t, hx + t, hy + t, k), fill=_rgb("wall"))
+        draw.rectangle(self._rect(-hx, -hy, hx, hy, k), fill=_rgb("floor"))
+        grid = tuple(min(c + 14, 255) for c in _rgb("floor"))
+        for gx in range(math.ceil(-hx), math.floor(hx) + 1):  # 1 m grid: gives the viewer a scale
+            draw.line(self.to_px([(gx, -hy), (gx, hy)], k), fill=grid, width=1)
+        for gy in range(math.ceil(-hy), math.floor(hy) + 1):
+            draw.line(self.to_px([(-hx, gy), (hx, gy)], k), fill=grid, width=1)
+        for o in self.layout.obstacles:
+            colour = _rgb(o.label if o.label in COLOURS else "box")
+            edge = tuple(int(c * 0.6) for c in colour)
+            if o.kind == "cylinder":
+                (cx, cy), = self.to_px(o.center, k)
+                r = self.metres(o.radius, k)
+                draw.ellipse((cx - r, cy - r, cx + r, cy + r), fill=colour, outline=edge, width=k)
+            else:
+                draw.polygon(self.to_px(box_corners(o), k), fill=colour, outline=edge, width=k)
+        return img.resize((self.size, self.size), Image.Resampling.LANCZOS)
+
+    def _rect(self, x0: float, y0: float, x1: float, y1: float, k: float) -> tuple[float, float, float, float]:
+        (ax, ay), (bx, by) = self.to_px([(x0, y1), (x1, y0)], k)
+        return ax, ay, bx, by
+
+
+def _outcome(env: Any, info: dict[str, Any], step: int) -> str | None:
+    """'success', 'collision' or 'timeout' once the episode is over, else None."""
+    if info.get("is_success"):
+        return "success"
+    if info.get("collision"):
+        return "collision"
+    spec = getattr(env, "spec", None) or getattr(env.unwrapped, "spec", None)
+    limit = getattr(spec, "max_episode_steps", None)
+    if limit is not None and step >= limit:
+        return "timeout"
+    return None
+
+
+def _reward(info: dict[str, Any]) -> float:
+    """The step reward, rebuilt from the ``reward_<term>`` entries (the env's reward is their sum)."""
+    return float(sum(v for k, v in info.items() if k.startswith("reward_")))
+
+
+class EpisodeRecorder:
+    """Writes a composed frame every ``stride`` control steps of every episode into one file.
+
+    Call :meth:`on_reset` after ``env.reset`` and :meth:`on_step` after every ``env.step``.
+    Per episode of ``n`` steps the file gets ``1 + n // stride`` frames (the reset frame and
+    steps ``stride, 2 stride, ...``), plus one for the final step when the episode ended
+    (success, collision or time limit) on a step that is not a multiple of ``stride`` and
+    ``final_frame`` is set, so that the outcome is always shown.
+
+    ``.mp4`` is H.264 (libx264, yuv420p) through imageio-ffmpeg, streamed to disk; ``.gif``
+    goes through Pillow, which keeps all frames in memory until :meth:`close` (use it for
+    short clips or a larger stride).
+
+    Args:
+        path: output file, ``.mp4`` or ``.gif``.
+        stride: record every this many control steps (>= 1).
+        fps: playback frames per second.
+        quality: H.264 quality 0-10 (imageio's scale; 5 is moderate: ~2-3 MB per minute of video here).
+        final_frame: also write the last step of an episode that ended off the stride.
+    """
+
+    def __init__(self, path: str | Path, stride: int = 1, fps: int = 24, quality: float = 5.0,
+                 final_frame: bool = True) -> None:
+        import imageio.v2 as imageio  # the writers live here; import cost only when recording
+
+        if stride < 1:
+            raise ValueError(f"stride must be >= 1, got {stride}")
+        self.path = Path(path)
+        self.stride = int(stride)
+        self.fps = fps
+        self.final_frame = final_frame
+        self.frame_size: tuple[int, int] = FRAME_SIZE
+        """(width, height) of every frame (px)."""
+        self.frames_written = 0
+        self.episodes = 0
+        self.last_frame: np.ndarray | None = None
+        """The most recent composed frame, (H, W, 3) uint8."""
+        suffix = self.path.suffix.lower()
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        if suffix == ".mp4":
+            self._writer = imageio.get_writer(
+                self.path, format="FFMPEG", mode="I", fps=fps, codec="libx264", quality=quality,
+                pixelformat="yuv420p", macro_block_size=16, ffmpeg_log_level="error",
+            )
+        elif suffix == ".gif":
+            # Pillow stores durations in ms, rounded to GIF's 10 ms resolution
+            self._writer = imageio.get_writer(self.path, mode="I", duration=1000.0 / fps, loop=0)
+        else:
+            raise ValueError(f"{self.path}: EpisodeRecorder writes .mp4 or .gif, not {suffix or 'no suffix'!r}")
+        self._closed = False
+        self._font = _font(13)
+        self._small = _font(11)
+        self._maps: OrderedDict[Layout, tuple[MapView, Image.Image]] = OrderedDict()
+        self._labels: dict[tuple[str, tuple[int, int, int], bool], Image.Image] = {}
+        self._base = self._render_base()
+        self._episode_stamp: int | None = None
+        self._episode_map: Image.Image | None = None
+        self._view: MapView | None = None
+        self._trajectory: list[tuple[float, float]] = []
+        self._step = 0
+        self._return = 0.0
+        self._distance = math.nan
+        self._outcome: str | None = None
+        self._done_written = False
+
+    # ------------------------------------------------------------------ hooks
+    def on_reset(self, env: Any, path: Sequence[tuple[float, float]] | None = None) -> None:
+        """Start an episode (call right after ``env.reset``) and write its first frame."""
+        self._begin(env)
+        self._write(self.compose(env, path=path))
+
+    def on_step(self, env: Any, info: dict[str, Any], path: Sequence[tuple[float, float]] | None = None) -> None:
+        """Account for the step just taken (call after every ``env.step``); write a frame when due.
+
+        ``path`` is the planned path to draw, e.g. ``navigator.path``. When :meth:`on_reset`
+        was not called for a new episode (``run_episodes`` has no reset hook; see
+        :func:`with_reset_hooks`), the episode is started here, without its reset frame.
+        """
+        u = env.unwrapped
+        if u.sim.clock.episode != self._episode_stamp:
+            log.debug("episode started without on_reset: its reset frame is missing")
+            self._begin(env)
+        self._step = u.sim.clock.tick // u.config.physics.substeps
+        x, y, _ = u.robot.planar_pose()
+        self._trajectory.append((x, y))
+        self._return += _reward(info)
+        self._distance = float(info.get("distance_to_goal", self._distance))
+        self._outcome = _outcome(env, info, self._step)
+        due = self._step % self.stride == 0
+        final = self._outcome is not None and self.final_frame and not self._done_written
+        if due or final:
+            self._write(self.compose(env, path=path))
+            self._done_written = self._outcome is not None
+
+    def close(self) -> None:
+        """Finish the file (idempotent)."""
+        if not self._closed:
+            self._closed = True
+            self._writer.close()
+            log.info("wrote %d frames (%d episodes) to %s", self.frames_written, self.episodes, self.path)
+
+    def __enter__(self) -> EpisodeRecorder:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ frames
+    def compose(self, env: Any, path: Sequence[tuple[float, float]] | None = None) -> np.ndarray:
+        """The frame for the current state, (H, W, 3) uint8, without writing it."""
+        u = env.unwrapped
+        if self._episode_map is None or self._view is None or u.sim.clock.episode != self._episode_stamp:
+            self._begin(env)
+        view = self._view
+        self._step = u.sim.clock.tick // u.config.physics.substeps
+        frame = self._base.copy()
+        frame.paste(self._map_frame(u, view, path), (0, 0))
+        image = u.sensors["camera"].read()  # cached per control step; no noise, no random draws
+        rgb = Image.fromarray(image.rgb)
+        depth = Image.fromarray(colourize_depth(image.depth))
+        if rgb.size != CAMERA_PX:
+            rgb = rgb.resize(CAMERA_PX, Image.Resampling.BILINEAR)
+            depth = depth.resize(CAMERA_PX, Image.Resampling.NEAREST)
+        frame.paste(rgb, (MAP_PX, 0))
+        frame.paste(depth, (MAP_PX, CAMERA_PX[1]))
+        frame.paste(self._label("camera RGB"), (MAP_PX + 2, 2))
+        frame.paste(self._label(f"depth 0-{DEPTH_MAX:g} m (near red)"), (MAP_PX + 2, CAMERA_PX[1] + 2))
+        self._strip(frame, u)
+        out = np.asarray(frame, dtype=np.uint8)
+        self.last_frame = out
+        return out
+
+    def _begin(self, env: Any) -> None:
+        u = env.unwrapped
+        self.episodes += 1
+        self._episode_stamp = u.sim.clock.episode
+        self._view, static = self._static_map(u.layout)
+        # per-episode layer: the static map plus start and goal, copied for every frame
+        img = static.copy()
+        draw = ImageDraw.Draw(img)
+        view = self._view
+        (gx, gy), = view.to_px(u.goal)
+        r = view.metres(u.config.task.goal_radius)
+        draw.ellipse((gx - r, gy - r, gx + r, gy + r), fill=_mix(GOAL, _rgb("floor"), 0.35), outline=GOAL, width=3)
+        draw.ellipse((gx - 3, gy - 3, gx + 3, gy + 3), fill=GOAL)
+        sx, sy, syaw = u.start
+        (px, py), = view.to_px((sx, sy))
+        h = view.metres(0.15)
+        draw.rectangle((px - h, py - h, px + h, py + h), outline=START, width=2)
+        (tx, ty), = view.to_px((sx + 0.3 * math.cos(syaw), sy + 0.3 * math.sin(syaw)))
+        draw.line((px, py, tx, ty), fill=START, width=2)
+        self._episode_map = img
+        x, y, _ = u.robot.planar_pose()
+        self._trajectory = [(x, y)]
+        self._step = u.sim.clock.tick // u.config.physics.substeps
+        self._return = 0.0
+        self._distance = math.hypot(u.goal[0] - x, u.goal[1] - y)
+        self._outcome = None
+        self._done_written = False
+
+    def _static_map(self, layout: Layout) -> tuple[MapView, Image.Image]:
+        # procedural envs draw a new layout every reset: keep a few, not all of them
+        if layout in self._maps:
+            self._maps.move_to_end(layout)
+            return self._maps[layout]
+        view = MapView(layout)
+        entry = (view, view.render_static())
+        self._maps[layout] = entry
+        while len(self._maps) > 8:
+            self._maps.popitem(last=False)
+        return entry
+
+    def _map_frame(self, u: Any, view: MapView, path: Sequence[tuple[float, float]] | None) -> Image.Image:
+        img = self._episode_map.copy()
+        draw = ImageDraw.Draw(img)
+        if path is not None and len(path) >= 2:
+            draw.line(view.to_px(path), fill=PATH, width=2)
+        if len(self._trajectory) >= 2:
+            draw.line(view.to_px(self._trajectory), fill=TRAJECTORY, width=2, joint="curve")
+        lidar = u.sensors["lidar"]
+        ranges = lidar.read()  # cached: the env read it this step
+        hit = ranges < lidar.config.max_range - 1e-6
+        if np.any(hit):
+            for px, py in view.to_px(lidar.hit_points(ranges)[hit]):
+                draw.ellipse((px - 2, py - 2, px + 2, py + 2), fill=LIDAR)
+        x, y, yaw = u.robot.planar_pose()
+        (cx, cy), = view.to_px((x, y))
+        r = view.metres(0.2)
+        draw.ellipse((cx - r, cy - r, cx + r, cy + r), outline=ROBOT, width=1)
+        tri = [(x + 0.3 * math.cos(yaw), y + 0.3 * math.sin(yaw)),
+               (x + 0.18 * math.cos(yaw + 2.4), y + 0.18 * math.sin(yaw + 2.4)),
+               (x + 0.18 * math.cos(yaw - 2.4), y + 0.18 * math.sin(yaw - 2.4))]
+        draw.polygon(view.to_px(tri), fill=ROBOT, outline=BACKGROUND)
+        return img
+
+    def _strip(self, frame: Image.Image, u: Any) -> None:
+        dt = u.config.physics.control_dt
+        line1 = (f"episode {self.episodes}   step {self._step:4d}   t {self._step * dt:6.2f} s   "
+                 f"distance to goal {self._distance:5.2f} m   return {self._return:+8.2f}")
+        ImageDraw.Draw(frame).text((10, STRIP_Y + 6), line1, fill=TEXT, font=self._font)  # changes every frame
+        name = u.layout.name or "layout"
+        sx, sy, _ = u.start
+        line2 = f"{name}   start ({sx:+.2f}, {sy:+.2f})   goal ({u.goal[0]:+.2f}, {u.goal[1]:+.2f})"
+        frame.paste(self._label(line2, DIM_TEXT), (7, STRIP_Y + 24))
+        outcome = self._outcome or "running"
+        label = self._label(outcome.upper(), OUTCOME_COLOURS.get(outcome, DIM_TEXT), small=False)
+        frame.paste(label, (FRAME_SIZE[0] - 12 - label.width, STRIP_Y + 12))
+
+    def _label(self, text: str, colour: tuple[int, int, int] = TEXT, small: bool = True) -> Image.Image:
+        """``text`` on a background box, rendered once and cached: FreeType rendering is
+        most of a frame's drawing time, and most labels repeat from frame to frame."""
+        key = (text, colour, small)
+        img = self._labels.get(key)
+        if img is None:
+            font = self._small if small else self._font
+            x0, y0, x1, y1 = ImageDraw.Draw(self._base).textbbox((0, 0), text, font=font)
+            img = Image.new("RGB", (int(x1) + 6, int(y1) + 4), BACKGROUND)
+            ImageDraw.Draw(img).text((3, 2), text, fill=colour, font=font)
+            if len(self._labels) > 64:  # per-episode lines would otherwise pile up
+                self._labels.clear()
+            self._labels[key] = img
+        return img
+
+    def _render_base(self) -> Image.Image:
+        """Everything that never changes: background, legend, depth colour bar."""
+        img = Image.new("RGB", FRAME_SIZE, BACKGROUND)
+        draw = ImageDraw.Draw(img)
+        x = SIDE_X + 12
+        draw.text((x, 10), "legend", fill=TEXT, font=self._font)
+        y = 34
+        entries = [("goal zone", GOAL), ("start", START), ("robot", ROBOT), ("trajectory", TRAJECTORY),
+                   ("planned path", PATH), ("lidar hits", LIDAR)]
+        entries += [(name, _rgb(name)) for name in ("rack", "pallet", "box", "column", "wall")]
+        for name, colour in entries:
+            draw.rectangle((x, y + 2, x + 12, y + 12), fill=colour)
+            draw.text((x + 20, y), name, fill=TEXT, font=self._small)
+            y += 20
+        # depth colour bar: near (0 m) at the top, as in the panel's table
+        top, bottom = y + 24, MAP_PX - 16
+        draw.text((x, y + 4), "depth (m)", fill=TEXT, font=self._small)
+        lut = depth_colours()
+        rows = np.linspace(0, 255, bottom - top).astype(int)
+        bar = np.repeat(lut[rows][:, None, :], 16, axis=1)
+        img.paste(Image.fromarray(bar), (x, top))
+        for d in range(0, int(DEPTH_MAX) + 1, 2):
+            ty = top + (bottom - top - 1) * d / DEPTH_MAX
+            draw.line((x + 16, ty, x + 22, ty), fill=TEXT)
+            draw.text((x + 26, ty - 6), f"{d}" + ("+" if d == int(DEPTH_MAX) else ""), fill=TEXT, font=self._small)
+        draw.line((0, STRIP_Y, FRAME_SIZE[0], STRIP_Y), fill=(60, 64, 70))
+        return img
+
+    def _write(self, frame: np.ndarray) -> None:
+        if self._closed:
+            raise RuntimeError(f"{self.path}: recorder is closed")
+        self._writer.append_data(frame)
+        self.frames_written += 1
+
+
+def _mix(a: tuple[int, int, int], b: tuple[int, int, int], alpha: float) -> tuple[int, int, int]:
+    """``alpha`` of colour ``a`` over colour ``b``."""
+    return tuple(int(round(alpha * x + (1 - alpha) * y)) for x, y in zip(a, b))  # type: ignore[return-value]
+
+
+class _ResetHooked:
+    """A policy that calls hooks with the env before its own ``reset`` (see :func:`with_reset_hooks`)."""
+
+    def __init__(self, policy: Any, hooks: tuple[Callable[[Any], None], ...]) -> None:
+        self._policy = policy
+        self._hooks = hooks
+
+    def reset(self, env: Any, rng: np.random.Generator) -> None:
+        for hook in self._hooks:
+            hook(env)
+        self._policy.reset(env, rng)
+
+    def act(self, obs: Any) -> Any:
+        return self._policy.act(obs)
+
+    def __getattr__(self, name: str) -> Any:  # plan_times, replans, path, ...
+        if name.startswith("_"):  # never recurse while half-built (copy, pickle)
+            raise AttributeError(name)
+        return getattr(self._policy, name)
+
+
+def with_reset_hooks(policy: Any, *hooks: Callable[[Any], None]) -> Any:
+    """Wrap ``policy`` so that ``hooks(env)`` run at every episode start.
+
+    :func:`bulletnav.evaluation.run_episodes` calls ``policy.reset(env, rng)`` right after
+    ``env.reset`` but has no reset callback; this gives recorders and logs their reset::
+
+        run_episodes(env, with_reset_hooks(nav, rec.on_reset, log.on_reset), 5, seed=0,
+                     on_step=lambda e, i: (rec.on_step(e, i, nav.path), log.on_step(e, i)))
+    """
+    return _ResetHooked(policy, hooks)

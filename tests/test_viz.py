@@ -1,0 +1,271 @@
+"""Visualisation: episode videos, recording side effects, GUI dashboard throttling, trajectory plots."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import imageio.v2 as imageio
+import numpy as np
+import pybullet
+import pytest
+from PIL import Image
+
+import bulletnav  # noqa: F401  (registers the env)
+from bulletnav.config import asset_path
+from bulletnav.evaluation import run_episodes
+from bulletnav.viz import (
+    FRAME_SIZE,
+    Dashboard,
+    DashboardConfig,
+    EpisodeRecorder,
+    TrajectoryLog,
+    figure_size,
+    plot_trajectories,
+    simplify_path,
+    with_reset_hooks,
+)
+from bulletnav.viz.video import GOAL, MAP_PX
+
+ENV_ID = "bulletnav/Warehouse-v0"
+EMPTY = str(asset_path("worlds", "empty.yaml"))
+# Episode 1 reaches the goal (~1 m to drive) before the 60-step limit; episode 2 times out.
+EPISODES = [
+    {"start": (-2.0, 0.0, 0.0), "goal": (-0.5, 0.0)},
+    {"start": (0.0, -2.0, math.pi / 2), "goal": (3.0, 3.0)},
+]
+
+
+def scripted(obs: np.ndarray) -> np.ndarray:
+    """Steer at the goal from the observation alone (heading error at 36, distance at 42)."""
+    heading = float(obs[36]) * math.pi
+    v = 0.5 * max(math.cos(heading), 0.0)
+    return np.array([v, float(np.clip(2.0 * heading, -1.5, 1.5))], dtype=np.float32)
+
+
+def expected_frames(steps: int, stride: int) -> int:
+    """The documented count: reset frame + every stride-th step + the final step when off the stride."""
+    return 1 + steps // stride + (1 if steps % stride else 0)
+
+
+def test_video_frames_are_composed_and_counted(tmp_path):
+    env = gym.make(ENV_ID, world=EMPTY, max_episode_steps=60)
+    mp4, gif = tmp_path / "episodes.mp4", tmp_path / "episodes.gif"
+    steps, outcomes = [], []
+    try:
+        with EpisodeRecorder(mp4, stride=1) as rec_mp4, EpisodeRecorder(gif, stride=7, fps=12) as rec_gif:
+            for options in EPISODES:
+                obs, info = env.reset(seed=0, options=options)
+                rec_mp4.on_reset(env)
+                rec_gif.on_reset(env)
+                n = 0
+                while True:
+                    obs, reward, terminated, truncated, info = env.step(scripted(obs))
+                    n += 1
+                    path = [options["start"][:2], options["goal"]]
+                    rec_mp4.on_step(env, info, path)
+                    rec_gif.on_step(env, info, path)
+                    if terminated or truncated:
+                        break
+                steps.append(n)
+                outcomes.append("success" if info["is_success"] else "timeout" if n == 60 else "other")
+            frame = rec_mp4.last_frame
+    finally:
+        env.close()
+    assert outcomes == ["success", "timeout"] and steps[0] % 7 != 0  # both counting rules exercised
+    assert rec_mp4.frame_size == FRAME_SIZE == (960, 528)
+    assert FRAME_SIZE[0] % 16 == 0 and FRAME_SIZE[1] % 16 == 0
+
+    want_mp4 = sum(expected_frames(n, 1) for n in steps)
+    want_gif = sum(expected_frames(n, 7) for n in steps)
+    assert rec_mp4.frames_written == want_mp4 and rec_gif.frames_written == want_gif
+    with imageio.get_reader(mp4) as reader:
+        video = [f for f in reader]
+    gif_frames = imageio.mimread(gif, memtest=False)
+    assert len(video) == want_mp4 and len(gif_frames) == want_gif
+    w, h = FRAME_SIZE
+    assert video[0].shape == (h, w, 3)
+    assert gif_frames[0].shape[:2] == (h, w)
+
+    # The panels are really composed (checked on the exact last frame and on decoded video).
+    assert frame.shape == (h, w, 3) and frame.dtype == np.uint8
+    for img, tol in ((frame, 0), (video[-1], 40)):
+        img = img.astype(int)
+        rgb_panel = img[0:240, 480:800]
+        depth_panel = img[240:480, 480:800]
+        map_panel = img[0:MAP_PX, 0:MAP_PX]
+        assert rgb_panel.std() > 10  # a camera image, not a flat fill
+        goal_px = np.all(np.abs(map_panel - np.array(GOAL)) <= tol, axis=-1).sum()
+        assert goal_px > 50  # the goal ring and centre dot
+        colours = {tuple(c) for c in (depth_panel[::8, ::8] // 32).reshape(-1, 3)}
+        assert len(colours) >= 4  # the depth colour map spans several colours
+
+
+def _run(env, recorders, seeds, steps_per_episode):
+    """Scripted episodes; returns everything the env handed back."""
+    trace = []
+    for seed in seeds:
+        obs, info = env.reset(seed=seed)
+        trace.append(("reset", obs, info))
+        for rec in recorders:
+            rec.on_reset(env)
+        for _ in range(steps_per_episode):
+            obs, reward, terminated, truncated, info = env.step(scripted(obs))
+            trace.append(("step", obs, reward, terminated, truncated, info))
+            for rec in recorders:
+                rec.on_step(env, info)
+            if terminated or truncated:
+                break
+    return trace
+
+
+def _assert_identical(a, b):
+    assert len(a) == len(b)
+    for x, y in zip(a, b):
+        assert x[0] == y[0]
+        for u, v in zip(x[1:], y[1:]):
+            if isinstance(u, dict):
+                assert u.keys() == v.keys()
+                for k in u:
+                    np.testing.assert_array_equal(np.asarray(u[k]), np.asarray(v[k]), err_msg=k)
+            else:
+                np.testing.assert_array_equal(np.asarray(u), np.asarray(v))
+
+
+def test_recording_leaves_the_episode_unchanged(tmp_path):
+    # procedural warehouse with IMU noise: any extra random draw or physics step would show
+    traces = []
+    for record in (False, True):
+        env = gym.make(ENV_ID)
+        try:
+            recorders = [EpisodeRecorder(tmp_path / "side.mp4", stride=1), TrajectoryLog()] if record else []
+            traces.append(_run(env, recorders, seeds=(3, 4), steps_per_episode=25))
+            for rec in recorders:
+                if isinstance(rec, EpisodeRecorder):
+                    rec.close()
+                    assert rec.frames_written >= 2
+        finally:
+            env.close()
+    _assert_identical(traces[0], traces[1])
+
+
+def test_dashboard_needs_the_gui():
+    env = gym.make(ENV_ID, world=EMPTY)
+    try:
+        env.reset(seed=0)
+        with pytest.raises(ValueError, match="render_mode='human'"):
+            Dashboard(env)
+    finally:
+        env.close()
+    with pytest.raises(ValueError, match="camera_every"):
+        DashboardConfig(camera_every=0)
+
+
+def test_simplify_path_keeps_corners_and_caps_segments():
+    straight = [(0.1 * i, 0.0) for i in range(11)] + [(1.0, 0.1 * j) for j in range(1, 6)]
+    assert simplify_path(straight, 40) == [(0.0, 0.0), (1.0, 0.0), (1.0, 0.5)]
+    zigzag = [(i, i % 2) for i in range(100)]
+    assert len(simplify_path(zigzag, 10)) == 11
+
+
+@pytest.mark.gui
+def test_dashboard_throttles_and_replaces_in_place(display, monkeypatch):
+    calls = {"new": [], "replace": [], "camera": 0}
+    real_line, real_camera = pybullet.addUserDebugLine, pybullet.getCameraImage
+
+    def counting_line(*args, **kwargs):
+        item = real_line(*args, **kwargs)
+        if "replaceItemUniqueId" in kwargs:
+            calls["replace"].append((kwargs["replaceItemUniqueId"], item))
+        else:
+            calls["new"].append(item)
+        return item
+
+    def counting_camera(*args, **kwargs):
+        calls["camera"] += 1
+        return real_camera(*args, **kwargs)
+
+    monkeypatch.setattr(pybullet, "addUserDebugLine", counting_line)
+    monkeypatch.setattr(pybullet, "getCameraImage", counting_camera)
+    cfg = DashboardConfig()  # every 10 steps; rays 0, 10, 20, 30 of 36
+    rays = len(range(0, 36, cfg.lidar_ray_stride))
+    path = [(-2.0, 0.0), (-1.0, 0.0), (0.0, 1.0)]  # 2 segments (no straight-through points)
+    env = gym.make(ENV_ID, render_mode="human", world=EMPTY)  # one GUI per process: closed below
+    try:
+        obs, _ = env.reset(seed=0, options={"start": (-2.0, 0.0, 0.0), "goal": (3.0, 3.0)})
+        dash = Dashboard(env, cfg)  # the env is reset: draws the goal marker (3 lines) now
+        assert dash.debug_items == 3 and dash.debug_draw_calls == 3
+        items = []
+        for _ in range(100):
+            obs, _, terminated, truncated, _ = env.step([0.25, 0.4])  # a 0.6 m circle: no collision
+            assert not (terminated or truncated)
+            dash.on_step(path)
+            items.append(dash.debug_items)
+        # no render at reset: one every camera_every steps
+        assert dash.camera_renders == calls["camera"] == 100 // cfg.camera_every == 10
+        want = 3 + (100 // cfg.lidar_every) * rays + (100 // cfg.path_every) * 2
+        assert dash.debug_draw_calls == len(calls["new"]) + len(calls["replace"]) == want == 63
+        # items exist from the first update on and are only moved after that
+        assert items[cfg.lidar_every - 1:] == [3 + rays + 2] * (100 - cfg.lidar_every + 1)
+        assert len(calls["new"]) == len(set(calls["new"])) == 3 + rays + 2
+        assert all(old == new >= 0 for old, new in calls["replace"])
+
+        # A seeded reset rebuilds the scene, which deletes all debug items: they are re-created once.
+        env.reset(seed=1, options={"start": (-2.0, 0.0, 0.0), "goal": (3.0, 3.0)})
+        dash.on_reset()
+        for _ in range(cfg.lidar_every):
+            env.step([0.25, 0.4])
+            dash.on_step(path)
+        assert dash.debug_items == 3 + rays + 2
+        assert len(calls["new"]) == 2 * (3 + rays + 2)
+        assert all(old == new >= 0 for old, new in calls["replace"])
+    finally:
+        env.close()
+
+
+def test_trajectory_log_and_plots(tmp_path):
+    env = gym.make(ENV_ID, world=EMPTY, max_episode_steps=40)
+
+    class Scripted:
+        def reset(self, env, rng):
+            pass
+
+        def act(self, obs):
+            return scripted(obs)
+
+    try:
+        log = TrajectoryLog()
+        finals = []
+        results = run_episodes(env, with_reset_hooks(Scripted(), log.on_reset), 2, seed=5,
+                               on_step=lambda e, i: (log.on_step(e, i), finals.append(e.unwrapped.robot.planar_pose())),
+                               on_episode=log.on_episode)
+        # and one without the reset hook: the log starts the episode itself
+        log2 = TrajectoryLog()
+        run_episodes(env, Scripted(), 1, seed=5, on_step=log2.on_step, on_episode=log2.on_episode)
+    finally:
+        env.close()
+    assert len(log) == 2
+    for ep, res in zip(log.episodes, results):
+        assert ep.result is res
+        assert len(ep.points) == res.steps + 1
+        assert ep.outcome == ("success" if res.success else "collision" if res.collision else "timeout")
+        np.testing.assert_allclose(ep.points[0], ep.start[:2], atol=1e-6)
+    assert log.episodes[-1].points[-1] == finals[-1][:2]
+    assert log2.episodes[0].points == log.episodes[0].points
+
+    out = plot_trajectories(log, tmp_path / "plots" / "one_map.png", title="scripted")
+    with Image.open(out) as img:
+        assert img.size == figure_size(log) == (700, 700)
+    assert not list(out.parent.glob(".*tmp"))  # the temp file was renamed, not left behind
+
+    # different layouts: small multiples, one panel per episode
+    env = gym.make(ENV_ID, max_episode_steps=15)
+    try:
+        multi = TrajectoryLog()
+        run_episodes(env, with_reset_hooks(Scripted(), multi.on_reset), 3, seed=7,
+                     on_step=multi.on_step, on_episode=multi.on_episode)
+    finally:
+        env.close()
+    out = plot_trajectories(multi, tmp_path / "multi.png")
+    with Image.open(out) as img:
+        assert img.size == figure_size(multi) == (2 * 300, 2 * 300 + 50)
