@@ -229,10 +229,10 @@ def _evaluate_report(args: argparse.Namespace, model_path: str) -> dict:
 
     import bulletnav  # noqa: F401
     from bulletnav.evaluation import summarize
-    from bulletnav.rl.common import SB3Policy, load_model
+    from bulletnav.rl.common import SB3Policy, evaluation_env_kwargs, load_model
 
     model, meta, vecnorm = load_model(model_path, algo=getattr(args, "algo", None))
-    env_kwargs = dict(meta.get("env_kwargs", {}))
+    env_kwargs = evaluation_env_kwargs(meta.get("env_kwargs", {}))
     env_kwargs["num_obstacles"] = args.obstacles
     if args.world:
         env_kwargs["world"] = args.world

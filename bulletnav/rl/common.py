@@ -79,6 +79,12 @@ def make_env_fn(env_kwargs: dict[str, Any], collision_terminal: bool = False) ->
     return _thunk
 
 
+def evaluation_env_kwargs(env_kwargs: dict[str, Any]) -> dict[str, Any]:
+    """The env settings a model is evaluated with: its training settings minus the reward
+    overrides (``reward_*``), so every agent is scored on the env's own reward."""
+    return {k: v for k, v in env_kwargs.items() if not k.startswith("reward_")}
+
+
 def atomic_write_bytes(path: str | Path, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file and ``os.replace``: a reader (or a
     crash) never sees a half-written file."""

@@ -27,6 +27,7 @@ from bulletnav.rl.common import (
     atomic_save_model,
     atomic_save_vecnormalize,
     atomic_write_json,
+    evaluation_env_kwargs,
     load_hyperparams,
     make_env_fn,
     sidecar_path,
@@ -139,7 +140,7 @@ def _callback(cfg: TrainConfig, env_kwargs: dict[str, Any], history: list[dict[s
             if self.eval_env is None:
                 import bulletnav  # noqa: F401
 
-                self.eval_env = gym.make(ENV_ID, **env_kwargs)
+                self.eval_env = gym.make(ENV_ID, **evaluation_env_kwargs(env_kwargs))
             results = run_episodes(self.eval_env, SB3Policy(self.model, vecnorm_ref[0]), cfg.eval_episodes,
                                    EVAL_SEED_BASE)
             s = summarize(results)
