@@ -129,6 +129,8 @@ def _json_default(o: Any) -> Any:
         return o.tolist()
     if isinstance(o, Path):
         return str(o)
+    if isinstance(o, type):
+        return f"{o.__module__}.{o.__qualname__}"
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 

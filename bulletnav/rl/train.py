@@ -97,7 +97,11 @@ def linear_schedule(initial: float):
 
 
 def _model_kwargs(hp: dict[str, Any], n_actions: int) -> dict[str, Any]:
-    kwargs = {k: v for k, v in hp.items() if k not in _ENV_KEYS}
+    import copy
+
+    # a copy: SB3 adds entries to the dicts it is given (A2C puts its optimizer class into
+    # policy_kwargs), which must not leak into the recorded hyperparameters
+    kwargs = copy.deepcopy({k: v for k, v in hp.items() if k not in _ENV_KEYS})
     for key in ("learning_rate", "clip_range"):
         value = kwargs.get(key)
         if isinstance(value, str) and value.startswith("lin_"):
@@ -148,17 +152,20 @@ def _callback(cfg: TrainConfig, env_kwargs: dict[str, Any], history: list[dict[s
                    **{k: s[k] for k in ("success_rate", "collision_rate", "mean_reward", "std_reward",
                                         "mean_length", "spl")}}
             history.append(row)
-            for k in ("success_rate", "collision_rate", "mean_reward", "mean_length", "spl"):
-                self.logger.record(f"eval/{k}", row[k])
-            self.logger.dump(self.num_timesteps)
+            logger = getattr(self.model, "_logger", None)  # absent when no learn() ran
+            if logger is not None:
+                for k in ("success_rate", "collision_rate", "mean_reward", "mean_length", "spl"):
+                    logger.record(f"eval/{k}", row[k])
+                logger.dump(self.num_timesteps)
             atomic_write_json(cfg.out / "eval_history.json", history)
             log.info("eval at %d: success %.2f collisions %.2f reward %.1f", row["timesteps"],
                      row["success_rate"], row["collision_rate"], row["mean_reward"])
             return row
 
-        def _on_training_end(self) -> None:
+        def close(self) -> None:
             if self.eval_env is not None:
                 self.eval_env.close()
+                self.eval_env = None
 
     t_start = [time.time()]
     return EvalAndCheckpoint(), t_start
@@ -179,8 +186,12 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
 
     torch.set_num_threads(1)  # 2 cores: more threads slow PPO down and starve the env workers
     hp = load_hyperparams(cfg.algo)
-    n_envs = int(cfg.n_envs or hp.get("n_envs", 4))
     env_kwargs = {**hp.get("env_kwargs", {}), **(cfg.env_overrides or {})}
+    recorded = cfg.out / "config.json"
+    if cfg.resume and recorded.is_file():  # a resumed run keeps the settings it started with
+        original = json.loads(recorded.read_text())
+        hp, env_kwargs = original["hyperparams"], original["env_kwargs"]
+    n_envs = int(cfg.n_envs or hp.get("n_envs", 4))
     cfg.out.mkdir(parents=True, exist_ok=True)
     venv = _make_vec_env(cfg, hp, env_kwargs, n_envs)
     normalize = hp.get("normalize") or None
@@ -228,6 +239,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
         callback.model = model
         callback.num_timesteps = model.num_timesteps
         callback.evaluate()
+    callback.close()
     venv.close()
     record.update(wall_time_s=round(wall, 1), total_timesteps=int(model.num_timesteps),
                   final_eval=history[-1] if history else None, eval_seeds=f"{EVAL_SEED_BASE}..")
