@@ -317,7 +317,9 @@ def compare_runs(run_dirs: list[Path], out_png: Path) -> list[dict[str, Any]]:
         final = history[-1]
         best = max(history, key=lambda h: h["success_rate"])
         rows.append({"run": str(run), "algo": record["algo"], "seed": record["seed"],
-                     "timesteps": record["total_timesteps"], "wall_time_s": record["wall_time_s"],
+                     "timesteps": record["total_timesteps"],
+                     # a resumed run's record times only its last part; the history's clock runs from the start
+                     "wall_time_s": max([record["wall_time_s"], *(h.get("wall_time", 0.0) for h in history)]),
                      "final_success": final["success_rate"], "final_collisions": final["collision_rate"],
                      "final_reward": round(final["mean_reward"], 2), "best_success": best["success_rate"],
                      "best_at": best["timesteps"]})
