@@ -106,12 +106,27 @@ def _model_kwargs(hp: dict[str, Any], n_actions: int) -> dict[str, Any]:
         value = kwargs.get(key)
         if isinstance(value, str) and value.startswith("lin_"):
             kwargs[key] = linear_schedule(float(value[4:]))
+    policy_kwargs = kwargs.get("policy_kwargs") or {}
+    for key in ("features_extractor_class", "activation_fn"):
+        if isinstance(policy_kwargs.get(key), str):  # "package.module.Name" in the YAML file
+            policy_kwargs[key] = _import_name(policy_kwargs[key])
     noise = hp.get("action_noise")
     if noise:
         from stable_baselines3.common.noise import NormalActionNoise
 
         kwargs["action_noise"] = NormalActionNoise(np.zeros(n_actions), float(noise["sigma"]) * np.ones(n_actions))
     return kwargs
+
+
+def _import_name(dotted: str):
+    """``"package.module.Name"`` -> the object, for classes named in hyperparameter files."""
+    import importlib
+
+    module, _, name = dotted.rpartition(".")
+    try:
+        return getattr(importlib.import_module(module), name)
+    except (ImportError, AttributeError, ValueError) as exc:
+        raise ValueError(f"hyperparameters name {dotted!r}, which cannot be imported ({exc})") from exc
 
 
 def _callback(cfg: TrainConfig, env_kwargs: dict[str, Any], history: list[dict[str, Any]], vecnorm_ref: list):

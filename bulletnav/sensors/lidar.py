@@ -14,6 +14,17 @@ from bulletnav.sim.robot import Robot
 from bulletnav.sim.world import STATIC_GROUP
 
 
+def ray_angles(num_rays: int, fov_deg: float) -> np.ndarray:
+    """Ray directions (rad from the heading, counter-clockwise, wrapped to (-pi, pi]): evenly
+    spaced from 0 for a full circle, else from ``-fov/2`` to ``fov/2``."""
+    if fov_deg >= 360.0:
+        angles = np.arange(num_rays) * (2 * math.pi / num_rays)
+    else:
+        fov = math.radians(fov_deg)
+        angles = np.linspace(-fov / 2, fov / 2, num_rays)
+    return np.where(angles > math.pi, angles - 2 * math.pi, angles)
+
+
 class Lidar(Sensor):
     """Ranges (m) along ``num_rays`` evenly spaced horizontal rays from the lidar link.
 
@@ -28,12 +39,7 @@ class Lidar(Sensor):
     def __init__(self, robot: Robot, clock: Clock, config: LidarConfig = LidarConfig()) -> None:
         super().__init__(robot, clock)
         self.config = config
-        fov = math.radians(config.fov)
-        if config.fov >= 360.0:
-            self.angles = np.arange(config.num_rays) * (2 * math.pi / config.num_rays)
-        else:
-            self.angles = np.linspace(-fov / 2, fov / 2, config.num_rays)
-        self.angles = np.where(self.angles > math.pi, self.angles - 2 * math.pi, self.angles)
+        self.angles = ray_angles(config.num_rays, config.fov)
         directions = np.stack([np.cos(self.angles), np.sin(self.angles), np.zeros_like(self.angles)], axis=1)
         self._ray_from = np.zeros((config.num_rays, 3)).tolist()
         self._ray_to = (directions * config.max_range).tolist()

@@ -1,0 +1,56 @@
+"""The policy's clearance features against the robot's real collision shapes in PyBullet."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pybullet as p
+import pytest
+import torch
+from gymnasium import spaces
+
+from bulletnav.rl.features import ClearanceFeatures, footprint_distances
+from bulletnav.sensors.lidar import ray_angles
+from bulletnav.sim.layout import Layout
+
+
+def test_footprint_matches_the_robots_collision_outline(make_sim, rng, report):
+    """Cast rays inward, at wheel-centre height, from 1 m outside toward the point under the
+    lidar: the first hit is where the robot's outline ends along that ray."""
+    sim = make_sim()
+    sim.reset(Layout((10.0, 10.0)), (0.0, 0.0, 0.0), rng)
+    cid, body = sim.cid, sim.robot.body
+    lidar_xy = p.getLinkState(body, sim.robot.lidar_link, physicsClientId=cid)[4][:2]
+    wheel_z = p.getLinkState(body, sim.robot.left_joint, physicsClientId=cid)[4][2]
+    angles = ray_angles(36, 360.0)
+    starts = [[lidar_xy[0] + math.cos(a), lidar_xy[1] + math.sin(a), wheel_z] for a in angles]
+    ends = [[lidar_xy[0], lidar_xy[1], wheel_z]] * len(angles)
+    hits = p.rayTestBatch(starts, ends, physicsClientId=cid)
+    assert all(h[0] == body for h in hits), "every inward ray must hit the robot"
+    measured = np.array([1.0 - h[2] for h in hits])  # metres from the lidar's vertical to the outline
+    expected = footprint_distances(36)
+    err = np.abs(measured - expected)
+    report("largest footprint error over 36 rays (m)", f"{err.max():.4f}")
+    assert err.max() < 0.005
+
+
+def test_closeness_is_one_at_contact_and_fades_with_clearance():
+    obs_space = spaces.Box(-3.0, 3.0, (43,), dtype=np.float32)
+    extractor = ClearanceFeatures(obs_space, num_rays=36, lidar_range=5.0, scale=0.15)
+    assert extractor.features_dim == 79
+    foot = footprint_distances(36)
+    obs = np.ones((3, 43), dtype=np.float32)
+    obs[0, :36] = foot / 5.0                  # every ray touching the outline
+    obs[1, :36] = (foot + 0.15) / 5.0         # 0.15 m clear everywhere
+    obs[2, :36] = (foot - 0.02) / 5.0         # inside the outline (noise): counts as contact
+    out = extractor(torch.as_tensor(obs)).numpy()
+    np.testing.assert_array_equal(out[:, :43], obs)  # the observation passes through unchanged
+    np.testing.assert_allclose(out[0, 43:], 1.0, atol=1e-5)
+    np.testing.assert_allclose(out[1, 43:], math.exp(-1.0), atol=1e-5)
+    np.testing.assert_allclose(out[2, 43:], 1.0, atol=1e-6)
+
+
+def test_extractor_rejects_an_observation_shorter_than_the_scan():
+    with pytest.raises(ValueError, match="fewer than num_rays"):
+        ClearanceFeatures(spaces.Box(0.0, 1.0, (10,), dtype=np.float32), num_rays=36)
