@@ -53,6 +53,15 @@ def cmd_bench(args: argparse.Namespace) -> int:
                          f"{row['plan_ms_median']:11.3f} {row['plan_ms_p95']:7.3f} {row['replans_per_episode']:7.1f} "
                          f"{row['sim_time_to_goal_s']:10.2f} {row['path_length_m']:7.2f}")
         lines.append(f"paired: {result['paired']}")
+    elif args.what == "gui":
+        from bulletnav.bench.gui_bench import bench_gui
+
+        result = bench_gui(steps=args.steps or 30, seed=args.seed)
+        lines = [f"GUI frames per second with the A* navigator driving (median of {result['repeats']} x "
+                 f"{result['steps']} steps, real-time pacing off, DISPLAY={result['display']}):",
+                 f"  throttled dashboard    {result['fps_throttled']:6.2f}",
+                 f"  unthrottled dashboard  {result['fps_unthrottled']:6.2f}",
+                 f"  no dashboard           {result['fps_no_dashboard']:6.2f}"]
     else:  # pragma: no cover - argparse restricts the choices
         raise AssertionError(args.what)
     print(_json(result) if args.json else "\n".join(lines))
@@ -425,8 +434,9 @@ def build_parser() -> argparse.ArgumentParser:
     view.set_defaults(func=cmd_view)
 
     bench = sub.add_parser("bench", help="benchmarks (print JSON with --json)")
-    bench.add_argument("what", choices=["env", "physics", "planners"],
-                       help="env: env vs raw PyBullet loop; physics: solver settings; planners: A* vs RRT")
+    bench.add_argument("what", choices=["env", "physics", "planners", "gui"],
+                       help="env: env vs raw PyBullet loop; physics: solver settings; planners: A* vs RRT; "
+                            "gui: dashboard frame rate (needs a display: xvfb-run -a)")
     bench.add_argument("--episodes", type=int, default=50, help="navigation episodes per planner (planners)")
     bench.add_argument("--json", action="store_true", help="print one JSON object")
     bench.add_argument("--steps", type=int, default=0, help="steps to time (default: the benchmark's own)")

@@ -269,3 +269,14 @@ def test_trajectory_log_and_plots(tmp_path):
     out = plot_trajectories(multi, tmp_path / "multi.png")
     with Image.open(out) as img:
         assert img.size == figure_size(multi) == (2 * 300, 2 * 300 + 50)
+
+
+@pytest.mark.gui
+def test_bench_gui_reports_frame_rates(display):
+    from bulletnav.bench.gui_bench import bench_gui
+
+    result = bench_gui(steps=3, repeats=1)
+    assert result["benchmark"] == "gui"
+    for key in ("fps_throttled", "fps_unthrottled", "fps_no_dashboard"):
+        assert result[key] > 0.0
+    assert result["throttles"]["camera_every"] == 10 and result["throttles"]["lidar_ray_stride"] == 10

@@ -29,7 +29,6 @@ def bench_navigation(episodes: int = 50, seed: int = 1000, num_obstacles: int = 
         finally:
             env.close()
         s = summarize(results)
-        both = [r for r in results]
         rows[planner] = {
             "success_rate": s["success_rate"],
             "collision_rate": s["collision_rate"],
@@ -41,7 +40,7 @@ def bench_navigation(episodes: int = 50, seed: int = 1000, num_obstacles: int = 
             "sim_time_to_goal_s": round(s["mean_sim_time_success"], 3),
             "path_length_m": round(s["mean_path_length_success"], 3),
             "mean_steps": round(s["mean_length"], 1),
-            "_results": both,
+            "_results": results,
         }
     # paired comparison on the episodes both planners solved
     a, r = rows["astar"].pop("_results"), rows["rrt"].pop("_results")
