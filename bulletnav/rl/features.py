@@ -15,6 +15,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import torch
+from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 
 from bulletnav.sensors.lidar import ray_angles
 
@@ -38,7 +40,7 @@ def footprint_distances(num_rays: int, fov_deg: float = 360.0, lidar_x: float = 
     for i, a in enumerate(angles):
         c, s = math.cos(a), math.sin(a)
         # leave the body rectangle (the lidar is inside it)
-        tx = ((BODY_HALF_LENGTH - lidar_x) / c if c > 1e-12 else (-BODY_HALF_LENGTH - lidar_x) / c) if abs(c) > 1e-12 else math.inf
+        tx = (math.copysign(BODY_HALF_LENGTH, c) - lidar_x) / c if abs(c) > 1e-12 else math.inf
         ty = BODY_HALF_WIDTH / abs(s) if abs(s) > 1e-12 else math.inf
         t = min(tx, ty)
         # a wheel disc the ray crosses extends the outline to the disc's far side
@@ -55,13 +57,7 @@ def footprint_distances(num_rays: int, fov_deg: float = 360.0, lidar_x: float = 
     return out
 
 
-def _extractor_base():
-    from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
-
-    return BaseFeaturesExtractor
-
-
-class ClearanceFeatures(_extractor_base()):  # type: ignore[misc]
+class ClearanceFeatures(BaseFeaturesExtractor):
     """Observation (as is) followed by one closeness value per lidar ray.
 
     Args:
@@ -74,8 +70,6 @@ class ClearanceFeatures(_extractor_base()):  # type: ignore[misc]
 
     def __init__(self, observation_space, num_rays: int = 36, lidar_range: float = 5.0, scale: float = 0.15,
                  fov: float = 360.0) -> None:
-        import torch
-
         n_obs = int(observation_space.shape[0])
         if n_obs < num_rays:
             raise ValueError(f"observation has {n_obs} entries, fewer than num_rays={num_rays}")
@@ -85,9 +79,7 @@ class ClearanceFeatures(_extractor_base()):  # type: ignore[misc]
         self.scale = float(scale)
         self.register_buffer("footprint", torch.as_tensor(footprint_distances(num_rays, fov), dtype=torch.float32))
 
-    def forward(self, observations):
-        import torch
-
+    def forward(self, observations: torch.Tensor) -> torch.Tensor:
         ranges = observations[:, : self.num_rays] * self.lidar_range
         clearance = torch.clamp(ranges - self.footprint, min=0.0)
         return torch.cat([observations, torch.exp(-clearance / self.scale)], dim=1)
