@@ -10,7 +10,7 @@ import pytest
 import torch
 from gymnasium import spaces
 
-from bulletnav.rl.features import ClearanceFeatures, footprint_distances
+from bulletnav.rl.features import ClearanceFeatures, footprint_distances, outline_clearance
 from bulletnav.sensors.lidar import ray_angles
 from bulletnav.sim.layout import Layout
 
@@ -54,3 +54,53 @@ def test_closeness_is_one_at_contact_and_fades_with_clearance():
 def test_extractor_rejects_an_observation_shorter_than_the_scan():
     with pytest.raises(ValueError, match="fewer than num_rays"):
         ClearanceFeatures(spaces.Box(0.0, 1.0, (10,), dtype=np.float32), num_rays=36)
+
+
+def test_point_clearance_matches_pybullet_closest_distance(make_sim, rng, report):
+    """Probe points around the robot at wheel-centre height: the outline clearance equals
+    PyBullet's closest distance between the robot's collision shapes and a tiny sphere there."""
+    sim = make_sim()
+    sim.reset(Layout((10.0, 10.0)), (0.0, 0.0, 0.0), rng)
+    cid, body = sim.cid, sim.robot.body
+    x0, y0, yaw = sim.robot.pose()  # the body frame (PyBullet's base position is the centre of mass)
+    wheel_z = p.getLinkState(body, sim.robot.left_joint, physicsClientId=cid)[4][2]
+    probe_r = 1e-3
+    probe = p.createMultiBody(0.0, p.createCollisionShape(p.GEOM_SPHERE, radius=probe_r, physicsClientId=cid),
+                              basePosition=[5.0, 5.0, wheel_z], physicsClientId=cid)
+    bx = rng.uniform(-0.35, 0.35, 200)
+    by = rng.uniform(-0.35, 0.35, 200)
+    expected = outline_clearance(bx, by)
+    keep = expected > 0.003  # outside the outline (inside, PyBullet reports penetration instead)
+    measured = []
+    for x, y in zip(bx[keep], by[keep]):
+        wx = x0 + x * math.cos(yaw) - y * math.sin(yaw)
+        wy = y0 + x * math.sin(yaw) + y * math.cos(yaw)
+        p.resetBasePositionAndOrientation(probe, [wx, wy, wheel_z], [0, 0, 0, 1], physicsClientId=cid)
+        pts = p.getClosestPoints(body, probe, distance=1.0, physicsClientId=cid)
+        measured.append(min(c[8] for c in pts) + probe_r)
+    err = np.abs(np.array(measured) - expected[keep])
+    report(f"outline clearance vs PyBullet closest distance, {keep.sum()} points: largest error (m)",
+           f"{err.max():.4f}")
+    assert keep.sum() > 100
+    assert err.max() < 0.003
+
+
+def test_point_metric_sees_an_edge_between_rays():
+    """An obstacle edge touching the right wheel from the front-right, seen by the ray at
+    -110 deg: along the ray it looks 5 cm clear, to the outline it is in contact."""
+    obs_space = spaces.Box(-3.0, 3.0, (43,), dtype=np.float32)
+    ray = ClearanceFeatures(obs_space, metric="ray")
+    point = ClearanceFeatures(obs_space, metric="point")
+    angles = ray_angles(36, 360.0)
+    i = int(np.argmin(np.abs(angles - math.radians(-110.0))))
+    r = 0.15  # the hit point (0.049, -0.141) m in the body frame: 8 mm from the wheel disc
+    obs = np.ones((1, 43), dtype=np.float32)
+    obs[0, i] = r / 5.0
+    along_ray = ray.clearance(torch.as_tensor(obs)).numpy()[0, i]
+    to_outline = point.clearance(torch.as_tensor(obs)).numpy()[0, i]
+    assert along_ray > 0.04
+    assert to_outline < 0.01
+    np.testing.assert_allclose(to_outline, outline_clearance(np.array([0.10 + r * math.cos(angles[i])]),
+                                                            np.array([r * math.sin(angles[i])]))[0], atol=1e-5)
+    with pytest.raises(ValueError, match="metric"):
+        ClearanceFeatures(obs_space, metric="nearest")
