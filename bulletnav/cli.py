@@ -216,7 +216,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         algo=args.algo, timesteps=args.timesteps, out=Path(args.out), seed=args.seed, n_envs=args.n_envs,
         resume=args.resume, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
         checkpoint_freq=args.checkpoint_freq, progress_bar=not args.no_progress, vec_env=args.vec_env,
-        command=command_line(),
+        hyperparams=Path(args.hyperparams) if args.hyperparams else None, command=command_line(),
     )
     record = train(cfg)
     final = record.get("final_eval") or {}
@@ -391,6 +391,8 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--eval-episodes", type=int, default=20)
     tr.add_argument("--checkpoint-freq", type=int, default=25_000)
     tr.add_argument("--vec-env", choices=["subproc", "dummy"], default="subproc")
+    tr.add_argument("--hyperparams", metavar="YAML",
+                    help="hyperparameter file to use instead of the packaged rl/hyperparams/<algo>.yml (same format)")
     tr.add_argument("--no-progress", action="store_true", help="no progress bar")
     tr.set_defaults(func=cmd_train)
 

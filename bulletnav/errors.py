@@ -23,3 +23,7 @@ class ModelError(BulletnavError, ValueError):
 
 class RunError(BulletnavError, ValueError):
     """A training-run directory is missing or incomplete."""
+
+
+class ConfigError(BulletnavError, ValueError):
+    """A hyperparameter or configuration file is missing or malformed (message names file and key)."""

@@ -159,3 +159,32 @@ def test_compare_plots_runs_and_tabulates(ppo_run, tmp_path, capsys):
     assert f"| PPO | 0 | {total} |" in text and png.stat().st_size > 10_000
     assert main(["compare", str(tmp_path / "missing"), "--out", str(png)]) == 2
     assert "not a finished training run" in capsys.readouterr().err
+
+
+def test_hyperparams_file_replaces_the_packaged_one(tmp_path, capsys):
+    import yaml
+
+    from bulletnav.rl.common import load_hyperparams
+
+    hp = load_hyperparams("ppo")
+    hp.update(n_steps=64, batch_size=64, n_epochs=1)
+    hp["env_kwargs"] = {**hp["env_kwargs"], "reward_collision": -7.0}
+    conf = tmp_path / "mine.yml"
+    conf.write_text(yaml.safe_dump({ENV_ID: hp}))
+    out = _train(tmp_path, "ppo", steps=256, extra=("--hyperparams", str(conf)))
+    record = json.loads((out / "run.json").read_text())
+    assert record["hyperparams"]["n_steps"] == 64 and record["env_kwargs"]["reward_collision"] == -7.0
+    assert record["total_timesteps"] == 256  # 2 envs x 64 steps x 2 rollouts
+
+    bad = {"missing.yml": None, "other.yml": yaml.safe_dump({"CartPole-v1": {"policy": "MlpPolicy"}}),
+           "broken.yml": "bulletnav/Warehouse-v0: [unclosed"}
+    for name, text in bad.items():
+        path = tmp_path / name
+        if text is not None:
+            path.write_text(text)
+        capsys.readouterr()
+        argv = ["train", "--algo", "ppo", "--timesteps", "64", "--out", str(tmp_path / "never"), "--hyperparams", str(path)]
+        assert main(argv) == 2, name
+        err = capsys.readouterr().err
+        assert name in err and "Traceback" not in err, err
+    assert not (tmp_path / "never").exists()

@@ -17,7 +17,7 @@ import numpy as np
 import yaml
 
 from bulletnav import ENV_ID
-from bulletnav.errors import ModelError
+from bulletnav.errors import ConfigError, ModelError
 
 ALGOS = ("ppo", "sac", "td3", "a2c")
 
@@ -36,16 +36,25 @@ def algo_class(name: str):
 
 
 def load_hyperparams(algo: str, env_id: str = ENV_ID, path: str | Path | None = None) -> dict[str, Any]:
-    """The hyperparameters for ``algo`` on ``env_id`` from ``rl/hyperparams/<algo>.yml``.
+    """The hyperparameters for ``algo`` on ``env_id`` from ``path`` (default
+    ``rl/hyperparams/<algo>.yml``).
 
     Raises:
-        ValueError: the file lacks the env id (the message names file and key).
+        ConfigError: the file is missing, not YAML, or lacks the env id (the message names
+            file and key).
     """
     if path is None:
         path = Path(str(resources.files("bulletnav").joinpath("rl", "hyperparams", f"{algo}.yml")))
-    data = yaml.safe_load(Path(path).read_text())
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read hyperparameter file ({exc.strerror or exc})") from exc
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path}: not valid YAML ({exc})") from exc
     if not isinstance(data, dict) or env_id not in data:
-        raise ValueError(f"{path}: no hyperparameters for env id {env_id!r}")
+        raise ConfigError(f"{path}: no hyperparameters for env id {env_id!r}")
+    if not isinstance(data[env_id], dict):
+        raise ConfigError(f"{path}: {env_id!r} must map hyperparameter names to values")
     return dict(data[env_id])
 
 
@@ -183,14 +192,12 @@ def load_model(path: str | Path, algo: str | None = None):
     if algo is None:
         raise ModelError(f"{path}: cannot tell the algorithm; pass --algo or keep the .json beside the model")
     cls = algo_class(algo)
-    policy_class = str(data.get("policy_class", {}).get(":serialized:", ""))
     try:
         model = cls.load(path, device="cpu")
     except Exception as exc:  # SB3 raises many kinds on a mismatched or broken archive
         raise ModelError(f"{path}: cannot load as {algo.upper()} ({type(exc).__name__}: {exc})") from exc
     if not isinstance(model, cls):
         raise ModelError(f"{path}: expected a {algo.upper()} model, got {type(model).__name__}")
-    del policy_class
     vecnorm = None
     vn = vecnormalize_path(path)
     if vn.is_file():

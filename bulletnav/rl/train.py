@@ -18,7 +18,7 @@ import gymnasium as gym
 import numpy as np
 
 from bulletnav import ENV_ID
-from bulletnav.errors import ModelError, RunError
+from bulletnav.errors import ConfigError, ModelError, RunError
 from bulletnav.evaluation import run_episodes, summarize
 from bulletnav.rl.common import (
     EVAL_SEED_BASE,
@@ -57,6 +57,8 @@ class TrainConfig:
     """'subproc' (one process per env) or 'dummy' (all in this process)."""
     env_overrides: dict | None = None
     """Extra env keyword arguments on top of the hyperparameter file's."""
+    hyperparams: Path | None = None
+    """A hyperparameter YAML file to use instead of ``rl/hyperparams/<algo>.yml`` (same format)."""
     command: str = ""
 
 
@@ -126,7 +128,7 @@ def _import_name(dotted: str):
     try:
         return getattr(importlib.import_module(module), name)
     except (ImportError, AttributeError, ValueError) as exc:
-        raise ValueError(f"hyperparameters name {dotted!r}, which cannot be imported ({exc})") from exc
+        raise ConfigError(f"hyperparameters name {dotted!r}, which cannot be imported ({exc})") from exc
 
 
 def _callback(cfg: TrainConfig, env_kwargs: dict[str, Any], history: list[dict[str, Any]], vecnorm_ref: list):
@@ -200,7 +202,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
     from stable_baselines3.common.vec_env import VecNormalize
 
     torch.set_num_threads(1)  # 2 cores: more threads slow PPO down and starve the env workers
-    hp = load_hyperparams(cfg.algo)
+    hp = load_hyperparams(cfg.algo, path=cfg.hyperparams)
     env_kwargs = {**hp.get("env_kwargs", {}), **(cfg.env_overrides or {})}
     recorded = cfg.out / "config.json"
     if cfg.resume and recorded.is_file():  # a resumed run keeps the settings it started with
