@@ -58,7 +58,8 @@ def test_extractor_rejects_an_observation_shorter_than_the_scan():
 
 def test_point_clearance_matches_pybullet_closest_distance(make_sim, rng, report):
     """Probe points around the robot at wheel-centre height: the outline clearance equals
-    PyBullet's closest distance between the robot's collision shapes and a tiny sphere there."""
+    PyBullet's closest distance between the base link's collision shapes (body and wheel
+    guards; the wheel spheres meet only the floor) and a tiny sphere there."""
     sim = make_sim()
     sim.reset(Layout((10.0, 10.0)), (0.0, 0.0, 0.0), rng)
     cid, body = sim.cid, sim.robot.body
@@ -76,7 +77,7 @@ def test_point_clearance_matches_pybullet_closest_distance(make_sim, rng, report
         wx = x0 + x * math.cos(yaw) - y * math.sin(yaw)
         wy = y0 + x * math.sin(yaw) + y * math.cos(yaw)
         p.resetBasePositionAndOrientation(probe, [wx, wy, wheel_z], [0, 0, 0, 1], physicsClientId=cid)
-        pts = p.getClosestPoints(body, probe, distance=1.0, physicsClientId=cid)
+        pts = p.getClosestPoints(body, probe, distance=1.0, linkIndexA=-1, physicsClientId=cid)
         measured.append(min(c[8] for c in pts) + probe_r)
     err = np.abs(np.array(measured) - expected[keep])
     report(f"outline clearance vs PyBullet closest distance, {keep.sum()} points: largest error (m)",
@@ -86,19 +87,19 @@ def test_point_clearance_matches_pybullet_closest_distance(make_sim, rng, report
 
 
 def test_point_metric_sees_an_edge_between_rays():
-    """An obstacle edge touching the right wheel from the front-right, seen by the ray at
-    -110 deg: along the ray it looks 5 cm clear, to the outline it is in contact."""
+    """An obstacle edge almost touching the right wheel from the front-right, seen by the ray
+    at -110 deg: along the ray it looks 3 cm clear, to the outline it is 8 mm away."""
     obs_space = spaces.Box(-3.0, 3.0, (43,), dtype=np.float32)
     ray = ClearanceFeatures(obs_space, metric="ray")
     point = ClearanceFeatures(obs_space, metric="point")
     angles = ray_angles(36, 360.0)
     i = int(np.argmin(np.abs(angles - math.radians(-110.0))))
-    r = 0.15  # the hit point (0.049, -0.141) m in the body frame: 8 mm from the wheel disc
+    r = 0.135  # the hit point (0.054, -0.127) m in the body frame: 8 mm from the wheel's corner
     obs = np.ones((1, 43), dtype=np.float32)
     obs[0, i] = r / 5.0
     along_ray = ray.clearance(torch.as_tensor(obs)).numpy()[0, i]
     to_outline = point.clearance(torch.as_tensor(obs)).numpy()[0, i]
-    assert along_ray > 0.04
+    assert along_ray > 0.025
     assert to_outline < 0.01
     np.testing.assert_allclose(to_outline, outline_clearance(np.array([0.10 + r * math.cos(angles[i])]),
                                                             np.array([r * math.sin(angles[i])]))[0], atol=1e-5)

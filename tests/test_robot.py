@@ -69,3 +69,19 @@ def test_non_finite_command_is_refused(make_sim, rng):
     sim.reset(FLAT, (0.0, 0.0, 0.0), rng)
     with pytest.raises(ValueError, match="finite"):
         sim.robot.set_velocity(float("nan"), 0.0)
+
+
+@pytest.mark.parametrize("face_y, touching", [(-0.14, False), (-0.125, False), (-0.115, True), (-0.095, True)])
+def test_obstacles_meet_the_wheels_true_width(make_sim, rng, face_y, touching):
+    """A wall beside the right wheel counts as contact only once it reaches the wheel's
+    0.02 m-wide footprint (outer face at y = -0.12), not the 0.05 m rolling sphere's
+    (y = -0.16), and it does touch the body side (y = -0.10)."""
+    import pybullet as p
+
+    from bulletnav.sim.layout import Obstacle
+
+    wall = Obstacle("box", (0.0, face_y - 0.05), (0.04, 0.1, 0.5))
+    sim = make_sim()
+    sim.reset(Layout((10.0, 10.0), obstacles=(wall,)), (0.0, 0.0, 0.0), rng)
+    p.performCollisionDetection(physicsClientId=sim.cid)
+    assert sim.in_collision() is touching

@@ -1,16 +1,16 @@
 """Policy-side lidar features: how close each ray's obstacle is to the robot's own outline.
 
 The env's observation scales lidar ranges by the 5 m maximum, so touching an obstacle
-(0.05-0.16 m from the lidar, depending on the ray) and being safely clear of it (0.3 m)
+(0.05-0.27 m from the lidar, depending on the ray) and being safely clear of it (0.3 m)
 differ by a few hundredths of an input unit, and where contact happens differs by ray: the
-lidar sits 5 cm behind the front face, 25 cm ahead of the rear and 16 cm inside the wheel
-spheres' outer edge. :class:`ClearanceFeatures` appends, for every ray, the closeness
+lidar sits 5 cm behind the front face, 25 cm ahead of the rear and 10-12 cm from the sides
+and wheels. :class:`ClearanceFeatures` appends, for every ray, the closeness
 ``exp(-clearance / scale)``. Two clearances are offered (``metric``):
 
 - ``"ray"``: the range minus the distance from the lidar to the edge of the robot's collision
   outline along that ray (:func:`footprint_distances`). Blind between rays: an obstacle edge
-  10 cm off the body side, just ahead of a wheel, reads as 5 cm clear on the nearest ray
-  while it touches the wheel.
+  8 mm off the outer front corner of a wheel reads as 3 cm clear on the nearest ray
+  (-110 deg).
 - ``"point"``: the distance from the point the ray hit to the nearest part of the outline
   (:func:`outline_clearance`), whatever direction that is in.
 
@@ -28,13 +28,30 @@ from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 
 from bulletnav.sensors.lidar import ray_angles
 
-# Collision outline of bulletnav/assets/diff_drive.urdf in the body frame (m): the 0.3 x 0.2 m
-# body box and the two wheel spheres (r 0.05 m, centres 0.11 m left and right), seen from above.
+# Collision outline of bulletnav/assets/diff_drive.urdf in the body frame (m), seen from above:
+# the 0.3 x 0.2 m body box and the two wheels' 0.1 x 0.02 m guard boxes beside it, centred
+# 0.11 m left and right. Their union is two rectangles centred on the body origin:
+# |x| <= 0.15, |y| <= 0.10 (body) and |x| <= 0.05, |y| <= 0.12 (wheels, reaching past the sides).
 BODY_HALF_LENGTH = 0.15
 BODY_HALF_WIDTH = 0.10
-WHEEL_Y = 0.11
-WHEEL_RADIUS = 0.05
+WHEEL_HALF_LENGTH = 0.05
+WHEEL_OUTER_Y = 0.12
 LIDAR_X = 0.10
+_RECTANGLES = ((BODY_HALF_LENGTH, BODY_HALF_WIDTH), (WHEEL_HALF_LENGTH, WHEEL_OUTER_Y))
+
+
+def _ray_interval(ox: float, c: float, s: float, hx: float, hy: float) -> tuple[float, float]:
+    """Parameters ``(t_in, t_out)`` where the ray ``(ox + t c, t s)`` is inside the centred
+    rectangle ``|x| <= hx, |y| <= hy`` (slab method; ``t_in > t_out`` when it misses)."""
+    lo, hi = -math.inf, math.inf
+    for o, d, h in ((ox, c, hx), (0.0, s, hy)):
+        if abs(d) < 1e-12:
+            if abs(o) > h:
+                return math.inf, -math.inf
+            continue
+        a, b = (-h - o) / d, (h - o) / d
+        lo, hi = max(lo, min(a, b)), min(hi, max(a, b))
+    return lo, hi
 
 
 def footprint_distances(num_rays: int, fov_deg: float = 360.0, lidar_x: float = LIDAR_X) -> np.ndarray:
@@ -47,33 +64,23 @@ def footprint_distances(num_rays: int, fov_deg: float = 360.0, lidar_x: float = 
     out = np.empty(num_rays)
     for i, a in enumerate(angles):
         c, s = math.cos(a), math.sin(a)
-        # leave the body rectangle (the lidar is inside it)
-        tx = (math.copysign(BODY_HALF_LENGTH, c) - lidar_x) / c if abs(c) > 1e-12 else math.inf
-        ty = BODY_HALF_WIDTH / abs(s) if abs(s) > 1e-12 else math.inf
-        t = min(tx, ty)
-        # a wheel disc the ray crosses extends the outline to the disc's far side
-        for wy in (WHEEL_Y, -WHEEL_Y):
-            # |(lidar_x + t c, t s) - (0, wy)| = r  ->  t^2 + 2 t (lidar_x c - wy s) + lidar_x^2 + wy^2 - r^2 = 0
-            b = lidar_x * c - wy * s
-            disc = b * b - (lidar_x**2 + wy**2 - WHEEL_RADIUS**2)
-            if disc >= 0.0:
-                far = -b + math.sqrt(disc)
-                near = -b - math.sqrt(disc)
-                if far > 0.0 and near <= t + 1e-9:  # the disc continues the outline along the ray
-                    t = max(t, far)
+        t = 0.0  # the lidar is inside the body; walk out through every rectangle the ray is in
+        grown = True
+        while grown:
+            grown = False
+            for hx, hy in _RECTANGLES:
+                t_in, t_out = _ray_interval(lidar_x, c, s, hx, hy)
+                if t_in <= t + 1e-9 and t_out > t + 1e-9:
+                    t, grown = t_out, True
         out[i] = t
     return out
 
 
 def outline_clearance(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Distance (m) from body-frame points ``(x, y)`` to the robot's collision outline seen
-    from above (0 inside it): the body rectangle and the two wheel discs."""
-    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
-    dx = np.maximum(np.abs(x) - BODY_HALF_LENGTH, 0.0)
-    dy = np.maximum(np.abs(y) - BODY_HALF_WIDTH, 0.0)
-    body = np.hypot(dx, dy)
-    wheel = np.hypot(x, np.abs(y) - WHEEL_Y) - WHEEL_RADIUS
-    return np.maximum(np.minimum(body, wheel), 0.0)
+    from above (0 inside it): the body rectangle and the wheel guards."""
+    x, y = np.abs(np.asarray(x, dtype=float)), np.abs(np.asarray(y, dtype=float))
+    return np.minimum.reduce([np.hypot(np.maximum(x - hx, 0.0), np.maximum(y - hy, 0.0)) for hx, hy in _RECTANGLES])
 
 
 class ClearanceFeatures(BaseFeaturesExtractor):
@@ -114,12 +121,11 @@ class ClearanceFeatures(BaseFeaturesExtractor):
         ranges = observations[:, : self.num_rays] * self.lidar_range
         if self.metric == "ray":
             return torch.clamp(ranges - self.footprint, min=0.0)
-        x = LIDAR_X + ranges * self.cos  # hit points in the body frame
-        y = ranges * self.sin
-        body = torch.hypot(torch.clamp(x.abs() - BODY_HALF_LENGTH, min=0.0),
-                           torch.clamp(y.abs() - BODY_HALF_WIDTH, min=0.0))
-        wheel = torch.hypot(x, y.abs() - WHEEL_Y) - WHEEL_RADIUS
-        return torch.clamp(torch.minimum(body, wheel), min=0.0)
+        x = (LIDAR_X + ranges * self.cos).abs()  # hit points in the body frame
+        y = (ranges * self.sin).abs()
+        body, wheels = (torch.hypot(torch.clamp(x - hx, min=0.0), torch.clamp(y - hy, min=0.0))
+                        for hx, hy in _RECTANGLES)
+        return torch.minimum(body, wheels)
 
     def forward(self, observations: torch.Tensor) -> torch.Tensor:
         return torch.cat([observations, torch.exp(-self.clearance(observations) / self.scale)], dim=1)

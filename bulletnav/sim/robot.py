@@ -8,7 +8,7 @@ import numpy as np
 import pybullet as p
 
 from bulletnav.config import RobotConfig
-from bulletnav.sim.world import ROBOT_GROUP
+from bulletnav.sim.world import FLOOR_GROUP, ROBOT_GROUP, WHEEL_GROUP
 
 REST_HEIGHT = 0.07
 """Height of the base origin above the floor when the robot rests on its wheels (m)."""
@@ -66,6 +66,10 @@ class Robot:
         self.wheel_radius = float(shape[3][1] if shape[2] == p.GEOM_CYLINDER else shape[3][0])  # implicit cylinder dimensions: (length, radius, 0)
         for link in (-1, *range(p.getNumJoints(self.body, physicsClientId=cid))):
             p.setCollisionFilterGroupMask(self.body, link, ROBOT_GROUP, 0xFFFF, physicsClientId=cid)
+        # The wheel spheres are for rolling only; obstacles meet the base's wheel guard boxes,
+        # which have the wheels' true 0.1 x 0.02 m footprint (see the URDF).
+        for wheel in (self.left_joint, self.right_joint):
+            p.setCollisionFilterGroupMask(self.body, wheel, WHEEL_GROUP, FLOOR_GROUP, physicsClientId=cid)
         for wheel in (self.left_joint, self.right_joint):
             p.changeDynamics(self.body, wheel, lateralFriction=self.config.wheel_friction,
                              rollingFriction=0.0, spinningFriction=0.0, physicsClientId=cid)

@@ -19,11 +19,16 @@ log = logging.getLogger(__name__)
 RAY_GROUP = 1
 """Bullet's default filter group, which PyBullet's ray tests carry."""
 ROBOT_GROUP = 2
-"""Collision-filter group of the robot's links (they collide with everything)."""
+"""Collision-filter group of the robot's body, caster and sensor links (they collide with everything)."""
 STATIC_GROUP = 4
 """Collision-filter group of the floor, walls and obstacles; lidar rays test only this group."""
 STATIC_MASK = ROBOT_GROUP | RAY_GROUP
 """Static bodies meet the robot and rays, never each other."""
+FLOOR_GROUP = 8
+"""Extra group of the floor alone: the only thing the wheel spheres touch."""
+WHEEL_GROUP = 16
+"""Collision-filter group of the two wheel spheres: they roll on the floor and meet nothing
+else (obstacles meet the wheel-sized guard boxes on the robot's base instead)."""
 
 COLOURS = {
     "rack": (0.85, 0.55, 0.15, 1.0),
@@ -78,8 +83,10 @@ class World:
         self.obstacle_ids = [self._obstacle(o) for o in layout.obstacles]
         # Static bodies collide only with the robot group: otherwise Bullet tracks and
         # narrow-phases every floor-obstacle pair each step (70 us of a 100 us step here).
-        for body in [self.floor_id, *self.wall_ids, *self.obstacle_ids]:
+        for body in [*self.wall_ids, *self.obstacle_ids]:
             p.setCollisionFilterGroupMask(body, -1, STATIC_GROUP, STATIC_MASK, physicsClientId=cid)
+        p.setCollisionFilterGroupMask(self.floor_id, -1, STATIC_GROUP | FLOOR_GROUP, STATIC_MASK | WHEEL_GROUP,
+                                      physicsClientId=cid)
         log.debug("built layout %r: %d obstacles", layout.name or layout.source, len(self.obstacle_ids))
 
     def _obstacle(self, o: Obstacle) -> int:
