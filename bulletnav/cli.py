@@ -297,6 +297,16 @@ def cmd_compare(args: argparse.Namespace) -> int:
         print(f"| {r['algo'].upper()} | {r['seed']} | {r['timesteps']} | {r['wall_time_s']:.0f} | "
               f"{r['final_success'] * 100:.0f} % | {r['final_collisions'] * 100:.0f} % | {r['final_reward']:.1f} | "
               f"{r['best_success'] * 100:.0f} % ({r['best_at']}) |")
+    by_algo: dict[str, list[dict]] = {}
+    for r in rows:
+        by_algo.setdefault(r["algo"], []).append(r)
+    if any(len(v) > 1 for v in by_algo.values()):
+        print("\n| algorithm | seeds | final success, mean (min-max) | wall time (s), mean |")
+        print("|---|---|---|---|")
+        for algo, rs in by_algo.items():
+            final = [r["final_success"] * 100 for r in rs]
+            print(f"| {algo.upper()} | {len(rs)} | {sum(final) / len(final):.0f} % ({min(final):.0f}-{max(final):.0f} %) | "
+                  f"{sum(r['wall_time_s'] for r in rs) / len(rs):.0f} |")
     print(f"\nlearning curves: {args.out}")
     return 0
 

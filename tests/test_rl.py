@@ -157,6 +157,9 @@ def test_compare_plots_runs_and_tabulates(ppo_run, tmp_path, capsys):
     text = capsys.readouterr().out
     total = json.loads((ppo_run / "run.json").read_text())["total_timesteps"]
     assert f"| PPO | 0 | {total} |" in text and png.stat().st_size > 10_000
+    assert "final success, mean" not in text  # one seed per algorithm: no summary table
+    assert main(["compare", str(ppo_run), str(ppo_run), "--out", str(png)]) == 0
+    assert "| PPO | 2 |" in capsys.readouterr().out
     assert main(["compare", str(tmp_path / "missing"), "--out", str(png)]) == 2
     assert "not a finished training run" in capsys.readouterr().err
 

@@ -313,7 +313,8 @@ def command_line() -> str:
 
 def compare_runs(run_dirs: list[Path], out_png: Path) -> list[dict[str, Any]]:
     """Learning curves of several runs in one PNG (success rate and mean reward against
-    timesteps) and one summary row per run: final and best evaluation, wall time."""
+    timesteps; one colour per algorithm, one line per seed) and one summary row per run:
+    final and best evaluation, wall time."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -321,16 +322,20 @@ def compare_runs(run_dirs: list[Path], out_png: Path) -> list[dict[str, Any]]:
 
     rows = []
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4), dpi=100)
+    colours: dict[str, Any] = {}  # one colour per algorithm; its seeds share it
     for run in run_dirs:
         for name in ("eval_history.json", "run.json"):
             if not (run / name).is_file():
                 raise RunError(f"{run}: not a finished training run (no {name})")
         history = json.loads((run / "eval_history.json").read_text())
         record = json.loads((run / "run.json").read_text())
-        label = f"{record['algo'].upper()} seed {record['seed']}"
+        algo = record["algo"]
+        first = algo not in colours
+        colour = colours.setdefault(algo, f"C{len(colours) % 10}")
+        label = algo.upper() if first else None
         steps = [h["timesteps"] for h in history]
-        ax1.plot(steps, [h["success_rate"] for h in history], "o-", label=label)
-        ax2.plot(steps, [h["mean_reward"] for h in history], "o-", label=label)
+        ax1.plot(steps, [h["success_rate"] for h in history], "o-", color=colour, alpha=0.8, ms=3, label=label)
+        ax2.plot(steps, [h["mean_reward"] for h in history], "o-", color=colour, alpha=0.8, ms=3, label=label)
         final = history[-1]
         best = max(history, key=lambda h: h["success_rate"])
         rows.append({"run": str(run), "algo": record["algo"], "seed": record["seed"],
