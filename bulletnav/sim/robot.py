@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Collection
 
 import numpy as np
 import pybullet as p
@@ -32,6 +33,7 @@ class Robot:
         self.wheelbase = 0.0
         """Distance between the wheel contact points, read from the URDF joints (m)."""
         self._com_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        self._contact_links: tuple[int, ...] = ()
 
     # ------------------------------------------------------------------ set-up
     def load(self, pose: tuple[float, float, float]) -> None:
@@ -70,6 +72,13 @@ class Robot:
         # which have the wheels' true 0.1 x 0.02 m footprint (see the URDF).
         for wheel in (self.left_joint, self.right_joint):
             p.setCollisionFilterGroupMask(self.body, wheel, WHEEL_GROUP, FLOOR_GROUP, physicsClientId=cid)
+        # Links that can touch a wall or an obstacle: those with a collision shape, the
+        # floor-only wheels excepted (the base with its wheel guards, and the caster).
+        self._contact_links = tuple(
+            link for link in (-1, *range(p.getNumJoints(self.body, physicsClientId=cid)))
+            if link not in (self.left_joint, self.right_joint)
+            and p.getCollisionShapeData(self.body, link, physicsClientId=cid)
+        )
         for wheel in (self.left_joint, self.right_joint):
             p.changeDynamics(self.body, wheel, lateralFriction=self.config.wheel_friction,
                              rollingFriction=0.0, spinningFriction=0.0, physicsClientId=cid)
@@ -166,10 +175,12 @@ class Robot:
         left, right = p.getJointStates(self.body, [self.left_joint, self.right_joint], physicsClientId=self.cid)
         return (left[0], right[0]), (left[1], right[1])
 
-    def touching(self, bodies: list[int]) -> bool:
-        """True when any robot link is in contact with one of ``bodies``."""
-        contacts = p.getContactPoints(bodyA=self.body, physicsClientId=self.cid)
-        if not contacts:
-            return False
-        targets = set(bodies)
-        return any(c[2] in targets for c in contacts)
+    def touching(self, bodies: Collection[int]) -> bool:
+        """True when any robot link is in contact with one of ``bodies`` (pass a set: this runs
+        every step). Only the links that can meet an obstacle are queried, so the wheels'
+        floor contacts are never turned into Python objects."""
+        for link in self._contact_links:
+            for c in p.getContactPoints(bodyA=self.body, linkIndexA=link, physicsClientId=self.cid):
+                if c[2] in bodies:
+                    return True
+        return False

@@ -90,7 +90,7 @@ class Simulation:
 
     def in_collision(self) -> bool:
         """True when the robot touches a wall or an obstacle (the floor does not count)."""
-        return self.robot.touching(self.world.static_ids)
+        return self.robot.touching(self.world.static_set)
 
     def close(self) -> None:
         if self.cid >= 0:
