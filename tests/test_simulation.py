@@ -33,6 +33,29 @@ def test_two_worlds_in_one_process_stay_independent(make_sim):
     a.step(0.3, 0.4)  # closing one client leaves the other working
 
 
+def test_robot_snapshot_equals_live_state_after_every_step_and_reset(make_sim, rng):
+    """Sensors and task read ``robot.state`` instead of querying PyBullet again; it must be
+    exactly what the live queries say at every control step, and fresh after a reset."""
+    sim = make_sim()
+    layout = generate_warehouse(np.random.default_rng(3))
+
+    def assert_fresh():
+        s, robot = sim.robot.state, sim.robot
+        assert (s.x, s.y, s.yaw) == robot.planar_pose()
+        assert (s.linear_velocity, s.angular_velocity, s.rotation) == robot.kinematics()
+        assert (s.wheel_angles, s.wheel_rates) == robot.wheel_states()
+
+    sim.reset(layout, (0.0, 0.0, 0.3), rng)
+    assert_fresh()
+    for k in range(30):
+        sim.step(0.4, 1.2 if k % 10 < 5 else -0.8)
+        assert_fresh()
+    assert sim.robot.state.linear_velocity != (0.0, 0.0, 0.0)
+    sim.reset(layout, (1.0, -1.0, -2.0), rng)  # teleport without rebuilding
+    assert_fresh()
+    assert sim.robot.state.wheel_rates == (0.0, 0.0)
+
+
 def test_same_layout_reset_teleports_without_rebuilding(make_sim, rng):
     sim = make_sim()
     layout = generate_warehouse(np.random.default_rng(5))

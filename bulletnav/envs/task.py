@@ -62,8 +62,8 @@ class NavigationTask:
         self.goal = (float(goal[0]), float(goal[1]))
         m = self.measure(sim)
         self.initial_distance = self._prev_distance = m.distance
-        x, y, _ = sim.robot.planar_pose()
-        self._prev_xy = (x, y)
+        state = sim.robot.state
+        self._prev_xy = (state.x, state.y)
         self.path_length = 0.0
         self._progress.clear()
         return m
@@ -73,7 +73,8 @@ class NavigationTask:
         if self.config.pose_source == "odometry":
             x, y, yaw = (float(v) for v in odometry[:3])
         else:
-            x, y, yaw = sim.robot.planar_pose()
+            state = sim.robot.state
+            x, y, yaw = state.x, state.y, state.yaw
         dx, dy = self.goal[0] - x, self.goal[1] - y
         heading = math.remainder(math.atan2(dy, dx) - yaw, 2 * math.pi)
         return Measurement(x, y, yaw, sim.sensors["lidar"].read(), odometry, sim.sensors["imu"].read(),
@@ -103,7 +104,7 @@ class NavigationTask:
         w = self.config.reward
         x, y = m.x, m.y
         if self.config.pose_source == "odometry":  # path length is always measured on the true path
-            x, y, _ = sim.robot.planar_pose()
+            x, y = sim.robot.state.x, sim.robot.state.y
         self.path_length += math.hypot(x - self._prev_xy[0], y - self._prev_xy[1])
         self._prev_xy = (x, y)
         progress = self._prev_distance - m.distance

@@ -308,7 +308,8 @@ class WarehouseEnv(gym.Env):
 
     def _info(self, m, terms: dict[str, float], collision: bool, success: bool) -> dict[str, Any]:
         info: dict[str, Any] = {f"reward_{k}": float(v) for k, v in terms.items()}
-        pose = np.array((m.x, m.y, m.yaw)) if self.config.task.pose_source == "truth" else self.sim.robot.pose()
+        truth = self.sim.robot.state
+        pose = np.array((truth.x, truth.y, truth.yaw))
         info.update(
             distance_to_goal=m.distance, collision=bool(collision), is_success=bool(success),
             path_length=self.task.path_length, initial_distance=self.task.initial_distance,

@@ -27,22 +27,23 @@ class Sensor(ABC):
         self.robot = robot
         self.clock = clock
         self.rng = np.random.default_rng(0)
-        self._stamp: tuple[int, int] | None = None
+        self._episode = self._tick = -1  # clock stamp of the cached measurement
         self._value: Any = None
 
     def reset(self, rng: np.random.Generator) -> None:
         """Start a new episode with noise drawn from ``rng``."""
         self.rng = rng
-        self._stamp = None
+        self._episode = -1
 
     def update(self) -> None:
         """Advance internal state after a control step (stateless sensors do nothing)."""
 
     def read(self) -> Any:
         """The current measurement as fresh NumPy array(s)."""
-        if self._stamp != self.clock.stamp:
+        clock = self.clock
+        if self._tick != clock.tick or self._episode != clock.episode:
             self._value = self.measure()
-            self._stamp = self.clock.stamp
+            self._episode, self._tick = clock.episode, clock.tick
         return _copy(self._value)
 
     @abstractmethod

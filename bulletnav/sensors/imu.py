@@ -15,7 +15,8 @@ class Imu(Sensor):
     so +g on z at rest) and angular rate (rad/s), with white noise and constant bias.
 
     Acceleration is the change of the body-centre velocity over the last control step,
-    sampled in :meth:`update`; noise is drawn there, once per step.
+    sampled in :meth:`update` from the robot's ground-truth snapshot (``robot.state``, taken
+    by the simulation after each control step); noise is drawn there, once per step.
     """
 
     name = "imu"
@@ -34,13 +35,14 @@ class Imu(Sensor):
     def reset(self, rng: np.random.Generator) -> None:
         super().reset(rng)
         self._offsets = []
-        self._prev_velocity, _, _ = self.robot.kinematics()
+        velocity, omega, rotation = self.robot.kinematics()
+        self._prev_velocity = velocity
         self._prev_time = self.clock.time
-        self._latest = self._sample((0.0, 0.0, 0.0))
+        self._latest = self._sample((0.0, 0.0, 0.0), omega, rotation)
 
     def update(self) -> None:
-        kinematics = self.robot.kinematics()
-        velocity = kinematics[0]
+        state = self.robot.state
+        velocity = state.linear_velocity
         dt = self.clock.time - self._prev_time
         prev = self._prev_velocity
         if dt > 0:
@@ -48,10 +50,11 @@ class Imu(Sensor):
         else:
             accel = (0.0, 0.0, 0.0)
         self._prev_velocity, self._prev_time = velocity, self.clock.time
-        self._latest = self._sample(accel, kinematics)
+        self._latest = self._sample(accel, state.angular_velocity, state.rotation)
 
-    def _sample(self, accel_world: tuple[float, ...], kinematics=None) -> np.ndarray:
-        _, omega, m = kinematics or self.robot.kinematics()
+    def _sample(self, accel_world: tuple[float, ...], omega: tuple[float, ...], m: tuple[float, ...]) -> np.ndarray:
+        """Body-frame reading of world-frame ``accel_world`` and ``omega`` (``m``: row-major
+        body-to-world rotation), plus this step's noise and bias."""
         g = self._gravity
         fx, fy, fz = accel_world[0] - g[0], accel_world[1] - g[1], accel_world[2] - g[2]
         wx, wy, wz = omega

@@ -44,24 +44,31 @@ class Lidar(Sensor):
         self._ray_from = np.zeros((config.num_rays, 3)).tolist()
         self._ray_to = (directions * config.max_range).tolist()
 
-    def cast(self) -> np.ndarray:
-        """Hit fractions of the rays in [0, 1] (1 = nothing within ``max_range``), noise-free."""
-        results = p.rayTestBatch(
+    def _rays(self) -> tuple:
+        return p.rayTestBatch(
             self._ray_from, self._ray_to, parentObjectUniqueId=self.robot.body,
             parentLinkIndex=self.robot.lidar_link, collisionFilterMask=STATIC_GROUP,
             physicsClientId=self.robot.cid,
         )
-        return np.array([r[2] for r in results])
+
+    def cast(self) -> np.ndarray:
+        """Hit fractions of the rays in [0, 1] (1 = nothing within ``max_range``), noise-free."""
+        return np.array([r[2] for r in self._rays()])
 
     def measure(self) -> np.ndarray:
         cfg = self.config
-        ranges = self.cast() * cfg.max_range
         if cfg.noise_std > 0:
+            ranges = self.cast() * cfg.max_range
             ranges += self.rng.normal(0.0, cfg.noise_std, ranges.shape)
             np.clip(ranges, cfg.min_range, cfg.max_range, out=ranges)
-        elif cfg.min_range > 0:
-            np.maximum(ranges, cfg.min_range, out=ranges)
-        return ranges.astype(np.float32)
+            return ranges.astype(np.float32)
+        # Noise-free (the default, once per step): the same double products rounded to
+        # float32, in one pass.
+        max_range = cfg.max_range
+        ranges = np.array([r[2] * max_range for r in self._rays()], dtype=np.float32)
+        if cfg.min_range > 0:
+            np.maximum(ranges, np.float32(cfg.min_range), out=ranges)
+        return ranges
 
     def hit_points(self, ranges: np.ndarray) -> np.ndarray:
         """World (x, y) of each ray's end point for ``ranges`` (for maps and drawing)."""

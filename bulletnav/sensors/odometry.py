@@ -41,7 +41,8 @@ class Odometry(Sensor):
         self.distance = 0.0
 
     def update(self) -> None:
-        angles, self._rates = self.robot.wheel_states()
+        state = self.robot.state  # taken by the simulation after this control step
+        angles, self._rates = state.wheel_angles, state.wheel_rates
         d_left, d_right = angles[0] - self._prev_angles[0], angles[1] - self._prev_angles[1]
         self._prev_angles = angles
         if self.config.encoder_noise_std > 0:

@@ -92,7 +92,3 @@ class Clock:
     def time(self) -> float:
         """Seconds of simulated time since the last reset."""
         return self.tick * self.physics_dt
-
-    @property
-    def stamp(self) -> tuple[int, int]:
-        return self.episode, self.tick

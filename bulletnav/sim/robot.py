@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Collection
+from typing import NamedTuple
 
 import numpy as np
 import pybullet as p
@@ -13,6 +14,27 @@ from bulletnav.sim.world import FLOOR_GROUP, ROBOT_GROUP, WHEEL_GROUP
 
 REST_HEIGHT = 0.07
 """Height of the base origin above the floor when the robot rests on its wheels (m)."""
+
+
+class RobotState(NamedTuple):
+    """Ground truth of the robot at one instant, as :meth:`Robot.sample` reads it."""
+
+    x: float
+    """Body-centre x, world frame (m)."""
+    y: float
+    """Body-centre y, world frame (m)."""
+    yaw: float
+    """Heading, counter-clockwise from +x (rad)."""
+    linear_velocity: tuple[float, float, float]
+    """Body-centre velocity, world frame (m/s)."""
+    angular_velocity: tuple[float, float, float]
+    """Angular velocity, world frame (rad/s)."""
+    rotation: tuple[float, ...]
+    """Row-major body-to-world rotation matrix."""
+    wheel_angles: tuple[float, float]
+    """Wheel joint angles (left, right) (rad)."""
+    wheel_rates: tuple[float, float]
+    """Wheel joint rates (left, right) (rad/s)."""
 
 
 class Robot:
@@ -33,7 +55,9 @@ class Robot:
         self.wheelbase = 0.0
         """Distance between the wheel contact points, read from the URDF joints (m)."""
         self._com_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
-        self._contact_links: tuple[int, ...] = ()
+        self.state: RobotState | None = None
+        """The snapshot taken by the last :meth:`sample`: after every control step and every
+        :meth:`reset_pose` (the per-step code of sensors and task reads this one)."""
 
     # ------------------------------------------------------------------ set-up
     def load(self, pose: tuple[float, float, float]) -> None:
@@ -72,13 +96,6 @@ class Robot:
         # which have the wheels' true 0.1 x 0.02 m footprint (see the URDF).
         for wheel in (self.left_joint, self.right_joint):
             p.setCollisionFilterGroupMask(self.body, wheel, WHEEL_GROUP, FLOOR_GROUP, physicsClientId=cid)
-        # Links that can touch a wall or an obstacle: those with a collision shape, the
-        # floor-only wheels excepted (the base with its wheel guards, and the caster).
-        self._contact_links = tuple(
-            link for link in (-1, *range(p.getNumJoints(self.body, physicsClientId=cid)))
-            if link not in (self.left_joint, self.right_joint)
-            and p.getCollisionShapeData(self.body, link, physicsClientId=cid)
-        )
         for wheel in (self.left_joint, self.right_joint):
             p.changeDynamics(self.body, wheel, lateralFriction=self.config.wheel_friction,
                              rollingFriction=0.0, spinningFriction=0.0, physicsClientId=cid)
@@ -98,6 +115,7 @@ class Robot:
         for j in (self.left_joint, self.right_joint):
             p.resetJointState(self.body, j, 0.0, 0.0, physicsClientId=cid)
         self.stop()
+        self.sample()
 
     # ------------------------------------------------------------------ commands
     def wheel_speeds(self, v: float, w: float) -> tuple[float, float]:
@@ -138,8 +156,8 @@ class Robot:
 
     def planar_pose(self) -> tuple[float, float, float]:
         """:meth:`pose` as a tuple of floats (cheaper in per-step code)."""
-        pos, (x, y, z, w), _ = self._frame()
-        return pos[0], pos[1], math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+        pos, orn, _ = self._frame()
+        return pos[0], pos[1], _yaw(orn)
 
     def pose3d(self) -> tuple[np.ndarray, tuple[float, float, float, float]]:
         """Position (m) of the base link frame (body centre) and its orientation quaternion (x, y, z, w)."""
@@ -152,12 +170,30 @@ class Robot:
         lin, ang = p.getBaseVelocity(self.body, physicsClientId=self.cid)
         _, orn = p.getBasePositionAndOrientation(self.body, physicsClientId=self.cid)
         m = p.getMatrixFromQuaternion(orn)
+        return self._centre_velocity(lin, ang, m), ang, m
+
+    def _centre_velocity(self, lin: tuple[float, ...], ang: tuple[float, ...], m: tuple[float, ...]) -> tuple[float, float, float]:
+        """Body-centre velocity from PyBullet's centre-of-mass velocity."""
         ox, oy, oz = self._com_offset
         rx, ry, rz = m[0] * ox + m[1] * oy + m[2] * oz, m[3] * ox + m[4] * oy + m[5] * oz, m[6] * ox + m[7] * oy + m[8] * oz
         # v_centre = v_com + w x (p_centre - p_com) = v_com - w x (R @ offset)
         wx, wy, wz = ang
-        lin = (lin[0] - (wy * rz - wz * ry), lin[1] - (wz * rx - wx * rz), lin[2] - (wx * ry - wy * rx))
-        return lin, ang, m
+        return (lin[0] - (wy * rz - wz * ry), lin[1] - (wz * rx - wx * rz), lin[2] - (wx * ry - wy * rx))
+
+    def sample(self) -> RobotState:
+        """Read the ground truth once and keep it as :attr:`state`.
+
+        Three PyBullet queries (base pose, base velocity, wheel joints). Each state query of
+        PyBullet's DIRECT client copies a large fixed-size buffer (~30k instructions, several
+        times what the answer costs to build), so the per-step code shares this snapshot
+        instead of asking again; :class:`~bulletnav.sim.simulation.Simulation` takes it after
+        every control step.
+        """
+        pos, orn, m = self._frame()
+        lin, ang = p.getBaseVelocity(self.body, physicsClientId=self.cid)
+        angles, rates = self.wheel_states()
+        self.state = RobotState(pos[0], pos[1], _yaw(orn), self._centre_velocity(lin, ang, m), ang, m, angles, rates)
+        return self.state
 
     def world_velocity(self) -> tuple[np.ndarray, np.ndarray]:
         """Linear velocity of the body centre (m/s) and angular velocity (rad/s), world frame."""
@@ -176,11 +212,17 @@ class Robot:
         return (left[0], right[0]), (left[1], right[1])
 
     def touching(self, bodies: Collection[int]) -> bool:
-        """True when any robot link is in contact with one of ``bodies`` (pass a set: this runs
-        every step). Only the links that can meet an obstacle are queried, so the wheels'
-        floor contacts are never turned into Python objects."""
-        for link in self._contact_links:
-            for c in p.getContactPoints(bodyA=self.body, linkIndexA=link, physicsClientId=self.cid):
-                if c[2] in bodies:
-                    return True
+        """True when any robot link is in contact with one of ``bodies`` (pass a set: this
+        runs every step)."""
+        # One query for all links: each query costs a fixed ~30k-instruction buffer copy in
+        # PyBullet's client, far more than the few floor contacts of the wheels it returns.
+        for c in p.getContactPoints(bodyA=self.body, physicsClientId=self.cid):
+            if c[2] in bodies:
+                return True
         return False
+
+
+def _yaw(orn: tuple[float, ...]) -> float:
+    """Heading (rad) of an orientation quaternion (x, y, z, w)."""
+    x, y, z, w = orn
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))

@@ -1,7 +1,8 @@
 """The composed simulation: one physics client holding a world, a robot and its sensors.
 
 ``Simulation.step`` is the physics half of an env step (dm_control's ``Physics``): apply
-the command, advance ``substeps`` physics steps, update the stateful sensors. The task
+the command, advance ``substeps`` physics steps, take the robot's ground-truth snapshot
+(``robot.state``), update the stateful sensors from it. The task
 (reward, termination) lives in :mod:`bulletnav.envs`.
 """
 
@@ -85,6 +86,7 @@ class Simulation:
         for _ in range(self.physics.substeps):
             p.stepSimulation(physicsClientId=cid)
         self.clock.tick += self.physics.substeps
+        self.robot.sample()  # the ground truth of this step, shared by sensors and task
         for name in ("imu", "odometry"):
             self.sensors[name].update()
 
