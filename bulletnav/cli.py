@@ -285,18 +285,21 @@ def cmd_compare(args: argparse.Namespace) -> int:
     """Learning curves of several training runs in one PNG and a table of their results."""
     from pathlib import Path
 
-    from bulletnav.rl.train import compare_runs
+    from bulletnav.rl.train import REACH_SUCCESS, compare_runs
 
     rows = compare_runs([Path(r) for r in args.runs], Path(args.out))
     if args.json:
         print(_json(rows))
         return 0
-    print("| algorithm | seed | timesteps | wall time (s) | final success | final collisions | final reward | best success (at) |")
-    print("|---|---|---|---|---|---|---|---|")
+    reach = f"first >= {REACH_SUCCESS * 100:.0f} % at (steps, s)"
+    print(f"| algorithm | seed | timesteps | wall time (s) | final success | final collisions | final reward | "
+          f"best success (at) | {reach} |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for r in rows:
+        reached = f"{r['reached_at']}, {r['reached_wall_s']}" if r["reached_at"] is not None else "never"
         print(f"| {r['algo'].upper()} | {r['seed']} | {r['timesteps']} | {r['wall_time_s']:.0f} | "
               f"{r['final_success'] * 100:.0f} % | {r['final_collisions'] * 100:.0f} % | {r['final_reward']:.1f} | "
-              f"{r['best_success'] * 100:.0f} % ({r['best_at']}) |")
+              f"{r['best_success'] * 100:.0f} % ({r['best_at']}) | {reached} |")
     by_algo: dict[str, list[dict]] = {}
     for r in rows:
         by_algo.setdefault(r["algo"], []).append(r)

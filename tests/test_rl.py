@@ -157,6 +157,10 @@ def test_compare_plots_runs_and_tabulates(ppo_run, tmp_path, capsys):
     text = capsys.readouterr().out
     total = json.loads((ppo_run / "run.json").read_text())["total_timesteps"]
     assert f"| PPO | 0 | {total} |" in text and png.stat().st_size > 10_000
+    history = json.loads((ppo_run / "eval_history.json").read_text())
+    reached = next((h for h in history if h["success_rate"] >= 0.8), None)  # a tiny run: usually never
+    assert "first >= 80 % at (steps, s)" in text
+    assert (f"| {reached['timesteps']}, {round(reached['wall_time'])} |" if reached else "| never |") in text
     assert "final success, mean" not in text  # one seed per algorithm: no summary table
     assert main(["compare", str(ppo_run), str(ppo_run), "--out", str(png)]) == 0
     assert "| PPO | 2 |" in capsys.readouterr().out

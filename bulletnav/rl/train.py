@@ -311,17 +311,22 @@ def command_line() -> str:
     return " ".join(["bulletnav", *sys.argv[1:]]) if sys.argv and sys.argv[0].endswith("bulletnav") else " ".join(sys.argv)
 
 
+REACH_SUCCESS = 0.8
+"""Success rate whose first crossing ``compare`` reports as the sample-efficiency mark."""
+
+
 def compare_runs(run_dirs: list[Path], out_png: Path) -> list[dict[str, Any]]:
-    """Learning curves of several runs in one PNG (success rate and mean reward against
-    timesteps; one colour per algorithm, one line per seed) and one summary row per run:
-    final and best evaluation, wall time."""
+    """Learning curves of several runs in one PNG (success rate against timesteps and
+    against wall-clock time, mean reward against timesteps; one colour per algorithm, one
+    line per seed) and one summary row per run: final and best evaluation, wall time, and
+    when the in-training evaluation first reached :data:`REACH_SUCCESS`."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     rows = []
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4), dpi=100)
+    fig, (ax1, ax3, ax2) = plt.subplots(1, 3, figsize=(15, 4), dpi=100)
     colours: dict[str, Any] = {}  # one colour per algorithm; its seeds share it
     for run in run_dirs:
         for name in ("eval_history.json", "run.json"):
@@ -336,20 +341,29 @@ def compare_runs(run_dirs: list[Path], out_png: Path) -> list[dict[str, Any]]:
         steps = [h["timesteps"] for h in history]
         ax1.plot(steps, [h["success_rate"] for h in history], "o-", color=colour, alpha=0.8, ms=3, label=label)
         ax2.plot(steps, [h["mean_reward"] for h in history], "o-", color=colour, alpha=0.8, ms=3, label=label)
+        ax3.plot([h["wall_time"] / 60 for h in history], [h["success_rate"] for h in history], "o-", color=colour,
+                 alpha=0.8, ms=3, label=label)
         final = history[-1]
         best = max(history, key=lambda h: h["success_rate"])
+        reached = next((h for h in history if h["success_rate"] >= REACH_SUCCESS), None)
         rows.append({"run": str(run), "algo": record["algo"], "seed": record["seed"],
                      "timesteps": record["total_timesteps"],
                      # a resumed run's record times only its last part; the history's clock runs from the start
                      "wall_time_s": max([record["wall_time_s"], *(h.get("wall_time", 0.0) for h in history)]),
                      "final_success": final["success_rate"], "final_collisions": final["collision_rate"],
                      "final_reward": round(final["mean_reward"], 2), "best_success": best["success_rate"],
-                     "best_at": best["timesteps"]})
+                     "best_at": best["timesteps"],
+                     "reached_at": reached["timesteps"] if reached else None,
+                     "reached_wall_s": round(reached["wall_time"]) if reached else None})
     for ax, name in ((ax1, "success rate (20 unseen episodes)"), (ax2, "mean evaluation reward")):
         ax.set_xlabel("timesteps")
         ax.set_ylabel(name)
+    ax3.set_xlabel("wall-clock time (min)")
+    ax3.set_ylabel("success rate (20 unseen episodes)")
+    for ax in (ax1, ax2, ax3):
         ax.grid(alpha=0.3)
-    ax1.set_ylim(-0.02, 1.02)
+    for ax in (ax1, ax3):
+        ax.set_ylim(-0.02, 1.02)
     ax1.legend(loc="upper left")
     fig.tight_layout()
     out_png.parent.mkdir(parents=True, exist_ok=True)
