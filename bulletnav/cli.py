@@ -64,6 +64,9 @@ def cmd_bench(args: argparse.Namespace) -> int:
                  f"  no dashboard           {result['fps_no_dashboard']:6.2f}"]
     else:  # pragma: no cover - argparse restricts the choices
         raise AssertionError(args.what)
+    from bulletnav.provenance import provenance
+
+    result = {**result, **provenance()}
     print(_json(result) if args.json else "\n".join(lines))
     return 0
 
@@ -210,7 +213,8 @@ def cmd_navigate(args: argparse.Namespace) -> int:
 def cmd_train(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from bulletnav.rl.train import TrainConfig, command_line, train
+    from bulletnav.provenance import command_line
+    from bulletnav.rl.train import TrainConfig, train
 
     cfg = TrainConfig(
         algo=args.algo, timesteps=args.timesteps, out=Path(args.out), seed=args.seed, n_envs=args.n_envs,

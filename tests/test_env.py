@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 import math
+import re
 import warnings
 
 import gymnasium as gym
@@ -12,6 +14,7 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import bulletnav  # noqa: F401  (registers the env)
+from bulletnav.cli import main
 from bulletnav.config import asset_path
 from bulletnav.envs.task import REWARD_TERMS
 from bulletnav.errors import DisplayError
@@ -278,3 +281,16 @@ def test_yaml_world_uses_its_start_and_goal(make_env):
     np.testing.assert_allclose(info["pose"], [-5.0, -4.0, 0.0], atol=1e-6)
     assert info["goal"] == (4.5, 4.2)
     assert len(env.unwrapped.world.obstacle_ids) == 10
+
+
+def test_bench_env_cli_prints_the_ratio_with_its_provenance(capsys):
+    """``bulletnav bench env --json``: both loops' rates, their ratio, and where the figures
+    came from (no timing is asserted: these machines are noisy)."""
+    assert main(["bench", "env", "--steps", "200", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert result["benchmark"] == "env" and result["steps"] == 200
+    assert result["env_steps_per_s"] > 0 and result["raw_steps_per_s"] > 0
+    assert result["ratio"] > 0 and result["env_overhead_us_per_step"] == pytest.approx(
+        (1 / result["env_steps_per_s"] - 1 / result["raw_steps_per_s"]) * 1e6, abs=0.5)
+    assert re.fullmatch(r"([0-9a-f]{40}(-dirty)?|unknown)", result["git_commit"])
+    assert "cores, python" in result["machine"] and result["command"]

@@ -10,7 +10,6 @@ the same start) and are left out of both step timings (their mean is reported ap
 from __future__ import annotations
 
 import math
-import platform
 import time
 from dataclasses import replace
 from typing import Any
@@ -116,5 +115,4 @@ def bench_env(steps: int = 6000, block: int = 100, seed: int = 0, config: EnvCon
         "control_hz": cfg.physics.control_hz,
         "solver_iterations": cfg.physics.solver_iterations,
         "lidar_rays": cfg.sensors.lidar.num_rays,
-        "machine": f"{platform.machine()} {platform.system()} python {platform.python_version()}",
     }

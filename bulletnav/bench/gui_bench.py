@@ -8,7 +8,6 @@ pacing off, so the figure is what the GUI and the dashboard cost, not the pacing
 from __future__ import annotations
 
 import os
-import platform
 from dataclasses import asdict
 from typing import Any
 
@@ -40,5 +39,4 @@ def bench_gui(steps: int = 30, repeats: int = 3, seed: int = 0) -> dict[str, Any
         "throttled_vs_unthrottled": round(fps["throttled"] / fps["unthrottled"], 2),
         "throttles": asdict(DashboardConfig()),
         "display": os.environ.get("DISPLAY", ""),
-        "machine": f"{platform.machine()} {platform.system()}, {os.cpu_count()} cores, python {platform.python_version()}",
     }

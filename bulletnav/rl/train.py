@@ -7,8 +7,6 @@ import json
 import logging
 import os
 import platform
-import subprocess
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,6 +18,7 @@ import numpy as np
 from bulletnav import ENV_ID
 from bulletnav.errors import ConfigError, ModelError, RunError
 from bulletnav.evaluation import run_episodes, summarize
+from bulletnav.provenance import git_commit, machine
 from bulletnav.rl.common import (
     EVAL_SEED_BASE,
     SB3Policy,
@@ -60,23 +59,6 @@ class TrainConfig:
     hyperparams: Path | None = None
     """A hyperparameter YAML file to use instead of ``rl/hyperparams/<algo>.yml`` (same format)."""
     command: str = ""
-
-
-def git_commit() -> str:
-    try:
-        root = Path(__file__).resolve().parents[2]
-        sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=10)
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
-                               capture_output=True, text=True, timeout=10)
-        if sha.returncode != 0:
-            return "unknown"
-        return sha.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-
-
-def machine() -> str:
-    return f"{platform.machine()} {platform.system()}, {os.cpu_count()} cores, python {platform.python_version()}"
 
 
 def _make_vec_env(cfg: TrainConfig, hp: dict[str, Any], env_kwargs: dict[str, Any], n_envs: int):
@@ -305,10 +287,6 @@ def plot_learning_curve(history: list[dict[str, Any]], path: Path, title: str = 
     fig.savefig(tmp)
     plt.close(fig)
     os.replace(tmp, path)
-
-
-def command_line() -> str:
-    return " ".join(["bulletnav", *sys.argv[1:]]) if sys.argv and sys.argv[0].endswith("bulletnav") else " ".join(sys.argv)
 
 
 REACH_SUCCESS = 0.8
