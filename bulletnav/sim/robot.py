@@ -138,8 +138,8 @@ class Robot:
         self.set_velocity(0.0, 0.0)
 
     # ------------------------------------------------------------------ state
-    # Plain floats and tuples below: these run several times per control step, and NumPy's
-    # per-call overhead on 3-vectors (np.cross ~100 us) would dominate the step time.
+    # Plain floats and tuples below: these run every control step, and NumPy's per-call
+    # overhead on 3-vectors (np.cross ~100 us) would dominate the step time.
     def _frame(self) -> tuple[tuple[float, float, float], tuple[float, ...], tuple[float, ...]]:
         """Body-centre position, orientation quaternion and row-major rotation matrix."""
         com, orn = p.getBasePositionAndOrientation(self.body, physicsClientId=self.cid)
