@@ -35,10 +35,10 @@ class Imu(Sensor):
     def reset(self, rng: np.random.Generator) -> None:
         super().reset(rng)
         self._offsets = []
-        velocity, omega, rotation = self.robot.kinematics()
-        self._prev_velocity = velocity
+        state = self.robot.state  # taken when the robot was placed for this episode
+        self._prev_velocity = state.linear_velocity
         self._prev_time = self.clock.time
-        self._latest = self._sample((0.0, 0.0, 0.0), omega, rotation)
+        self._latest = self._sample((0.0, 0.0, 0.0), state.angular_velocity, state.rotation)
 
     def update(self) -> None:
         state = self.robot.state

@@ -36,8 +36,9 @@ class Odometry(Sensor):
 
     def reset(self, rng: np.random.Generator) -> None:
         super().reset(rng)
-        self.state = tuple(float(v) for v in self.robot.pose())  # type: ignore[assignment]
-        self._prev_angles, self._rates = self.robot.wheel_states()
+        truth = self.robot.state  # taken when the robot was placed for this episode
+        self.state = (truth.x, truth.y, truth.yaw)
+        self._prev_angles, self._rates = truth.wheel_angles, truth.wheel_rates
         self.distance = 0.0
 
     def update(self) -> None:
