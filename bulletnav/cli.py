@@ -56,7 +56,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     elif args.what == "gui":
         from bulletnav.bench.gui_bench import bench_gui
 
-        result = bench_gui(steps=args.steps or 30, seed=args.seed)
+        result = bench_gui(steps=args.steps or 100, seed=args.seed)
         lines = [f"GUI frames per second with the A* navigator driving (median of {result['repeats']} x "
                  f"{result['steps']} steps, real-time pacing off, DISPLAY={result['display']}):",
                  f"  throttled dashboard    {result['fps_throttled']:6.2f}",

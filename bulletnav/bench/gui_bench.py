@@ -14,7 +14,7 @@ from typing import Any
 import gymnasium as gym
 
 
-def bench_gui(steps: int = 30, repeats: int = 3, seed: int = 0) -> dict[str, Any]:
+def bench_gui(steps: int = 100, repeats: int = 3, seed: int = 0) -> dict[str, Any]:
     """Median FPS over ``repeats`` interleaved runs of ``steps`` steps for each dashboard setting.
 
     Raises:
