@@ -18,9 +18,19 @@ needs_model = pytest.mark.skipif(not MODEL.is_file(), reason=f"{DEFAULT_MODEL} i
 needs_xvfb = pytest.mark.skipif(shutil.which("xvfb-run") is None, reason="xvfb-run not installed (apt-get install xvfb)")
 
 
+X_START_FAILURE = "cannot connect to X server"
+"""PyBullet's words when its GUI thread cannot open the display. Seen about once in ten
+fresh servers here (with `xvfb-run -a` and with a plain Xvfb alike), never twice in a row."""
+
+
 def _cli(*args: str, timeout: int = 300) -> subprocess.CompletedProcess:
-    return subprocess.run(["xvfb-run", "-a", sys.executable, "-m", "bulletnav.cli", *args], cwd=ROOT,
-                          capture_output=True, text=True, timeout=timeout)
+    """The command as a user runs it, under `xvfb-run -a`; started once more, on a new
+    server, only when the X connection itself failed at start-up."""
+    cmd = ["xvfb-run", "-a", sys.executable, "-m", "bulletnav.cli", *args]
+    done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=timeout)
+    if done.returncode != 0 and X_START_FAILURE in done.stderr:
+        done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=timeout)
+    return done
 
 
 @needs_xvfb
