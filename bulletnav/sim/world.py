@@ -51,7 +51,8 @@ class World:
         self.wall_ids: list[int] = []
         self.obstacle_ids: list[int] = []
         self.static_set: frozenset[int] = frozenset()
-        """:attr:`static_ids` as a set, made once per :meth:`build` (the collision check runs every step)."""
+        """Walls and obstacles: what the robot must not touch (the floor excluded); a set,
+        made once per :meth:`build`, because the collision check runs every step."""
         self.labels: dict[int, str] = {}
         """Body id -> category (floor, wall, rack, pallet, box, column, robot)."""
 
@@ -112,9 +113,4 @@ class World:
         body = p.createMultiBody(0.0, col, vis, [center[0], center[1], half[2]], orn, physicsClientId=cid)
         self.labels[body] = label
         return body
-
-    @property
-    def static_ids(self) -> list[int]:
-        """Walls and obstacles: what the robot must not touch (the floor excluded)."""
-        return [*self.wall_ids, *self.obstacle_ids]
 
