@@ -77,6 +77,8 @@ def _make_env(args: argparse.Namespace, **extra):
     import bulletnav  # noqa: F401  (registers the env)
 
     kwargs = dict(num_obstacles=args.obstacles, **extra)
+    if getattr(args, "layout_style", None):
+        kwargs["layout_style"] = args.layout_style
     if args.world:
         kwargs["world"] = args.world
     return gym.make("bulletnav/Warehouse-v0", render_mode="human" if getattr(args, "gui", False) else None, **kwargs)
@@ -114,11 +116,11 @@ class _Visuals:
     def _path(self):
         return getattr(self.policy, "path", None)
 
-    def on_reset(self, env) -> None:
+    def on_reset(self, env, info) -> None:
         if self.recorder is not None:
             self.recorder.on_reset(env, self._path())
         if self.log is not None:
-            self.log.on_reset(env)
+            self.log.on_reset(env, info)
         if self.dashboard is not None:
             self.dashboard.on_reset()
 
@@ -177,11 +179,9 @@ def cmd_navigate(args: argparse.Namespace) -> int:
     """Classical navigation (PID, optionally with A* or RRT) scored on env episodes."""
     from bulletnav.control.navigator import Navigator, NavigatorConfig
     from bulletnav.evaluation import summarize
-    from bulletnav.planning import warmup
 
-    warmup()  # compile the planners before timing them
     env = _make_env(args)
-    nav = Navigator(NavigatorConfig(planner=args.planner, pose_source=args.pose))
+    nav = Navigator(env.unwrapped.scene, NavigatorConfig(planner=args.planner, pose_source=args.pose))
 
     def line(r) -> None:
         if not args.json:
@@ -242,7 +242,9 @@ def _evaluate_report(args: argparse.Namespace, model_path: str) -> dict:
 
     import bulletnav  # noqa: F401
     from bulletnav.evaluation import summarize
-    from bulletnav.rl.common import SB3Policy, evaluation_env_kwargs, load_model
+    from bulletnav.rl.envs import evaluation_env_kwargs
+    from bulletnav.rl.io import load_model
+    from bulletnav.rl.policy import SB3Policy
 
     model, meta, vecnorm = load_model(model_path, algo=getattr(args, "algo", None))
     env_kwargs = evaluation_env_kwargs(meta.get("env_kwargs", {}))
@@ -289,7 +291,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     """Learning curves of several training runs in one PNG and a table of their results."""
     from pathlib import Path
 
-    from bulletnav.rl.train import REACH_SUCCESS, compare_runs
+    from bulletnav.viz.compare import REACH_SUCCESS, compare_runs
 
     rows = compare_runs([Path(r) for r in args.runs], Path(args.out))
     if args.json:
@@ -369,11 +371,15 @@ def cmd_view(args: argparse.Namespace) -> int:
         dashboard.on_reset()
         t_end = time.perf_counter() + args.seconds
         steps = 0
+        turn = np.array([0.0, 0.5], dtype=np.float32)  # turning in place shows the lidar sweep and camera
         while time.perf_counter() < t_end:
-            env.unwrapped.step([0.0, 0.5])  # turning in place shows the lidar sweep and camera
+            _, _, terminated, truncated, _ = env.step(turn)
             dashboard.on_step()
             steps += 1
-        print(f"viewed {env.unwrapped.layout.name or 'procedural'} warehouse for {args.seconds:g} s "
+            if terminated or truncated:  # the time limit, after 1000 steps
+                env.reset()
+                dashboard.on_reset()
+        print(f"viewed {env.unwrapped.scene.layout.name or 'procedural'} warehouse for {args.seconds:g} s "
               f"({steps} control steps, {steps / args.seconds:.1f} steps/s with the dashboard)")
     finally:
         env.close()
@@ -381,85 +387,93 @@ def cmd_view(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="bulletnav", description=__doc__)
+    parser = argparse.ArgumentParser(
+        prog="bulletnav",
+        description="PyBullet warehouse navigation: classical and learned controllers on the same episodes.")
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
-    sub = parser.add_subparsers(dest="command", required=True)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
+    def add(name: str, help_: str) -> argparse.ArgumentParser:
+        return sub.add_parser(name, help=help_, description=help_)
 
-    nav = sub.add_parser("navigate", help="classical navigation (PID, A*, RRT) scored on env episodes")
-    nav.add_argument("--planner", choices=["none", "astar", "rrt"], default="astar")
-    nav.add_argument("--episodes", type=int, default=10)
+    nav = add("navigate", "classical navigation (PID, A*, RRT) scored on env episodes")
+    nav.add_argument("--planner", choices=["none", "astar", "rrt"], default="astar",
+                     help="planner on the lidar map: none (PID at the goal), astar or rrt (default astar)")
+    nav.add_argument("--episodes", type=int, default=10, help="episodes to run (default 10)")
     _add_world_args(nav)
-    nav.add_argument("--pose", choices=["truth", "odometry"], default="truth", help="pose for mapping and steering")
+    nav.add_argument("--pose", choices=["truth", "odometry"], default="truth",
+                     help="pose for mapping and steering (default truth)")
     nav.add_argument("--gui", action="store_true", help="watch in the PyBullet GUI (needs a display)")
     nav.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
     nav.add_argument("--video", metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
     nav.add_argument("--plot", metavar="PNG", help="write all episodes' paths over their maps")
     nav.set_defaults(func=cmd_navigate)
 
-    tr = sub.add_parser("train", help="train an SB3 agent (hyperparameters from rl/hyperparams/<algo>.yml)")
-    tr.add_argument("--algo", choices=["ppo", "sac", "td3", "a2c"], default="ppo")
-    tr.add_argument("--timesteps", type=int, default=500_000)
+    tr = add("train", "train an SB3 agent (hyperparameters from rl/hyperparams/<algo>.yml)")
+    tr.add_argument("--algo", choices=["ppo", "sac", "td3", "a2c"], default="ppo", help="algorithm (default ppo)")
+    tr.add_argument("--timesteps", type=int, default=500_000, help="total environment steps (default 500000)")
     tr.add_argument("--n-envs", type=int, default=None, help="parallel envs (default: the hyperparameter file's, 4)")
-    tr.add_argument("--seed", type=int, default=0)
+    tr.add_argument("--seed", type=int, default=0, help="random seed of the run (default 0)")
     tr.add_argument("--out", required=True, metavar="DIR", help="run directory, e.g. runs/ppo")
     tr.add_argument("--resume", action="store_true", help="continue from DIR/checkpoints/last.zip")
-    tr.add_argument("--eval-freq", type=int, default=25_000, help="evaluate every N timesteps")
-    tr.add_argument("--eval-episodes", type=int, default=20)
-    tr.add_argument("--checkpoint-freq", type=int, default=25_000)
-    tr.add_argument("--vec-env", choices=["subproc", "dummy"], default="subproc")
+    tr.add_argument("--eval-freq", type=int, default=25_000, help="evaluate every N timesteps (default 25000)")
+    tr.add_argument("--eval-episodes", type=int, default=20, help="unseen episodes per evaluation (default 20)")
+    tr.add_argument("--checkpoint-freq", type=int, default=25_000, help="checkpoint every N timesteps (default 25000)")
+    tr.add_argument("--vec-env", choices=["subproc", "dummy"], default="subproc",
+                    help="one process per env (subproc) or all in this one (dummy)")
     tr.add_argument("--hyperparams", metavar="YAML",
                     help="hyperparameter file to use instead of the packaged rl/hyperparams/<algo>.yml (same format)")
     tr.add_argument("--no-progress", action="store_true", help="no progress bar")
     tr.set_defaults(func=cmd_train)
 
-    ev = sub.add_parser("evaluate", help="evaluate a trained model (deterministic actions)")
-    ev.add_argument("--model", required=True, metavar="PATH")
+    ev = add("evaluate", "evaluate a trained model (deterministic actions)")
+    ev.add_argument("--model", required=True, metavar="PATH", help="model zip written by train")
     ev.add_argument("--algo", choices=["ppo", "sac", "td3", "a2c"], default=None,
                     help="only needed when the .json beside the model is missing")
-    ev.add_argument("--episodes", type=int, default=10)
+    ev.add_argument("--episodes", type=int, default=10, help="episodes to run (default 10)")
     ev.add_argument("--world", metavar="FILE", help="YAML layout (default: procedural warehouse)")
-    ev.add_argument("--obstacles", type=int, default=31)
+    ev.add_argument("--obstacles", type=int, default=31, help="obstacles in a procedural warehouse (default 31)")
     ev.add_argument("--seed", type=int, default=1000, help="episode k uses env seed S + k (default 1000)")
-    ev.add_argument("--gui", action="store_true")
-    ev.add_argument("--json", action="store_true")
+    ev.add_argument("--gui", action="store_true", help="watch in the PyBullet GUI (needs a display)")
+    ev.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
     ev.add_argument("--video", metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
     ev.add_argument("--plot", metavar="PNG", help="write all episodes' paths over their maps")
     ev.set_defaults(func=cmd_evaluate)
 
-    cmp_ = sub.add_parser("compare", help="plot several training runs' learning curves and tabulate them")
-    cmp_.add_argument("runs", nargs="+", metavar="RUN_DIR")
-    cmp_.add_argument("--out", default="docs/algorithms.png", metavar="PNG")
-    cmp_.add_argument("--json", action="store_true")
+    cmp_ = add("compare", "plot several training runs' learning curves and tabulate them")
+    cmp_.add_argument("runs", nargs="+", metavar="RUN_DIR", help="directories written by train")
+    cmp_.add_argument("--out", default="docs/algorithms.png", metavar="PNG",
+                      help="figure to write (default docs/algorithms.png)")
+    cmp_.add_argument("--json", action="store_true", help="print the table as JSON")
     cmp_.set_defaults(func=cmd_compare)
 
-    demo = sub.add_parser("demo", help="the main job: the shipped PPO policy, report, video and trajectory plot")
-    demo.add_argument("--model", default=DEFAULT_MODEL)
-    demo.add_argument("--episodes", type=int, default=5)
-    demo.add_argument("--seed", type=int, default=2024, help="episode k uses env seed S + k")
-    demo.add_argument("--world", metavar="FILE")
-    demo.add_argument("--obstacles", type=int, default=31)
-    demo.add_argument("--out", default="runs/demo", metavar="DIR")
-    demo.add_argument("--video", metavar="PATH", help="default: DIR/episodes.mp4")
+    demo = add("demo", "the main job: the shipped PPO policy, report, video and trajectory plot")
+    demo.add_argument("--model", default=DEFAULT_MODEL, help=f"model zip (default {DEFAULT_MODEL})")
+    demo.add_argument("--episodes", type=int, default=5, help="episodes to run (default 5)")
+    demo.add_argument("--seed", type=int, default=2024, help="episode k uses env seed S + k (default 2024)")
+    demo.add_argument("--world", metavar="FILE", help="YAML layout (default: procedural warehouse)")
+    demo.add_argument("--obstacles", type=int, default=31, help="obstacles in a procedural warehouse (default 31)")
+    demo.add_argument("--out", default="runs/demo", metavar="DIR", help="output directory (default runs/demo)")
+    demo.add_argument("--video", metavar="PATH", help="video file (default DIR/episodes.mp4)")
     demo.add_argument("--gui", action="store_true", help="watch live in the PyBullet GUI")
-    demo.add_argument("--json", action="store_true")
+    demo.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
     demo.set_defaults(func=cmd_demo, algo=None)
 
-    view = sub.add_parser("view", help="look at a warehouse in the PyBullet GUI")
-    view.add_argument("--world", metavar="FILE")
-    view.add_argument("--obstacles", type=int, default=31)
-    view.add_argument("--seed", type=int, default=0)
-    view.add_argument("--seconds", type=float, default=30.0)
+    view = add("view", "look at a warehouse in the PyBullet GUI")
+    view.add_argument("--world", metavar="FILE", help="YAML layout (default: procedural warehouse)")
+    view.add_argument("--obstacles", type=int, default=31, help="obstacles in a procedural warehouse (default 31)")
+    view.add_argument("--seed", type=int, default=0, help="warehouse seed (default 0)")
+    view.add_argument("--seconds", type=float, default=30.0, help="how long to show it (default 30)")
     view.set_defaults(func=cmd_view)
 
-    bench = sub.add_parser("bench", help="benchmarks (print JSON with --json)")
+    bench = add("bench", "benchmarks (print JSON with --json)")
     bench.add_argument("what", choices=["env", "physics", "planners", "gui"],
                        help="env: env vs raw PyBullet loop; physics: solver settings; planners: A* vs RRT; "
                             "gui: dashboard frame rate (needs a display: xvfb-run -a)")
     bench.add_argument("--episodes", type=int, default=50, help="navigation episodes per planner (planners)")
     bench.add_argument("--json", action="store_true", help="print one JSON object")
     bench.add_argument("--steps", type=int, default=0, help="steps to time (default: the benchmark's own)")
-    bench.add_argument("--seed", type=int, default=0)
+    bench.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     bench.set_defaults(func=cmd_bench)
     return parser
 

@@ -73,6 +73,10 @@ class RobotConfig:
     """Coulomb friction coefficient between the wheels and the floor."""
     caster_friction: float = 0.0
     """Friction of the passive caster ball; 0 models a free-rolling ball caster."""
+    footprint_radius: float = 0.2
+    """Disc radius (m) standing for the robot in start/goal sampling, reachability, planning
+    inflation and the evaluation's shortest path: the outline's farthest corner (0.18 m for
+    the shipped URDF) plus 2 cm. Must be at least the outline's (checked at load)."""
 
     def urdf_path(self) -> Path:
         return Path(self.urdf) if self.urdf else asset_path("diff_drive.urdf")
@@ -82,6 +86,8 @@ class RobotConfig:
 class WorldConfig:
     """Procedural warehouse generation (ignored for the obstacles of a YAML layout)."""
 
+    style: str = "scattered"
+    """Registered world generator (``bulletnav.sim.generators.WORLDS``) that draws each layout."""
     size: tuple[float, float] = (14.0, 14.0)
     """Floor extent along x and y (m), centred on the origin; walls enclose it."""
     num_obstacles: int = 31
@@ -111,9 +117,8 @@ class SamplerConfig:
     clearance: float = 0.4
     """Minimum distance from the start or goal point to any obstacle or wall (m)."""
     grid_resolution: float = 0.1
-    """Cell size of the coarse free-space grid used for clearance and reachability (m)."""
-    robot_radius: float = 0.2
-    """Robot footprint radius used to inflate obstacles for the reachability check (m)."""
+    """Cell size of the coarse free-space grid used for clearance and reachability (m); the
+    robot's disc for the reachability check is ``RobotConfig.footprint_radius``."""
     max_tries: int = 200
     """Goal draws per start before the sampler gives up."""
 
@@ -121,7 +126,7 @@ class SamplerConfig:
         if not 0.0 <= self.min_goal_distance <= self.max_goal_distance:
             raise ValueError(
                 "need 0 <= min_goal_distance <= max_goal_distance, got "
-                f"{self.min_goal_distance} and {self.max_goal_distance}"
+                f"min_goal_distance={self.min_goal_distance} and max_goal_distance={self.max_goal_distance}"
             )
 
 
@@ -129,6 +134,11 @@ class SamplerConfig:
 class LidarConfig:
     """2-D scanning lidar cast with ``rayTestBatch`` from the lidar link."""
 
+    enabled: bool = True
+    """Build the sensor; the task's observation needs it."""
+    rate_hz: float | None = None
+    """New scans per simulated second; None (or the control rate) scans every control step.
+    Between scans ``read`` returns the last one (a real lidar's scan period)."""
     num_rays: int = 36
     """Rays per scan, evenly spaced over ``fov``."""
     fov: float = 360.0
@@ -141,6 +151,7 @@ class LidarConfig:
     """Standard deviation of additive Gaussian range noise (m); 0 disables noise."""
 
     def __post_init__(self) -> None:
+        _check_rate("lidar", self.rate_hz)
         if self.num_rays < 1:
             raise ValueError(f"lidar num_rays must be >= 1, got {self.num_rays}")
         if not 0.0 <= self.min_range < self.max_range:
@@ -151,8 +162,15 @@ class LidarConfig:
 
 @dataclass(frozen=True)
 class CameraConfig:
-    """RGB-D + segmentation camera on the camera mount link, rendered with TinyRenderer."""
+    """RGB-D + segmentation camera on the camera mount link, rendered with TinyRenderer.
 
+    Rendering costs ~10 ms a frame, so the camera renders only when read: never in training
+    unless ``camera_obs`` puts it in the observation."""
+
+    enabled: bool = True
+    """Build the sensor (videos, the dashboard and ``camera_obs`` read it)."""
+    rate_hz: float | None = None
+    """New frames per simulated second; None renders on every control step it is read."""
     width: int = 320
     """Image width (pixels)."""
     height: int = 240
@@ -167,6 +185,7 @@ class CameraConfig:
     """Optical-axis pitch relative to the mount (degrees, negative looks down)."""
 
     def __post_init__(self) -> None:
+        _check_rate("camera", self.rate_hz)
         if self.width < 1 or self.height < 1:
             raise ValueError(f"camera size must be positive, got {self.width}x{self.height}")
         if not 0.0 < self.near < self.far:
@@ -177,6 +196,10 @@ class CameraConfig:
 class ImuConfig:
     """Accelerometer and gyroscope on the robot body."""
 
+    enabled: bool = True
+    """Build the sensor; the task's observation needs it."""
+    rate_hz: float | None = None
+    """Readings per simulated second; None (or the control rate) gives a new one every control step."""
     accel_noise_std: float = 0.05
     """Accelerometer white-noise standard deviation (m/s^2)."""
     gyro_noise_std: float = 0.01
@@ -187,6 +210,7 @@ class ImuConfig:
     """Constant gyroscope bias in the body frame (rad/s)."""
 
     def __post_init__(self) -> None:
+        _check_rate("imu", self.rate_hz)
         if self.accel_noise_std < 0 or self.gyro_noise_std < 0:
             raise ValueError("IMU noise standard deviations must be >= 0")
 
@@ -195,12 +219,29 @@ class ImuConfig:
 class OdometryConfig:
     """Wheel odometry."""
 
+    enabled: bool = True
+    """Build the sensor; the task's observation needs it."""
+    rate_hz: float | None = None
+    """Readings per simulated second; None (or the control rate) gives a new one every control
+    step. The pose is integrated every control step whatever the rate."""
     encoder_noise_std: float = 0.0
     """Gaussian noise on each wheel's angle increment per control step (rad); 0 = ideal encoders."""
+
+    def __post_init__(self) -> None:
+        _check_rate("odometry", self.rate_hz)
+        if self.encoder_noise_std < 0:
+            raise ValueError(f"odometry encoder_noise_std must be >= 0, got {self.encoder_noise_std}")
+
+
+def _check_rate(sensor: str, rate_hz: float | None) -> None:
+    if rate_hz is not None and not rate_hz > 0:
+        raise ValueError(f"{sensor} rate_hz must be > 0 or None, got {rate_hz}")
 
 
 @dataclass(frozen=True)
 class SensorsConfig:
+    """Which sensors the robot carries and how each is set up."""
+
     lidar: LidarConfig = field(default_factory=LidarConfig)
     camera: CameraConfig = field(default_factory=CameraConfig)
     imu: ImuConfig = field(default_factory=ImuConfig)
@@ -249,6 +290,9 @@ class TaskConfig:
     """Distance to the goal is divided by this in the observation (m)."""
     pose_source: str = "truth"
     """Where the robot's pose for heading/distance observations comes from: 'truth' or 'odometry'."""
+    collision_terminates: bool = False
+    """A collision ends the episode as terminated (a real end, what learners should see)
+    instead of truncated (the article's rule, ``Warehouse-v0``)."""
     reward: RewardConfig = field(default_factory=RewardConfig)
 
     def __post_init__(self) -> None:
@@ -262,6 +306,8 @@ class TaskConfig:
 class EnvConfig:
     """Everything that defines a ``bulletnav/Warehouse-v0`` episode."""
 
+    task_name: str = "navigation"
+    """Registered task (``bulletnav.tasks.TASKS``) that gives observation, reward and episode end."""
     physics: PhysicsConfig = field(default_factory=PhysicsConfig)
     robot: RobotConfig = field(default_factory=RobotConfig)
     world: WorldConfig = field(default_factory=WorldConfig)

@@ -1,9 +1,12 @@
 """Scoring episodes the same way for every controller, classical or learned.
 
 Episode ``k`` of a run with seed ``S`` is ``env.reset(seed=S + k)``: the same warehouse,
-start and goal for every controller given the same env settings. SPL is success weighted by
-path length (Anderson et al. 2018, as in Habitat): ``S_i * l_i / max(p_i, l_i)`` with
-``l_i`` the shortest collision-free path on the true map and ``p_i`` the driven length.
+start and goal for every controller given the same env settings. Every controller runs
+through :func:`run_episodes` as a :class:`~bulletnav.policy.Policy`, and is scored from
+``info`` and the read-only scene view only. SPL is success weighted by path length
+(Anderson et al. 2018, as in Habitat): ``S_i * l_i / max(p_i, l_i)`` with ``l_i`` the
+shortest collision-free path on the true map for the robot's disc and ``p_i`` the driven
+length.
 """
 
 from __future__ import annotations
@@ -11,17 +14,14 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import asdict, dataclass, field
-from typing import Any, Callable, Protocol
+from typing import Any, Callable
 
 import numpy as np
 
+from bulletnav.geometry import robot_geometry
 from bulletnav.planning import OccupancyGrid, astar
+from bulletnav.policy import Policy
 from bulletnav.sim.layout import Layout
-
-
-class Policy(Protocol):
-    def reset(self, env: Any, rng: np.random.Generator) -> None: ...
-    def act(self, obs: np.ndarray) -> np.ndarray: ...
 
 
 @dataclass
@@ -48,9 +48,12 @@ class EpisodeResult:
 
 
 def shortest_path_length(layout: Layout, start: tuple[float, float], goal: tuple[float, float],
-                         radius: float = 0.2, resolution: float = 0.05) -> float:
-    """Length (m) of the shortest path for a disc of ``radius`` on the true map: A* on a fine
-    grid, then shortened by line-of-sight shortcuts. NaN when no path exists."""
+                         radius: float | None = None, resolution: float = 0.05) -> float:
+    """Length (m) of the shortest path for a disc of ``radius`` (default: the shipped robot's,
+    ``RobotGeometry.radius``) on the true map: A* on a fine grid, then shortened by
+    line-of-sight shortcuts. NaN when no path exists."""
+    if radius is None:
+        radius = robot_geometry().radius
     occ = layout.occupancy(resolution, inflate=radius)
     xs, ys = layout.grid_axes(resolution)
     grid = OccupancyGrid(occ, resolution, (float(xs[0]), float(ys[0])))
@@ -76,24 +79,26 @@ def shortest_path_length(layout: Layout, start: tuple[float, float], goal: tuple
 def run_episodes(env, policy: Policy, episodes: int, seed: int,
                  on_episode: Callable[[EpisodeResult], None] | None = None,
                  on_step: Callable[[Any, dict], None] | None = None,
-                 on_reset: Callable[[Any], None] | None = None) -> list[EpisodeResult]:
-    """Run ``episodes`` episodes of ``policy`` in ``env`` (made with ``gym.make``).
+                 on_reset: Callable[[Any, dict], None] | None = None) -> list[EpisodeResult]:
+    """Run ``episodes`` episodes of ``policy`` in ``env`` (made with ``gym.make``): episode
+    ``k`` is ``env.reset(seed=seed + k)``.
 
-    Hooks (for recording and drawing; they must only read): ``on_reset(env)`` after each
-    reset, ``on_step(env, info)`` after each step, ``on_episode(result)`` at each end.
+    Hooks (for recording and drawing; they must only read): ``on_reset(env, info)`` after
+    each reset, ``on_step(env, info)`` after each step, ``on_episode(result)`` at each end.
     """
     results = []
-    u = env.unwrapped
+    scene = env.unwrapped.scene
     for k in range(episodes):
         obs, info = env.reset(seed=seed + k)
-        policy.reset(env, np.random.default_rng(seed + k))
+        policy.reset(info)
         if on_reset is not None:
-            on_reset(env)
-        shortest = shortest_path_length(u.layout, u.start[:2], u.goal)
+            on_reset(env, info)
+        start = scene.start
+        shortest = shortest_path_length(scene.layout, (start[0], start[1]), scene.goal, radius=scene.geometry.radius)
         total, steps = 0.0, 0
         t0 = time.perf_counter()
         while True:
-            action = policy.act(obs)
+            action = policy.act(obs, info)
             obs, reward, terminated, truncated, info = env.step(action)
             total += reward
             steps += 1
@@ -108,7 +113,7 @@ def run_episodes(env, policy: Policy, episodes: int, seed: int,
             episode=k + 1, seed=seed + k, initial_distance=float(info["initial_distance"]), shortest_path=shortest,
             steps=steps, reward=total, final_distance=float(info["distance_to_goal"]), path_length=driven,
             success=success, collision=bool(info["collision"]), spl=spl,
-            sim_time=steps * u.config.physics.control_dt, wall_time=time.perf_counter() - t0,
+            sim_time=steps * scene.control_dt, wall_time=time.perf_counter() - t0,
             plan_ms=[t * 1e3 for t in getattr(policy, "plan_times", [])], replans=int(getattr(policy, "replans", 0)),
         )
         results.append(result)

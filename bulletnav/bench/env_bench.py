@@ -67,7 +67,7 @@ def bench_env(steps: int = 6000, block: int = 100, seed: int = 0, config: EnvCon
     cfg = replace(config or EnvConfig(), layouts_every=10**9)  # one warehouse for the whole run
     env = gym.make("bulletnav/Warehouse-v0", config=cfg)
     env.reset(seed=seed)
-    raw = _RawLoop(cfg, env.unwrapped.layout, env.unwrapped.start)
+    raw = _RawLoop(cfg, env.unwrapped.scene.layout, env.unwrapped.scene.start)
     rng = np.random.default_rng(seed)
     actions = rng.uniform(env.action_space.low, env.action_space.high, size=(steps, 2)).astype(np.float32)
     env_time = raw_time = reset_time = 0.0
@@ -87,7 +87,7 @@ def bench_env(steps: int = 6000, block: int = 100, seed: int = 0, config: EnvCon
                 env.reset()
                 reset_time += clock() - t0
                 episodes += 1
-                pending.append((i + 1, tuple(env.unwrapped.start)))
+                pending.append((i + 1, env.unwrapped.scene.start))
         # The raw loop replays the chunk, teleporting where the env reset (untimed).
         t_raw, start = 0.0, 0
         for end, pose in [*pending, (len(chunk), None)]:

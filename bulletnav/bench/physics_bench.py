@@ -17,6 +17,7 @@ import numpy as np
 import pybullet as p
 
 from bulletnav.config import PhysicsConfig, SamplerConfig
+from bulletnav.geometry import robot_geometry
 from bulletnav.sim.layout import Layout, generate_warehouse
 from bulletnav.sim.sampler import FreeSpace, sample_start_goal
 from bulletnav.sim.simulation import Simulation
@@ -35,7 +36,7 @@ CANDIDATES: dict[str, PhysicsConfig] = {
 def _step_time(physics: PhysicsConfig, layout: Layout, start, steps: int) -> float:
     sim = Simulation(physics=physics)
     try:
-        sim.reset(layout, start, np.random.default_rng(0))
+        sim.reset(layout, start)
         sim.robot.set_velocity(0.05, 1.0)  # tight circle: moving, in contact with the floor only
         cid = sim.cid
         for _ in range(50):
@@ -55,7 +56,7 @@ def _driving(physics: PhysicsConfig) -> dict[str, float]:
         out: dict[str, float] = {}
         drifts, dists = [], []
         for yaw in (0.0, 1.0, 2.0):
-            sim.reset(flat, (0.0, 0.0, yaw), np.random.default_rng(0))
+            sim.reset(flat, (0.0, 0.0, yaw))
             for _ in range(3 * physics.control_hz):
                 sim.step(0.4, 0.0)
             x, y, _ = sim.robot.planar_pose()
@@ -64,7 +65,7 @@ def _driving(physics: PhysicsConfig) -> dict[str, float]:
         out["straight_3s_distance_m"] = round(float(np.mean(dists)), 4)
         out["straight_distance_error_pct"] = round(abs(np.mean(dists) - 1.2) / 1.2 * 100, 2)
         out["max_sideways_drift_mm"] = round(max(drifts) * 1000, 2)
-        sim.reset(flat, (0.0, 0.0, 0.0), np.random.default_rng(0))
+        sim.reset(flat, (0.0, 0.0, 0.0))
         for _ in range(physics.control_hz // 2):
             sim.step(0.0, 1.0)
         yaws = []
@@ -81,7 +82,8 @@ def _driving(physics: PhysicsConfig) -> dict[str, float]:
 def bench_physics(steps: int = 3000, repeats: int = 3, seed: int = 0) -> dict[str, Any]:
     """Per-step cost and driving accuracy for each candidate solver setting."""
     layout = generate_warehouse(np.random.default_rng(seed))
-    start, _ = sample_start_goal(FreeSpace.build(layout, SamplerConfig()), np.random.default_rng(seed), SamplerConfig())
+    free = FreeSpace.build(layout, SamplerConfig(), robot_geometry().radius)
+    start, _ = sample_start_goal(free, np.random.default_rng(seed), SamplerConfig())
     best = {name: math.inf for name in CANDIDATES}
     for _ in range(repeats):
         for name, physics in CANDIDATES.items():

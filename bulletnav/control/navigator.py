@@ -6,11 +6,13 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from bulletnav.control.pid import PID
-from bulletnav.planning import OccupancyGrid, astar, rrt
+from bulletnav.geometry import RobotGeometry
+from bulletnav.planning import OccupancyGrid, astar, rrt, warmup
 from bulletnav.planning.mapping import LidarMapper
 
 
@@ -38,10 +40,6 @@ class ControllerConfig:
     """Distance to the goal (m) inside which the speed ramps down."""
     side_margin: float = 0.2
     """Clearance (m) beside the robot under which the heading is blended toward the obstacle's tangent."""
-    footprint_radius: float = 0.2
-    """Robot footprint radius (m) around the body centre; clearances are measured beyond it."""
-    lidar_offset: float = 0.1
-    """Lidar position ahead of the body centre (m)."""
 
 
 @dataclass(frozen=True)
@@ -52,8 +50,9 @@ class NavigatorConfig:
     """'none' (PID straight at the goal), 'astar' or 'rrt'."""
     resolution: float = 0.2
     """Occupancy-grid cell size (m)."""
-    inflation: float = 0.2
-    """Obstacles grow by this (m) before planning: the robot's radius."""
+    inflation: float | None = None
+    """Obstacles grow by this (m) before planning; None takes the robot's disc radius
+    (``RobotGeometry.radius``, 0.2 m)."""
     preferred_margin: float = 0.1
     """Plans are first tried with this much extra inflation (m), falling back to ``inflation``
     alone when that leaves no path: a wide berth where there is room, tight gaps where not."""
@@ -65,8 +64,11 @@ class NavigatorConfig:
     """Robot pose used for mapping and steering: 'truth' or 'odometry'."""
     rrt_step: float = 0.5
     """RRT extension step (m)."""
-    rrt_time_budget: float = 0.05
-    """RRT budget per plan (s)."""
+    rrt_max_iters: int = 20000
+    """RRT iteration budget per plan (no wall-clock budget: the same map gives the same plan on any machine)."""
+    seed: int = 0
+    """RRT's random numbers come from ``(seed, episode start pose, goal)``: the same episode
+    gets the same plans whatever ran before it."""
     controller: ControllerConfig = field(default_factory=ControllerConfig)
 
     def __post_init__(self) -> None:
@@ -86,12 +88,13 @@ class GoToGoal:
     heading is blended toward the side with more room with weight ``1 - d / safety``.
 
     Clearances are ranges minus the distance from the lidar to the edge of the robot's
-    footprint along each ray, so a box 5 cm beside the wheel reads 5 cm, not 21. The same
-    blend keeps the sides clear: an obstacle closer than ``side_margin`` beside the robot
-    pulls the heading toward its tangent (parallel to it) with weight ``1 - c / margin``.
+    disc (``geometry.radius`` around the body centre) along each ray, so a box 5 cm beside
+    the wheel reads about 5 cm, not 21. The same blend keeps the sides clear: an obstacle
+    closer than ``side_margin`` beside the robot pulls the heading toward its tangent
+    (parallel to it) with weight ``1 - c / margin``.
     """
 
-    def __init__(self, config: ControllerConfig, angles: np.ndarray) -> None:
+    def __init__(self, config: ControllerConfig, angles: np.ndarray, geometry: RobotGeometry) -> None:
         self.config = config
         self.angles = np.asarray(angles, dtype=np.float64)
         half = math.radians(config.front_half_angle)
@@ -100,8 +103,9 @@ class GoToGoal:
         self.left = (self.angles > math.radians(15)) & (self.angles < math.radians(110))
         self.right = (self.angles < -math.radians(15)) & (self.angles > -math.radians(110))
         # distance from the lidar to the footprint circle along each ray
-        along = config.lidar_offset * np.cos(self.angles)
-        self.body = -along + np.sqrt(along**2 - config.lidar_offset**2 + config.footprint_radius**2)
+        offset = geometry.lidar_offset
+        along = offset * np.cos(self.angles)
+        self.body = -along + np.sqrt(along**2 - offset**2 + geometry.radius**2)
         self.pid = PID(config.kp, config.ki, config.kd, -config.max_turn_rate, config.max_turn_rate, integral_limit=0.5)
 
     def reset(self) -> None:
@@ -138,55 +142,75 @@ class GoToGoal:
 
 
 class Navigator:
-    """Drives ``bulletnav/Warehouse-v0`` from observations: maps with the lidar, plans with
-    A* or RRT on the inflated map, replans every ``replan_every`` steps or when new
-    obstacles block the path, and follows the path with :class:`GoToGoal`."""
+    """PID + A*/RRT for any env with the navigation observation: maps with the lidar, plans
+    on the inflated map, replans every ``replan_every`` steps or when new obstacles block
+    the path, and follows the path with :class:`GoToGoal`.
 
-    def __init__(self, config: NavigatorConfig = NavigatorConfig()) -> None:
+    A :class:`~bulletnav.policy.Policy`: it reads the lidar from ``obs``, the goal and the
+    true pose from ``info``, and the map bounds, lidar layout, robot geometry and (with
+    ``pose_source="odometry"``) the odometry estimate from the read-only scene view.
+
+    Args:
+        scene: ``env.unwrapped.scene`` of the env it will drive.
+        config: planner and controller settings.
+    """
+
+    def __init__(self, scene: Any, config: NavigatorConfig = NavigatorConfig()) -> None:
+        self.scene = scene
         self.config = config
         self.plan_times: list[float] = []
         """Seconds spent in each planner call this episode."""
         self.replans = 0
         self.path: list[tuple[float, float]] | None = None
+        """The plan being followed (world points, m), for drawing."""
+        if config.planner != "none":
+            warmup()  # numba kernels compiled (or loaded from the disk cache) before any plan
 
     # ------------------------------------------------------------------ episode
-    def reset(self, env, rng: np.random.Generator | None = None) -> None:
-        """Prepare for the episode just reset in ``env`` (a made or unwrapped env)."""
-        u = env.unwrapped
-        self.env = u
-        self.rng = rng if rng is not None else np.random.default_rng(0)
-        lidar = u.sensors["lidar"]
+    def reset(self, info: dict[str, Any]) -> None:
+        """Prepare for the episode that ``info`` (from ``env.reset``) starts."""
+        scene = self.scene
+        lidar = scene.sensors.lidar
+        geometry = scene.geometry
         self.angles = lidar.angles
         self.max_range = lidar.config.max_range
         self.n_rays = lidar.config.num_rays
-        self.dt = u.config.physics.control_dt
-        hx, hy = u.layout.half_extents
+        self.lidar_offset = geometry.lidar_offset
+        self.inflation = geometry.radius if self.config.inflation is None else self.config.inflation
+        self.dt = scene.control_dt
+        hx, hy = scene.layout.half_extents
         self.mapper = LidarMapper((-hx, -hy, hx, hy), self.config.resolution)
-        self.controller = GoToGoal(self.config.controller, self.angles)
-        self.goal = tuple(u.goal)
+        self.controller = GoToGoal(self.config.controller, self.angles, geometry)
+        self.goal = (float(info["goal"][0]), float(info["goal"][1]))
+        x, y, yaw = (float(v) for v in info["pose"])
+        # the episode's own stream: same start and goal -> same RRT samples, on any machine
+        words = np.frombuffer(np.array([x, y, yaw, *self.goal]).tobytes(), dtype=np.uint32)
+        self.rng = np.random.default_rng([self.config.seed, *words.tolist()])
         self.path = None
         self.plan_times = []
         self.replans = 0
         self._since_plan = 0
         self._inflated: list[OccupancyGrid] = []
 
-    def _pose(self) -> tuple[float, float, float]:
+    def _pose(self, info: dict[str, Any]) -> tuple[float, float, float]:
         if self.config.pose_source == "odometry":
-            x, y, yaw = (float(v) for v in self.env.sensors["odometry"].read()[:3])
+            x, y, yaw = (float(v) for v in self.scene.sensors.odometry.read()[:3])
             return x, y, yaw
-        return self.env.robot.planar_pose()
+        x, y, yaw = info["pose"]
+        return float(x), float(y), float(yaw)
 
-    def act(self, obs: np.ndarray) -> np.ndarray:
+    def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
         cfg = self.config
-        pose = self._pose()
-        ranges = np.asarray(obs[: self.n_rays], dtype=np.float64) * self.max_range
-        new_cells = self.mapper.integrate(pose, self.angles, ranges, self.max_range, sensor_offset=0.1)
+        pose = self._pose(info)
+        state = obs["state"] if isinstance(obs, dict) else obs
+        ranges = np.asarray(state[: self.n_rays], dtype=np.float64) * self.max_range
+        new_cells = self.mapper.integrate(pose, self.angles, ranges, self.max_range, sensor_offset=self.lidar_offset)
         goal_distance = math.hypot(self.goal[0] - pose[0], self.goal[1] - pose[1])
         target = self.goal
         if cfg.planner != "none":
             if new_cells or not self._inflated:
                 raw = self.mapper.grid()
-                self._inflated = [raw.inflate(cfg.inflation + cfg.preferred_margin), raw.inflate(cfg.inflation)]
+                self._inflated = [raw.inflate(self.inflation + cfg.preferred_margin), raw.inflate(self.inflation)]
             self._since_plan += 1
             blocked = bool(new_cells) and self.path is not None and not self._path_free(pose)
             if self.path is None or blocked or self._since_plan >= cfg.replan_every:
@@ -207,7 +231,7 @@ class Navigator:
                 path = astar(grid, start, self.goal)
             else:
                 path = rrt(grid, start, self.goal, self.rng, step=self.config.rrt_step,
-                           time_budget_s=self.config.rrt_time_budget)
+                           max_iters=self.config.rrt_max_iters)
             if path is not None:
                 break
         self.plan_times.append(time.perf_counter() - t0)
@@ -222,7 +246,7 @@ class Navigator:
         their own cells unconditionally (the robot is there, so it is passable)."""
         occ = grid.occupied.copy()
         raw = self.mapper.grid().occupied
-        r = int(math.ceil(self.config.inflation / grid.resolution))
+        r = int(math.ceil(self.inflation / grid.resolution))
         for px, py in points:
             ix, iy = grid.world_to_cell((px, py))
             sx, sy = slice(max(ix - r, 0), ix + r + 1), slice(max(iy - r, 0), iy + r + 1)

@@ -13,10 +13,10 @@ import pybullet as p
 from gymnasium import spaces
 
 from bulletnav.config import EnvConfig, RewardConfig
-from bulletnav.envs.task import REWARD_TERMS, NavigationTask
-from bulletnav.sim.layout import Layout, generate_warehouse, load_layout
-from bulletnav.sim.sampler import FreeSpace, sample_start_goal
-from bulletnav.sim.simulation import Simulation
+from bulletnav.envs.scene import Scene, SceneView
+from bulletnav.sim.generators import world_generator
+from bulletnav.sim.layout import Layout, load_layout
+from bulletnav.tasks import make_task
 
 _KWARGS = {
     # keyword -> (config section path, field)
@@ -35,6 +35,11 @@ _KWARGS = {
     "solver_iterations": (("physics",), "solver_iterations"),
     "goal_radius": (("task",), "goal_radius"),
     "pose_source": (("task",), "pose_source"),
+    "collision_terminates": (("task",), "collision_terminates"),
+    "layout_style": (("world",), "style"),
+    "lidar_rate_hz": (("sensors", "lidar"), "rate_hz"),
+    "camera_enabled": (("sensors", "camera"), "enabled"),
+    "task_name": ((), "task_name"),
     "layouts_every": ((), "layouts_every"),
     "camera_obs": ((), "camera_obs"),
     "normalize_actions": ((), "normalize_actions"),
@@ -136,12 +141,20 @@ class WarehouseEnv(gym.Env):
     - Termination: distance to the goal < 0.5 m (``info["is_success"] = True``).
     - Truncation: a collision (any contact between the robot and a wall or obstacle), or
       ``max_episode_steps`` (1000, Gymnasium's ``TimeLimit``; pass ``max_episode_steps`` to
-      ``gym.make`` to change it).
+      ``gym.make`` to change it). With ``collision_terminates=True`` a collision terminates
+      the episode instead (a real end, what a learner should bootstrap as such).
 
     ## Info
     The reward terms, ``distance_to_goal`` (m), ``collision``, ``is_success``,
     ``path_length`` (m driven, ground truth), ``initial_distance`` (m), ``goal`` (x, y),
-    ``pose`` (x, y, yaw ground truth).
+    ``pose`` (x, y, yaw ground truth), and ``end_reason`` (``"success"``, ``"collision"``,
+    or None while the episode runs; Gymnasium's ``TimeLimit`` truncates without one).
+
+    ## Scene
+    ``env.unwrapped.scene`` is a read-only :class:`~bulletnav.envs.scene.SceneView`: true
+    pose, start, goal(s), static layout, occupancy map at any resolution, movers, robot
+    geometry, sensors (``scene.sensors.lidar`` ...), step and episode counters. Controllers,
+    evaluation and visualisation read only ``obs``, ``info`` and this view.
 
     ## Arguments
     ``gym.make("bulletnav/Warehouse-v0", **kwargs)`` with any of: ``num_obstacles`` (31),
@@ -150,8 +163,11 @@ class WarehouseEnv(gym.Env):
     ``lidar_range`` (5 m), ``lidar_noise`` (0 m), ``imu_accel_noise`` (0.05 m/s^2),
     ``imu_gyro_noise`` (0.01 rad/s), ``odometry_noise`` (0 rad), ``physics_hz`` (240),
     ``control_hz`` (24), ``solver_iterations``, ``goal_radius`` (0.5 m),
-    ``pose_source`` ("truth"), ``normalize_actions`` (False), ``layouts_every`` (1: a new procedural warehouse every
-    reset), ``camera_obs`` (False), ``reward_<term>`` weights, ``render_mode``
+    ``pose_source`` ("truth"), ``collision_terminates`` (False), ``normalize_actions``
+    (False), ``layouts_every`` (1: a new procedural warehouse every reset),
+    ``layout_style`` ("scattered"; any registered world generator), ``lidar_rate_hz`` (None:
+    every control step), ``camera_enabled`` (True), ``camera_obs`` (False), ``task_name``
+    ("navigation"; any registered task), ``reward_<term>`` weights, ``render_mode``
     (``"human"``: PyBullet GUI, needs a display; ``"rgb_array"``: a chase-camera frame), and
     ``config`` (an :class:`EnvConfig` the other keywords modify).
 
@@ -160,7 +176,9 @@ class WarehouseEnv(gym.Env):
     ``self.np_random``.
 
     ## Version History
-    - v0: initial release.
+    - v0: initial release. Later additions (``end_reason`` in ``info``, the options
+      ``collision_terminates``, ``layout_style``, ``lidar_rate_hz``, ``camera_enabled``,
+      ``task_name``) leave every default episode bit-identical.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 24}
@@ -171,18 +189,31 @@ class WarehouseEnv(gym.Env):
         self.config = cfg = make_config(config, **kwargs)
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": cfg.physics.control_hz}
+        self._generate = world_generator(cfg.world.style)
         self._fixed_layout: Layout | None = load_layout(cfg.layout_file) if cfg.layout_file else None
-        self.sim = Simulation(cfg.physics, cfg.robot, cfg.sensors, gui=render_mode == "human")
-        self.task = NavigationTask(cfg.task, cfg.sensors.lidar.max_range, cfg.sensors.lidar.num_rays, cfg.physics.gravity)
+        self._scene = Scene(cfg, gui=render_mode == "human")
+        try:
+            self.task = make_task(cfg, self._scene)
+            """The task (observation, reward, episode end); see :mod:`bulletnav.tasks`."""
+            if cfg.camera_obs:
+                self._scene.sensors.require("camera", by="camera_obs=True")
+        except BaseException:
+            self._scene.close()
+            raise
+        self.scene = SceneView(self._scene, self.task)
+        """Read-only view for controllers, evaluation and visualisation."""
+        self.pace_gui = True
+        """In human mode, hold each step to real time (one control period); benchmarks turn it off."""
         t = cfg.task
         self._action_low = np.array([0.0, -t.max_turn_rate])
         self._action_high = np.array([t.max_speed, t.max_turn_rate])
+        self._bounds = (0.0, t.max_speed, -t.max_turn_rate, t.max_turn_rate)
         if cfg.normalize_actions:
             self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
         else:
             self.action_space = spaces.Box(self._action_low.astype(np.float32), self._action_high.astype(np.float32),
                                            dtype=np.float32)
-        state = spaces.Box(self.task.obs_low, self.task.obs_high, dtype=np.float32)
+        state = self.task.observation_space()
         if cfg.camera_obs:
             cam = cfg.sensors.camera
             self.observation_space: spaces.Space = spaces.Dict({
@@ -192,37 +223,9 @@ class WarehouseEnv(gym.Env):
             })
         else:
             self.observation_space = state
-        self._layout: Layout | None = None
-        self._free: FreeSpace | None = None
+        self._term_keys = tuple(f"reward_{name}" for name in self.task.reward_terms)
         self._resets_on_layout = 0
         self._last_frame_time = 0.0
-        self.goal = (0.0, 0.0)
-        self.start = (0.0, 0.0, 0.0)
-
-    # ------------------------------------------------------------------ public parts
-    @property
-    def robot(self):
-        """The :class:`~bulletnav.sim.robot.Robot` (ground truth: ``pose()``, ``velocity()``)."""
-        return self.sim.robot
-
-    @property
-    def world(self):
-        """The :class:`~bulletnav.sim.world.World` (current ``layout``, body ids)."""
-        return self.sim.world
-
-    @property
-    def sensors(self):
-        """``{"lidar", "camera", "imu", "odometry"}`` -> sensor with ``read()``."""
-        return self.sim.sensors
-
-    @property
-    def layout(self) -> Layout | None:
-        return self._layout
-
-    @property
-    def free_space(self) -> FreeSpace | None:
-        """Free-space grids of the current layout (used for sampling and shortest paths)."""
-        return self._free
 
     # ------------------------------------------------------------------ gym API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -230,65 +233,61 @@ class WarehouseEnv(gym.Env):
         options = options or {}
         cfg = self.config
         rng = self.np_random
+        scene = self._scene
         layout = self._fixed_layout
         if layout is None:
-            if seed is not None or self._layout is None or self._resets_on_layout >= cfg.layouts_every:
-                self._layout = generate_warehouse(rng, cfg.world)
-                self._free = None
+            layout = scene.layout
+            if seed is not None or layout is None or self._resets_on_layout >= cfg.layouts_every:
+                layout = self._generate(rng, cfg.world)
                 self._resets_on_layout = 0
-            layout = self._layout
-        elif self._layout is not layout:
-            self._layout, self._free = layout, None
         self._resets_on_layout += 1
-        if self._free is None:
-            self._free = FreeSpace.build(layout, cfg.sampler)
-        start: tuple[float, float, float] | None = layout.start
-        goal: tuple[float, float] | None = layout.goal
-        if start is None or goal is None:
-            sampled_start, sampled_goal = sample_start_goal(self._free, rng, cfg.sampler)
-            start = start or sampled_start
-            goal = goal or sampled_goal
-        if "start" in options:
-            start = _pose_option(options["start"], 3, "start")
-        if "goal" in options:
-            goal = _pose_option(options["goal"], 2, "goal")  # type: ignore[assignment]
-        self.start, self.goal = start, goal  # type: ignore[assignment]
         # A seeded reset rebuilds the scene so that it is bit-identical whatever came before.
-        self.sim.reset(layout, start, rng, rebuild=seed is not None)  # type: ignore[arg-type]
-        m = self.task.reset(self.sim, goal)  # type: ignore[arg-type]
+        scene.use_layout(layout, rebuild=seed is not None)
+        self.task.initialize_episode(scene, rng, options)
         if self.render_mode == "human":
             self._follow_camera()
-        return self._observation(m), self._info(m, {name: 0.0 for name in REWARD_TERMS}, collision=False, success=False)
+        terms = dict.fromkeys(self.task.reward_terms, 0.0)
+        return self._observation(), self._info(terms, None)
 
     def step(self, action):
-        try:
-            a0, a1 = float(action[0]), float(action[1])
-            if len(action) != 2:
-                raise IndexError
-        except (IndexError, TypeError, ValueError):
-            raise ValueError(f"action must have 2 entries (v, w), got {action!r} of shape {np.shape(action)}") from None
-        if not (math.isfinite(a0) and math.isfinite(a1)):
-            names = [n for n, x in (("v", a0), ("w", a1)) if not math.isfinite(x)]
-            raise ValueError(f"action {[a0, a1]} has non-finite entries: {', '.join(names)}")
-        v, w = self.command((a0, a1))
-        self.sim.step(v, w)
-        collision = self.sim.in_collision()
-        m = self.task.measure(self.sim)
-        terms, terminated, truncated = self.task.evaluate(self.sim, m, collision)
+        v, w = self.command(action)
+        scene, task = self._scene, self.task
+        scene.step(v, w)
+        task.after_step(scene)
+        terms = task.reward(scene)
+        terminated, truncated, reason = task.end(scene)
         reward = float(sum(terms.values()))
         if self.render_mode == "human":
             self._follow_camera()
-            self._pace()
-        return self._observation(m), reward, terminated, truncated, self._info(m, terms, collision, terminated)
+            if self.pace_gui:
+                self._pace()
+        return self._observation(), reward, terminated, truncated, self._info(terms, reason)
 
-    def command(self, action) -> tuple[float, float]:
-        """The (v m/s, w rad/s) an action commands, after scaling and clipping."""
-        a0, a1 = float(action[0]), float(action[1])
+    def command(self, action: Any) -> tuple[float, float]:
+        """The (v m/s, w rad/s) an action commands, after scaling and clipping.
+
+        Raises:
+            ValueError: the action is not 2 finite numbers (a dict, a wrong shape, NaN).
+        """
+        if type(action) is np.ndarray and action.shape == (2,) and action.dtype.kind == "f":
+            a0, a1 = action.tolist()  # the common case, fast: no per-step array conversion
+        else:
+            try:
+                arr = np.asarray(action, dtype=np.float64)
+            except (TypeError, ValueError):
+                arr = None
+            if arr is None or arr.shape != (2,):
+                raise ValueError(f"action must be 2 numbers (v, w), got {action!r} of type {type(action).__name__}"
+                                 f"{'' if arr is None else f' and shape {arr.shape}'}")
+            a0, a1 = float(action[0]), float(action[1])
+        if not (math.isfinite(a0) and math.isfinite(a1)):
+            names = [n for n, x in (("v", a0), ("w", a1)) if not math.isfinite(x)]
+            raise ValueError(f"action {[a0, a1]} has non-finite entries: {', '.join(names)}")
+        v_lo, v_hi, w_lo, w_hi = self._bounds
         if self.config.normalize_actions:  # [-1, 1] -> physical range
-            a0 = self._action_low[0] + (a0 + 1.0) * 0.5 * (self._action_high[0] - self._action_low[0])
-            a1 = self._action_low[1] + (a1 + 1.0) * 0.5 * (self._action_high[1] - self._action_low[1])
-        low, high = self._action_low, self._action_high
-        return min(max(a0, float(low[0])), float(high[0])), min(max(a1, float(low[1])), float(high[1]))
+            a0 = v_lo + (a0 + 1.0) * 0.5 * (v_hi - v_lo)
+            a1 = w_lo + (a1 + 1.0) * 0.5 * (w_hi - w_lo)
+        return min(max(a0, v_lo), v_hi), min(max(a1, w_lo), w_hi)
 
     def render(self):
         if self.render_mode == "rgb_array":
@@ -296,40 +295,37 @@ class WarehouseEnv(gym.Env):
         return None
 
     def close(self) -> None:
-        self.sim.close()
+        self._scene.close()
 
     # ------------------------------------------------------------------ helpers
-    def _observation(self, m):
-        state = self.task.observation(m)
+    def _observation(self):
+        state = self.task.observe(self._scene)
         if not self.config.camera_obs:
             return state
-        image = self.sim.sensors["camera"].read()
+        image = self._scene.sensors.camera.read()
         return {"state": state, "rgb": image.rgb, "depth": image.depth[:, :, None]}
 
-    def _info(self, m, terms: dict[str, float], collision: bool, success: bool) -> dict[str, Any]:
-        info: dict[str, Any] = {f"reward_{k}": float(v) for k, v in terms.items()}
-        truth = self.sim.robot.state
-        pose = np.array((truth.x, truth.y, truth.yaw))
-        info.update(
-            distance_to_goal=m.distance, collision=bool(collision), is_success=bool(success),
-            path_length=self.task.path_length, initial_distance=self.task.initial_distance,
-            goal=self.goal, pose=pose,
-        )
+    def _info(self, terms: dict[str, float], reason: str | None) -> dict[str, Any]:
+        info: dict[str, Any] = {key: float(v) for key, v in zip(self._term_keys, terms.values())}
+        info.update(self.task.info(self._scene))
+        info["end_reason"] = reason
         return info
 
     def _chase_frame(self, width: int = 480, height: int = 360) -> np.ndarray:
-        x, y, yaw = self.sim.robot.pose()
+        cid = self._scene.cid
+        x, y, yaw = self._scene.robot.planar_pose()
         eye = [x - 2.2 * math.cos(yaw), y - 2.2 * math.sin(yaw), 2.4]
         view = p.computeViewMatrix(eye, [x + 0.8 * math.cos(yaw), y + 0.8 * math.sin(yaw), 0.0], [0, 0, 1],
-                                   physicsClientId=self.sim.cid)
-        proj = p.computeProjectionMatrixFOV(60.0, width / height, 0.05, 30.0, physicsClientId=self.sim.cid)
+                                   physicsClientId=cid)
+        proj = p.computeProjectionMatrixFOV(60.0, width / height, 0.05, 30.0, physicsClientId=cid)
         _, _, rgba, _, _ = p.getCameraImage(width, height, view, proj, renderer=p.ER_TINY_RENDERER,
-                                            flags=p.ER_NO_SEGMENTATION_MASK, physicsClientId=self.sim.cid)
+                                            flags=p.ER_NO_SEGMENTATION_MASK, physicsClientId=cid)
         return np.reshape(np.asarray(rgba, dtype=np.uint8), (height, width, 4))[:, :, :3].copy()
 
     def _follow_camera(self) -> None:
-        x, y, yaw = self.sim.robot.pose()
-        p.resetDebugVisualizerCamera(3.5, math.degrees(yaw) - 90.0, -45.0, [x, y, 0.0], physicsClientId=self.sim.cid)
+        x, y, yaw = self._scene.robot.planar_pose()
+        p.resetDebugVisualizerCamera(3.5, math.degrees(yaw) - 90.0, -45.0, [x, y, 0.0],
+                                     physicsClientId=self._scene.cid)
 
     def _pace(self) -> None:
         """Hold the GUI to real time (one control period per step)."""
@@ -339,13 +335,3 @@ class WarehouseEnv(gym.Env):
         if wait > 0:
             time.sleep(wait)
         self._last_frame_time = time.perf_counter()
-
-
-def _pose_option(value: Any, n: int, name: str) -> tuple[float, ...]:
-    try:
-        out = tuple(float(v) for v in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"options[{name!r}] must be {n} numbers, got {value!r}") from None
-    if len(out) != n or not all(math.isfinite(v) for v in out):
-        raise ValueError(f"options[{name!r}] must be {n} finite numbers, got {value!r}")
-    return out

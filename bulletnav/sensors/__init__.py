@@ -3,7 +3,8 @@
 from bulletnav.sensors.base import Sensor
 from bulletnav.sensors.camera import Camera, CameraImage
 from bulletnav.sensors.imu import Imu
-from bulletnav.sensors.lidar import Lidar
+from bulletnav.sensors.lidar import Lidar, ray_angles
 from bulletnav.sensors.odometry import Odometry
+from bulletnav.sensors.suite import SensorSuite
 
-__all__ = ["Camera", "CameraImage", "Imu", "Lidar", "Odometry", "Sensor"]
+__all__ = ["Camera", "CameraImage", "Imu", "Lidar", "Odometry", "Sensor", "SensorSuite", "ray_angles"]

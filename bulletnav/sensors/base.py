@@ -6,6 +6,7 @@ from abc import ABC, abstractmethod
 from typing import Any
 
 import numpy as np
+from gymnasium import spaces
 
 from bulletnav.sim.client import Clock
 from bulletnav.sim.robot import Robot
@@ -14,20 +15,33 @@ from bulletnav.sim.robot import Robot
 class Sensor(ABC):
     """A sensor mounted on a robot in one physics client.
 
-    Life cycle, driven by the simulation: :meth:`reset` at every episode start with the
-    sensor's own ``numpy.random.Generator`` (so reading one sensor never shifts another's
-    noise), :meth:`update` once after every control step, and :meth:`read` whenever a
-    measurement is wanted. ``read`` is idempotent within a control step: it returns a fresh
-    copy of the same measurement, so extra reads change neither results nor random streams.
+    Life cycle, driven by the scene: :meth:`reset` at every episode start with the sensor's
+    own ``numpy.random.Generator`` (so reading one sensor never shifts another's noise),
+    :meth:`update` once after every control step, and :meth:`read` whenever a measurement
+    is wanted. ``read`` is idempotent within a sensor period: it returns a fresh copy of the
+    same measurement, so extra reads change neither results nor random streams.
+
+    Args:
+        robot: the robot the sensor is mounted on (its physics client is the sensor's).
+        clock: the scene's simulated time.
+        rate_hz: new measurements per simulated second; None = one per control step.
     """
 
     name: str = "sensor"
 
-    def __init__(self, robot: Robot, clock: Clock) -> None:
+    def __init__(self, robot: Robot, clock: Clock, rate_hz: float | None = None) -> None:
         self.robot = robot
         self.clock = clock
         self.rng = np.random.default_rng(0)
-        self._episode = self._tick = -1  # clock stamp of the cached measurement
+        if rate_hz is None:
+            self.period = clock.control_ticks
+        else:
+            physics_hz = 1.0 / clock.physics_dt
+            if rate_hz > physics_hz:
+                raise ValueError(f"{self.name} rate_hz={rate_hz} exceeds the physics rate {physics_hz:g} Hz")
+            self.period = max(1, round(physics_hz / rate_hz))
+        """Physics steps between new measurements."""
+        self._episode = self._slot = -1  # clock stamp of the cached measurement
         self._value: Any = None
 
     def reset(self, rng: np.random.Generator) -> None:
@@ -41,14 +55,19 @@ class Sensor(ABC):
     def read(self) -> Any:
         """The current measurement as fresh NumPy array(s)."""
         clock = self.clock
-        if self._tick != clock.tick or self._episode != clock.episode:
+        slot = clock.tick // self.period
+        if slot != self._slot or self._episode != clock.episode:
             self._value = self.measure()
-            self._episode, self._tick = clock.episode, clock.tick
+            self._episode, self._slot = clock.episode, slot
         return _copy(self._value)
 
     @abstractmethod
     def measure(self) -> Any:
-        """Take a new measurement (called at most once per control step by :meth:`read`)."""
+        """Take a new measurement (called at most once per sensor period by :meth:`read`)."""
+
+    @abstractmethod
+    def space(self) -> spaces.Space:
+        """The Gymnasium space that every :meth:`read` lies in."""
 
 
 def _copy(value: Any) -> Any:

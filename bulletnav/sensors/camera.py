@@ -7,6 +7,7 @@ from typing import NamedTuple
 
 import numpy as np
 import pybullet as p
+from gymnasium import spaces
 
 from bulletnav.config import CameraConfig
 from bulletnav.sensors.base import Sensor
@@ -39,7 +40,7 @@ class Camera(Sensor):
 
     def __init__(self, robot: Robot, clock: Clock, config: CameraConfig = CameraConfig(),
                  renderer: int = p.ER_TINY_RENDERER) -> None:
-        super().__init__(robot, clock)
+        super().__init__(robot, clock, config.rate_hz)
         self.config = config
         self.renderer = renderer
         self.projection = p.computeProjectionMatrixFOV(
@@ -48,6 +49,14 @@ class Camera(Sensor):
         pitch = math.radians(config.pitch)
         self._forward = np.array([math.cos(pitch), 0.0, math.sin(pitch)])
         self._up = np.array([-math.sin(pitch), 0.0, math.cos(pitch)])
+
+    def space(self) -> spaces.Dict:
+        cfg = self.config
+        return spaces.Dict({
+            "rgb": spaces.Box(0, 255, (cfg.height, cfg.width, 3), dtype=np.uint8),
+            "depth": spaces.Box(np.float32(0.0), np.float32(cfg.far), (cfg.height, cfg.width), dtype=np.float32),
+            "segmentation": spaces.Box(-1, np.iinfo(np.int32).max, (cfg.height, cfg.width), dtype=np.int32),
+        })
 
     def view_matrix(self) -> tuple[list[float], np.ndarray, np.ndarray]:
         """PyBullet view matrix of the current mount pose, with the eye position and forward axis."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from gymnasium import spaces
 
 from bulletnav.config import ImuConfig
 from bulletnav.sensors.base import Sensor
@@ -22,7 +23,7 @@ class Imu(Sensor):
     name = "imu"
 
     def __init__(self, robot: Robot, clock: Clock, config: ImuConfig = ImuConfig(), gravity: float = 9.81) -> None:
-        super().__init__(robot, clock)
+        super().__init__(robot, clock, config.rate_hz)
         self.config = config
         self._gravity = (0.0, 0.0, -gravity)
         self._noise_std = np.repeat([config.accel_noise_std, config.gyro_noise_std], 3)
@@ -31,6 +32,9 @@ class Imu(Sensor):
         self._prev_time = 0.0
         self._latest = np.zeros(6, dtype=np.float32)
         self._offsets: list[list[float]] = []
+
+    def space(self) -> spaces.Box:
+        return spaces.Box(-np.inf, np.inf, (6,), dtype=np.float32)
 
     def reset(self, rng: np.random.Generator) -> None:
         super().reset(rng)

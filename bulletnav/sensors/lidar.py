@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pybullet as p
+from gymnasium import spaces
 
 from bulletnav.config import LidarConfig
 from bulletnav.sensors.base import Sensor
@@ -37,12 +38,16 @@ class Lidar(Sensor):
     name = "lidar"
 
     def __init__(self, robot: Robot, clock: Clock, config: LidarConfig = LidarConfig()) -> None:
-        super().__init__(robot, clock)
+        super().__init__(robot, clock, config.rate_hz)
         self.config = config
         self.angles = ray_angles(config.num_rays, config.fov)
         directions = np.stack([np.cos(self.angles), np.sin(self.angles), np.zeros_like(self.angles)], axis=1)
         self._ray_from = np.zeros((config.num_rays, 3)).tolist()
         self._ray_to = (directions * config.max_range).tolist()
+
+    def space(self) -> spaces.Box:
+        cfg = self.config
+        return spaces.Box(np.float32(cfg.min_range), np.float32(cfg.max_range), (cfg.num_rays,), dtype=np.float32)
 
     def _rays(self) -> tuple:
         return p.rayTestBatch(
@@ -70,10 +75,14 @@ class Lidar(Sensor):
             np.maximum(ranges, np.float32(cfg.min_range), out=ranges)
         return ranges
 
+    def origin(self) -> tuple[float, float, float]:
+        """World position of the lidar (m), where its rays start."""
+        return tuple(p.getLinkState(self.robot.body, self.robot.lidar_link, physicsClientId=self.robot.cid)[4])
+
     def hit_points(self, ranges: np.ndarray) -> np.ndarray:
         """World (x, y) of each ray's end point for ``ranges`` (for maps and drawing)."""
-        yaw = self.robot.pose()[2]
-        pos = p.getLinkState(self.robot.body, self.robot.lidar_link, physicsClientId=self.robot.cid)[4]
+        yaw = self.robot.state.yaw
+        pos = self.origin()
         a = self.angles + yaw
         r = np.asarray(ranges, dtype=np.float64)
         return np.stack([pos[0] + r * np.cos(a), pos[1] + r * np.sin(a)], axis=1)

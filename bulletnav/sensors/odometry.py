@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from gymnasium import spaces
 
 from bulletnav.config import OdometryConfig
 from bulletnav.sensors.base import Sensor
@@ -17,15 +18,19 @@ class Odometry(Sensor):
 
     ``v = r (wl + wr) / 2`` and ``w = r (wr - wl) / L`` come from the wheel joint rates
     sampled at the last :meth:`update` (every control step).
-    The pose starts at the true pose at reset and is integrated in :meth:`update` from the
-    wheel angle increments (as real encoders count them), exact for constant-curvature
-    motion between steps; its error against ground truth is wheel slip and nothing else.
+
+    The pose starts at the true pose at reset and is integrated in :meth:`update`, once per
+    control step, from the wheel *angle* increments over that step (as real encoders count
+    them, plus ``encoder_noise_std`` noise per wheel and step): the midpoint rule
+    ``x += ds cos(yaw + dyaw / 2)``, which is exact for an arc of constant curvature. Within
+    a control step the robot need not drive such an arc (the motors accelerate), so the
+    estimate drifts from ground truth by that integration error plus wheel slip.
     """
 
     name = "odometry"
 
     def __init__(self, robot: Robot, clock: Clock, config: OdometryConfig = OdometryConfig()) -> None:
-        super().__init__(robot, clock)
+        super().__init__(robot, clock, config.rate_hz)
         self.config = config
         self.state: tuple[float, float, float] = (0.0, 0.0, 0.0)
         """Integrated pose estimate (x, y, yaw) in m, m, rad."""
@@ -33,6 +38,10 @@ class Odometry(Sensor):
         self._rates = (0.0, 0.0)
         self.distance = 0.0
         """Path length driven according to the encoders (m)."""
+
+    def space(self) -> spaces.Box:
+        high = np.array([np.inf, np.inf, np.pi, np.inf, np.inf], dtype=np.float32)
+        return spaces.Box(-high, high, dtype=np.float32)
 
     def reset(self, rng: np.random.Generator) -> None:
         super().reset(rng)

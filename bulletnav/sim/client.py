@@ -83,6 +83,9 @@ class Clock:
     """Simulated time shared by a simulation and its sensors."""
 
     physics_dt: float
+    """Seconds per physics step."""
+    control_ticks: int = 1
+    """Physics steps per control step."""
     tick: int = 0
     """Physics steps since the last reset."""
     episode: int = 0

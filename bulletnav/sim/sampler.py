@@ -19,7 +19,7 @@ class FreeSpace:
 
     ``clear[ix, iy]`` is True where a cell centre has the required clearance; ``component``
     labels the 8-connected regions of the robot's configuration space (obstacles inflated
-    by the robot radius), so two points are mutually reachable iff their labels match.
+    by the robot's disc, ``radius``), so two points are mutually reachable iff their labels match.
     """
 
     layout: Layout
@@ -30,12 +30,13 @@ class FreeSpace:
     component: np.ndarray
 
     @classmethod
-    def build(cls, layout: Layout, config: SamplerConfig) -> FreeSpace:
+    def build(cls, layout: Layout, config: SamplerConfig, radius: float) -> FreeSpace:
+        """Grids of ``layout`` for a robot disc of ``radius`` (m; ``RobotGeometry.radius``)."""
         xs, ys = layout.grid_axes(config.grid_resolution)
         gx, gy = np.meshgrid(xs, ys, indexing="ij")
         dist = layout.clearance(gx, gy)
         clear = dist > config.clearance
-        passable = dist > config.robot_radius
+        passable = dist > radius
         component, _ = ndimage.label(passable, structure=np.ones((3, 3), dtype=bool))
         return cls(layout, config.grid_resolution, xs, ys, clear, component)
 

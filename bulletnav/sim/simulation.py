@@ -1,20 +1,18 @@
-"""The composed simulation: one physics client holding a world, a robot and its sensors.
+"""The physics of one env: a private PyBullet client holding a world and a robot.
 
 ``Simulation.step`` is the physics half of an env step (dm_control's ``Physics``): apply
 the command, advance ``substeps`` physics steps, take the robot's ground-truth snapshot
-(``robot.state``), update the stateful sensors from it. The task
-(reward, termination) lives in :mod:`bulletnav.envs`.
+(``robot.state``). Sensors are mounted on the robot by the scene
+(:mod:`bulletnav.envs.scene`); the task (reward, termination) lives in :mod:`bulletnav.tasks`.
 """
 
 from __future__ import annotations
 
 import logging
 
-import numpy as np
 import pybullet as p
 
-from bulletnav.config import PhysicsConfig, RobotConfig, SensorsConfig
-from bulletnav.sensors import Camera, Imu, Lidar, Odometry, Sensor
+from bulletnav.config import PhysicsConfig, RobotConfig
 from bulletnav.sim.client import Clock, connect
 from bulletnav.sim.layout import Layout
 from bulletnav.sim.robot import Robot
@@ -22,45 +20,34 @@ from bulletnav.sim.world import World
 
 log = logging.getLogger(__name__)
 
-SENSOR_ORDER = ("lidar", "camera", "imu", "odometry")
-
 
 class Simulation:
-    """A private PyBullet client with a warehouse, the robot and its four sensors.
+    """A private PyBullet client with a warehouse and the robot.
 
     Args:
         physics: rates and solver settings.
         robot: robot model and motor settings.
-        sensors: per-sensor configs.
         gui: open the PyBullet GUI instead of DIRECT (needs an X display).
     """
 
     def __init__(self, physics: PhysicsConfig = PhysicsConfig(), robot: RobotConfig = RobotConfig(),
-                 sensors: SensorsConfig = SensorsConfig(), gui: bool = False) -> None:
+                 gui: bool = False) -> None:
         self.physics = physics
         self.gui = gui
         self.cid = connect(gui=gui)
-        self.clock = Clock(physics.physics_dt)
+        self.clock = Clock(physics.physics_dt, physics.substeps)
         self.world = World(self.cid, physics)
         self.robot = Robot(self.cid, robot)
-        self.sensors: dict[str, Sensor] = {
-            "lidar": Lidar(self.robot, self.clock, sensors.lidar),
-            "camera": Camera(self.robot, self.clock, sensors.camera),
-            "imu": Imu(self.robot, self.clock, sensors.imu, gravity=physics.gravity),
-            "odometry": Odometry(self.robot, self.clock, sensors.odometry),
-        }
         self.rebuilds = 0
         """How many times the scene was rebuilt (layout changes), for diagnostics."""
 
     # ------------------------------------------------------------------ episodes
-    def reset(self, layout: Layout, start: tuple[float, float, float], rng: np.random.Generator,
-              rebuild: bool = False) -> None:
+    def reset(self, layout: Layout, start: tuple[float, float, float], rebuild: bool = False) -> None:
         """Start an episode in ``layout`` with the robot at rest at ``start`` = (x, y, yaw).
 
         The scene is rebuilt when the layout differs from the current one or ``rebuild`` is
         set; otherwise the robot is teleported (fast, but the solver keeps warm-start state,
-        so only a rebuild makes the next steps independent of history). Each sensor gets its
-        own generator drawn from ``rng``.
+        so only a rebuild makes the next steps independent of history).
         """
         if rebuild or self.world.layout != layout:
             if self.gui:  # the GUI redraws after every body created: seconds for a warehouse
@@ -75,9 +62,6 @@ class Simulation:
             self.robot.reset_pose(start)
         self.clock.tick = 0
         self.clock.episode += 1
-        seeds = rng.integers(0, 2**63 - 1, size=len(SENSOR_ORDER))
-        for name, seed in zip(SENSOR_ORDER, seeds):
-            self.sensors[name].reset(np.random.default_rng(int(seed)))
 
     def step(self, v: float, w: float) -> None:
         """Command (v m/s, w rad/s) and advance one control period."""
@@ -87,8 +71,6 @@ class Simulation:
             p.stepSimulation(physicsClientId=cid)
         self.clock.tick += self.physics.substeps
         self.robot.sample()  # the ground truth of this step, shared by sensors and task
-        for name in ("imu", "odometry"):
-            self.sensors[name].update()
 
     def in_collision(self) -> bool:
         """True when the robot touches a wall or an obstacle (the floor does not count)."""

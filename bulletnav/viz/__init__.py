@@ -1,27 +1,32 @@
-"""Visualisation: a throttled PyBullet-GUI dashboard, episode videos and trajectory plots.
+"""Visualisation: a throttled PyBullet-GUI dashboard, episode videos, trajectory plots and
+learning curves.
 
 - :class:`Dashboard` draws the camera preview, lidar rays, planned path and goal in the GUI
   (``render_mode="human"``) without slowing it to a crawl.
 - :class:`EpisodeRecorder` writes composed frames (map, camera, depth, status) to MP4 or GIF.
 - :class:`TrajectoryLog` and :func:`plot_trajectories` draw episodes' paths over their maps.
+- :func:`plot_learning_curve` and :func:`compare_runs` draw training runs' evaluations.
+
+All of them read only ``info`` and the env's read-only ``scene`` view.
 """
 
-from bulletnav.viz.dashboard import Dashboard, DashboardConfig, compare_gui_fps, gui_fps, simplify_path
+from bulletnav.viz.compare import REACH_SUCCESS, compare_runs, plot_learning_curve
+from bulletnav.viz.dashboard import Dashboard, DashboardConfig, simplify_path
 from bulletnav.viz.plots import EpisodeTrajectory, TrajectoryLog, figure_size, plot_trajectories
-from bulletnav.viz.video import FRAME_SIZE, EpisodeRecorder, colourize_depth, with_reset_hooks
+from bulletnav.viz.video import FRAME_SIZE, EpisodeRecorder, colourize_depth
 
 __all__ = [
     "FRAME_SIZE",
+    "REACH_SUCCESS",
     "Dashboard",
     "DashboardConfig",
     "EpisodeRecorder",
     "EpisodeTrajectory",
     "TrajectoryLog",
     "colourize_depth",
-    "compare_gui_fps",
+    "compare_runs",
     "figure_size",
-    "gui_fps",
+    "plot_learning_curve",
     "plot_trajectories",
     "simplify_path",
-    "with_reset_hooks",
 ]

@@ -11,19 +11,20 @@ Use::
 
     env = gym.make("bulletnav/Warehouse-v0", render_mode="human")
     obs, info = env.reset(seed=0)
+    nav = Navigator(env.unwrapped.scene)
+    nav.reset(info)
     dash = Dashboard(env)
     while True:
-        obs, r, term, trunc, info = env.step(nav.act(obs))
+        obs, r, term, trunc, info = env.step(nav.act(obs, info))
         dash.on_step(nav.path)
         if term or trunc:
-            obs, info = env.reset(); dash.on_reset()
+            obs, info = env.reset(); nav.reset(info); dash.on_reset()
 """
 
 from __future__ import annotations
 
 import logging
 import math
-import time
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -102,7 +103,8 @@ class Dashboard:
             raise ValueError("Dashboard draws in the PyBullet GUI: make the env with render_mode='human'")
         self.env = env
         self.config = config
-        self.sim = u.sim
+        self.scene = u.scene
+        self.cid = self.scene.client
         self.camera_renders = 0
         self.debug_draw_calls = 0
         self.steps = 0
@@ -114,10 +116,9 @@ class Dashboard:
         self._rays_visible = False
         self._rebuilds = -1
         self._episode = -1
-        cid = self.sim.cid
         for name in _PREVIEW_FLAGS:
-            p.configureDebugVisualizer(getattr(p, name), 1, physicsClientId=cid)
-        if u.layout is not None:
+            p.configureDebugVisualizer(getattr(p, name), 1, physicsClientId=self.cid)
+        if self.scene.layout is not None:
             self.on_reset()
 
     @property
@@ -127,23 +128,23 @@ class Dashboard:
     # ------------------------------------------------------------------ hooks
     def on_reset(self) -> None:
         """Start an episode: (re)draw the goal marker and hide last episode's rays and path."""
-        u = self.env.unwrapped
+        scene = self.scene
         self.steps = 0
-        self._episode = self.sim.clock.episode
-        if self.sim.rebuilds != self._rebuilds:
+        self._episode = scene.episode
+        if scene.scene_builds != self._rebuilds:
             # resetSimulation (seeded reset or new layout) deleted every debug item and
             # restarts their ids: forget ours, replacing a stale id would draw nothing
             self._goal_ids, self._ray_ids, self._path_ids = [], [], []
             self._path_visible, self._rays_visible = 0, False
-            self._rebuilds = self.sim.rebuilds
+            self._rebuilds = scene.scene_builds
         else:
             if self._rays_visible:
                 for i in range(len(self._ray_ids)):
                     self._line(self._ray_ids, i, *_HIDDEN, RAY_FREE_COLOUR)
                 self._rays_visible = False
             self._hide_path_from(0)
-        gx, gy = u.goal
-        r = u.config.task.goal_radius
+        gx, gy = scene.goal
+        r = scene.goal_radius
         marker = [((gx, gy, 0.0), (gx, gy, 1.0)),  # a post, visible from afar
                   ((gx - r, gy, 0.02), (gx + r, gy, 0.02)), ((gx, gy - r, 0.02), (gx, gy + r, 0.02))]  # the success zone
         for i, (a, b) in enumerate(marker):
@@ -153,7 +154,7 @@ class Dashboard:
 
     def on_step(self, path: Sequence[tuple[float, float]] | None = None) -> None:
         """Account for one ``env.step`` and draw whatever is due; ``path`` is the current plan (x, y) list."""
-        if self.sim.clock.episode != self._episode:
+        if self.scene.episode != self._episode:
             log.debug("new episode without Dashboard.on_reset(): resetting now")
             self.on_reset()
         self.steps += 1
@@ -171,7 +172,7 @@ class Dashboard:
     def _line(self, ids: list[int], i: int, a: Sequence[float], b: Sequence[float], colour: Sequence[float],
               width: float | None = None) -> None:
         """Draw line ``i`` of a group: replace it in place when it exists, else create it."""
-        kwargs = dict(lineColorRGB=colour, lineWidth=width or self.config.line_width, physicsClientId=self.sim.cid)
+        kwargs = dict(lineColorRGB=colour, lineWidth=width or self.config.line_width, physicsClientId=self.cid)
         if i < len(ids):
             self.debug_draw_calls += 1
             new = p.addUserDebugLine(a, b, replaceItemUniqueId=ids[i], **kwargs)
@@ -189,19 +190,22 @@ class Dashboard:
     def _render_camera(self) -> None:
         # in GUI mode every getCameraImage also fills the RGB / depth / segmentation preview
         # tabs, which is all we want here; the sensor's cached read() is left alone
-        cam = self.sim.sensors["camera"]
+        cam = self.scene.sensors.camera
+        if cam is None:
+            return
         view, _, _ = cam.view_matrix()
         renderer = p.ER_BULLET_HARDWARE_OPENGL if self.config.hardware_camera else p.ER_TINY_RENDERER
         p.getCameraImage(cam.config.width, cam.config.height, view, cam.projection, renderer=renderer,
-                         physicsClientId=self.sim.cid)
+                         physicsClientId=self.cid)
         self.camera_renders += 1
 
     def _draw_rays(self) -> None:
-        lidar = self.sim.sensors["lidar"]
+        lidar = self.scene.sensors.lidar
+        if lidar is None:
+            return
         ranges = lidar.read()  # cached for this control step: no extra ray cast, no random draws
-        robot = self.sim.robot
-        origin = p.getLinkState(robot.body, robot.lidar_link, physicsClientId=self.sim.cid)[4]
-        yaw = robot.planar_pose()[2]
+        origin = lidar.origin()
+        yaw = self.scene.pose[2]
         max_range = lidar.config.max_range
         for slot, i in enumerate(range(0, len(ranges), self.config.lidar_ray_stride)):
             a = yaw + float(lidar.angles[i])
@@ -224,9 +228,9 @@ class Dashboard:
         self._path_visible = min(self._path_visible, first)
 
     def _overview(self) -> None:
-        hx, hy = self.env.unwrapped.layout.half_extents
+        hx, hy = self.scene.layout.half_extents
         p.resetDebugVisualizerCamera(1.2 * max(hx, hy) + 2.0, 0.0, -89.0, [0.0, 0.0, 0.0],
-                                     physicsClientId=self.sim.cid)
+                                     physicsClientId=self.cid)
 
 
 def simplify_path(path: Sequence[tuple[float, float]], max_segments: int) -> list[tuple[float, float]]:
@@ -247,77 +251,3 @@ def simplify_path(path: Sequence[tuple[float, float]], max_segments: int) -> lis
         idx = np.linspace(0, len(keep) - 1, max_segments + 1).round().astype(int)
         keep = [keep[i] for i in idx]
     return keep
-
-
-def gui_fps(env: Any, policy: Any, steps: int, config: DashboardConfig | None = DashboardConfig(),
-            seed: int = 0, real_time: bool = False, warmup: int = 10) -> float:
-    """Env steps per wall-clock second in the GUI, with a dashboard (``config=None``: without).
-
-    The env is reset with ``seed`` first (and ``seed + k`` when an episode ends; resets are
-    not timed). ``policy`` is a callable ``obs -> action`` or an object with ``act(obs)`` and
-    optionally ``reset(env, rng)``; its ``path`` attribute, when present, is drawn.
-
-    Args:
-        steps: timed env steps.
-        real_time: keep the env's real-time pacing (``WarehouseEnv._pace``, at most
-            ``control_hz`` steps/s). False switches it off for the measurement, so the figure
-            is the cost of simulating and drawing, not the pacing cap.
-        warmup: untimed steps first; the default (10) covers the first draw, which creates
-            the debug items (~0.1-0.2 s each under Xvfb, once per scene), so the figure is
-            the steady state.
-    """
-    u = env.unwrapped
-    if u.render_mode != "human":
-        raise ValueError("gui_fps needs an env made with render_mode='human'")
-    act = policy.act if hasattr(policy, "act") else policy
-    shadowed = "_pace" in vars(u)
-    saved = vars(u).get("_pace")
-    if not real_time:
-        u._pace = lambda: None  # instance attribute shadows the method, for this measurement only
-    try:
-        episode = 0
-
-        def start() -> Any:
-            obs, _ = env.reset(seed=seed + episode)
-            if hasattr(policy, "reset"):
-                policy.reset(env, np.random.default_rng(seed + episode))
-            return obs
-
-        obs = start()
-        dash = Dashboard(env, config) if config is not None else None
-        elapsed = 0.0
-        for k in range(warmup + steps):
-            t0 = time.perf_counter()
-            obs, _, terminated, truncated, _ = env.step(act(obs))
-            if dash is not None:
-                dash.on_step(getattr(policy, "path", None))
-            if k >= warmup:
-                elapsed += time.perf_counter() - t0
-            if terminated or truncated:
-                episode += 1
-                obs = start()
-                if dash is not None:
-                    dash.on_reset()
-        return steps / elapsed
-    finally:
-        if not real_time:
-            if shadowed:
-                u._pace = saved
-            else:
-                del u._pace
-
-
-def compare_gui_fps(env: Any, policy: Any, steps: int, seed: int = 0, real_time: bool = False,
-                    repeats: int = 1) -> dict[str, float]:
-    """Median :func:`gui_fps` without a dashboard, with the default throttled one, and unthrottled.
-
-    The three run interleaved ``repeats`` times (seeds ``seed, seed + 1, ...``), so that a
-    change in machine load does not favour one of them.
-    """
-    configs = {"no_dashboard": None, "throttled": DashboardConfig(), "unthrottled": DashboardConfig.unthrottled()}
-    runs: dict[str, list[float]] = {name: [] for name in configs}
-    for r in range(repeats):
-        for name, cfg in configs.items():
-            runs[name].append(gui_fps(env, policy, steps, cfg, seed + r, real_time))
-    log.info("gui fps runs: %s", runs)
-    return {name: float(np.median(v)) for name, v in runs.items()}

@@ -3,12 +3,12 @@
 Use with :func:`bulletnav.evaluation.run_episodes`::
 
     log = TrajectoryLog()
-    run_episodes(env, with_reset_hooks(policy, log.on_reset), 10, seed=0,
-                 on_step=log.on_step, on_episode=log.on_episode)
+    run_episodes(env, policy, 10, seed=0, on_reset=log.on_reset, on_step=log.on_step,
+                 on_episode=log.on_episode)
     plot_trajectories(log, "runs/trajectories.png", title="A* navigator")
 
 Without the reset hook the log still works: it notices each new episode in ``on_step`` and
-starts it at ``env.unwrapped.start``.
+starts it at ``env.unwrapped.scene.start``. Poses come from ``info["pose"]``.
 """
 
 from __future__ import annotations
@@ -66,28 +66,28 @@ class TrajectoryLog:
     def __len__(self) -> int:
         return len(self.episodes)
 
-    def on_reset(self, env: Any) -> None:
-        """Start an episode; call right after ``env.reset``."""
+    def on_reset(self, env: Any, info: dict[str, Any]) -> None:
+        """Start an episode; call right after ``env.reset`` with its ``info``."""
         self._begin(env)
-        x, y, _ = env.unwrapped.robot.planar_pose()
-        self.episodes[-1].points.append((x, y))
+        x, y, _ = info["pose"]
+        self.episodes[-1].points.append((float(x), float(y)))
 
     def on_step(self, env: Any, info: dict[str, Any]) -> None:
         """Record the pose after a step; call after every ``env.step`` (``run_episodes``' ``on_step``)."""
-        u = env.unwrapped
-        if u.sim.clock.episode != self._stamp:  # no on_reset: the robot was placed exactly at start
+        scene = env.unwrapped.scene
+        if scene.episode != self._stamp:  # no on_reset: the robot was placed exactly at start
             self._begin(env)
-            self.episodes[-1].points.append((float(u.start[0]), float(u.start[1])))
+            self.episodes[-1].points.append((float(scene.start[0]), float(scene.start[1])))
         self._steps += 1
-        x, y, _ = u.robot.planar_pose()
+        x, y, _ = info["pose"]
         ep = self.episodes[-1]
-        ep.points.append((x, y))
+        ep.points.append((float(x), float(y)))
         if info.get("is_success"):
             ep.outcome = "success"
         elif info.get("collision"):
             ep.outcome = "collision"
         else:
-            spec = getattr(env, "spec", None) or getattr(u, "spec", None)
+            spec = env.spec
             limit = getattr(spec, "max_episode_steps", None)
             if limit is not None and self._steps >= limit:
                 ep.outcome = "timeout"
@@ -101,13 +101,14 @@ class TrajectoryLog:
         ep.outcome = "success" if result.success else "collision" if result.collision else "timeout"
 
     def _begin(self, env: Any) -> None:
-        u = env.unwrapped
-        self._stamp = u.sim.clock.episode
+        scene = env.unwrapped.scene
+        self._stamp = scene.episode
         self._steps = 0
-        sx, sy, syaw = (float(v) for v in u.start)
+        sx, sy, syaw = (float(v) for v in scene.start)
+        gx, gy = scene.goal
         self.episodes.append(EpisodeTrajectory(
-            layout=u.layout, start=(sx, sy, syaw), goal=(float(u.goal[0]), float(u.goal[1])),
-            goal_radius=float(u.config.task.goal_radius),
+            layout=scene.layout, start=(sx, sy, syaw), goal=(float(gx), float(gy)),
+            goal_radius=float(scene.goal_radius),
         ))
 
 

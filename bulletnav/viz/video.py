@@ -23,7 +23,7 @@ import logging
 import math
 from collections import OrderedDict
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
@@ -163,7 +163,7 @@ def _outcome(env: Any, info: dict[str, Any], step: int) -> str | None:
         return "success"
     if info.get("collision"):
         return "collision"
-    spec = getattr(env, "spec", None) or getattr(env.unwrapped, "spec", None)
+    spec = env.spec
     limit = getattr(spec, "max_episode_steps", None)
     if limit is not None and step >= limit:
         return "timeout"
@@ -250,15 +250,14 @@ class EpisodeRecorder:
         """Account for the step just taken (call after every ``env.step``); write a frame when due.
 
         ``path`` is the planned path to draw, e.g. ``navigator.path``. When :meth:`on_reset`
-        was not called for a new episode (``run_episodes`` has no reset hook; see
-        :func:`with_reset_hooks`), the episode is started here, without its reset frame.
+        was not called for a new episode, the episode is started here, without its reset frame.
         """
-        u = env.unwrapped
-        if u.sim.clock.episode != self._episode_stamp:
+        scene = env.unwrapped.scene
+        if scene.episode != self._episode_stamp:
             log.debug("episode started without on_reset: its reset frame is missing")
             self._begin(env)
-        self._step = u.sim.clock.tick // u.config.physics.substeps
-        x, y, _ = u.robot.planar_pose()
+        self._step = scene.steps
+        x, y, _ = scene.pose
         self._trajectory.append((x, y))
         self._return += _reward(info)
         self._distance = float(info.get("distance_to_goal", self._distance))
@@ -285,53 +284,57 @@ class EpisodeRecorder:
     # ------------------------------------------------------------------ frames
     def compose(self, env: Any, path: Sequence[tuple[float, float]] | None = None) -> np.ndarray:
         """The frame for the current state, (H, W, 3) uint8, without writing it."""
-        u = env.unwrapped
-        if self._episode_map is None or self._view is None or u.sim.clock.episode != self._episode_stamp:
+        scene = env.unwrapped.scene
+        if self._episode_map is None or self._view is None or scene.episode != self._episode_stamp:
             self._begin(env)
         view = self._view
-        self._step = u.sim.clock.tick // u.config.physics.substeps
+        self._step = scene.steps
         frame = self._base.copy()
-        frame.paste(self._map_frame(u, view, path), (0, 0))
-        image = u.sensors["camera"].read()  # cached per control step; no noise, no random draws
-        rgb = Image.fromarray(image.rgb)
-        depth = Image.fromarray(colourize_depth(image.depth))
-        if rgb.size != CAMERA_PX:
-            rgb = rgb.resize(CAMERA_PX, Image.Resampling.BILINEAR)
-            depth = depth.resize(CAMERA_PX, Image.Resampling.NEAREST)
-        frame.paste(rgb, (MAP_PX, 0))
-        frame.paste(depth, (MAP_PX, CAMERA_PX[1]))
-        frame.paste(self._label("camera RGB"), (MAP_PX + 2, 2))
-        frame.paste(self._label(f"depth 0-{DEPTH_MAX:g} m (near red)"), (MAP_PX + 2, CAMERA_PX[1] + 2))
-        self._strip(frame, u)
+        frame.paste(self._map_frame(scene, view, path), (0, 0))
+        camera = scene.sensors.camera
+        if camera is not None:
+            image = camera.read()  # cached per control step; no noise, no random draws
+            rgb = Image.fromarray(image.rgb)
+            depth = Image.fromarray(colourize_depth(image.depth))
+            if rgb.size != CAMERA_PX:
+                rgb = rgb.resize(CAMERA_PX, Image.Resampling.BILINEAR)
+                depth = depth.resize(CAMERA_PX, Image.Resampling.NEAREST)
+            frame.paste(rgb, (MAP_PX, 0))
+            frame.paste(depth, (MAP_PX, CAMERA_PX[1]))
+            frame.paste(self._label("camera RGB"), (MAP_PX + 2, 2))
+            frame.paste(self._label(f"depth 0-{DEPTH_MAX:g} m (near red)"), (MAP_PX + 2, CAMERA_PX[1] + 2))
+        else:
+            frame.paste(self._label("camera disabled"), (MAP_PX + 2, 2))
+        self._strip(frame, scene)
         out = np.asarray(frame, dtype=np.uint8)
         self.last_frame = out
         return out
 
     def _begin(self, env: Any) -> None:
-        u = env.unwrapped
+        scene = env.unwrapped.scene
         self.episodes += 1
-        self._episode_stamp = u.sim.clock.episode
-        self._view, static = self._static_map(u.layout)
+        self._episode_stamp = scene.episode
+        self._view, static = self._static_map(scene.layout)
         # per-episode layer: the static map plus start and goal, copied for every frame
         img = static.copy()
         draw = ImageDraw.Draw(img)
         view = self._view
-        (gx, gy), = view.to_px(u.goal)
-        r = view.metres(u.config.task.goal_radius)
+        (gx, gy), = view.to_px(scene.goal)
+        r = view.metres(scene.goal_radius)
         draw.ellipse((gx - r, gy - r, gx + r, gy + r), fill=_mix(GOAL, _rgb("floor"), 0.35), outline=GOAL, width=3)
         draw.ellipse((gx - 3, gy - 3, gx + 3, gy + 3), fill=GOAL)
-        sx, sy, syaw = u.start
+        sx, sy, syaw = scene.start
         (px, py), = view.to_px((sx, sy))
         h = view.metres(0.15)
         draw.rectangle((px - h, py - h, px + h, py + h), outline=START, width=2)
         (tx, ty), = view.to_px((sx + 0.3 * math.cos(syaw), sy + 0.3 * math.sin(syaw)))
         draw.line((px, py, tx, ty), fill=START, width=2)
         self._episode_map = img
-        x, y, _ = u.robot.planar_pose()
+        x, y, _ = scene.pose
         self._trajectory = [(x, y)]
-        self._step = u.sim.clock.tick // u.config.physics.substeps
+        self._step = scene.steps
         self._return = 0.0
-        self._distance = math.hypot(u.goal[0] - x, u.goal[1] - y)
+        self._distance = math.hypot(scene.goal[0] - x, scene.goal[1] - y)
         self._outcome = None
         self._done_written = False
 
@@ -347,22 +350,23 @@ class EpisodeRecorder:
             self._maps.popitem(last=False)
         return entry
 
-    def _map_frame(self, u: Any, view: MapView, path: Sequence[tuple[float, float]] | None) -> Image.Image:
+    def _map_frame(self, scene: Any, view: MapView, path: Sequence[tuple[float, float]] | None) -> Image.Image:
         img = self._episode_map.copy()
         draw = ImageDraw.Draw(img)
         if path is not None and len(path) >= 2:
             draw.line(view.to_px(path), fill=PATH, width=2)
         if len(self._trajectory) >= 2:
             draw.line(view.to_px(self._trajectory), fill=TRAJECTORY, width=2, joint="curve")
-        lidar = u.sensors["lidar"]
-        ranges = lidar.read()  # cached: the env read it this step
-        hit = ranges < lidar.config.max_range - 1e-6
-        if np.any(hit):
-            for px, py in view.to_px(lidar.hit_points(ranges)[hit]):
-                draw.ellipse((px - 2, py - 2, px + 2, py + 2), fill=LIDAR)
-        x, y, yaw = u.robot.planar_pose()
+        lidar = scene.sensors.lidar
+        if lidar is not None:
+            ranges = lidar.read()  # cached: the env read it this step
+            hit = ranges < lidar.config.max_range - 1e-6
+            if np.any(hit):
+                for px, py in view.to_px(lidar.hit_points(ranges)[hit]):
+                    draw.ellipse((px - 2, py - 2, px + 2, py + 2), fill=LIDAR)
+        x, y, yaw = scene.pose
         (cx, cy), = view.to_px((x, y))
-        r = view.metres(0.2)
+        r = view.metres(scene.geometry.radius)
         draw.ellipse((cx - r, cy - r, cx + r, cy + r), outline=ROBOT, width=1)
         tri = [(x + 0.3 * math.cos(yaw), y + 0.3 * math.sin(yaw)),
                (x + 0.18 * math.cos(yaw + 2.4), y + 0.18 * math.sin(yaw + 2.4)),
@@ -370,14 +374,15 @@ class EpisodeRecorder:
         draw.polygon(view.to_px(tri), fill=ROBOT, outline=BACKGROUND)
         return img
 
-    def _strip(self, frame: Image.Image, u: Any) -> None:
-        dt = u.config.physics.control_dt
+    def _strip(self, frame: Image.Image, scene: Any) -> None:
+        dt = scene.control_dt
         line1 = (f"episode {self.episodes}   step {self._step:4d}   t {self._step * dt:6.2f} s   "
                  f"distance to goal {self._distance:5.2f} m   return {self._return:+8.2f}")
         ImageDraw.Draw(frame).text((10, STRIP_Y + 6), line1, fill=TEXT, font=self._font)  # changes every frame
-        name = u.layout.name or "layout"
-        sx, sy, _ = u.start
-        line2 = f"{name}   start ({sx:+.2f}, {sy:+.2f})   goal ({u.goal[0]:+.2f}, {u.goal[1]:+.2f})"
+        name = scene.layout.name or "layout"
+        sx, sy, _ = scene.start
+        gx, gy = scene.goal
+        line2 = f"{name}   start ({sx:+.2f}, {sy:+.2f})   goal ({gx:+.2f}, {gy:+.2f})"
         frame.paste(self._label(line2, DIM_TEXT), (7, STRIP_Y + 24))
         outcome = self._outcome or "running"
         label = self._label(outcome.upper(), OUTCOME_COLOURS.get(outcome, DIM_TEXT), small=False)
@@ -436,36 +441,3 @@ class EpisodeRecorder:
 def _mix(a: tuple[int, int, int], b: tuple[int, int, int], alpha: float) -> tuple[int, int, int]:
     """``alpha`` of colour ``a`` over colour ``b``."""
     return tuple(int(round(alpha * x + (1 - alpha) * y)) for x, y in zip(a, b))  # type: ignore[return-value]
-
-
-class _ResetHooked:
-    """A policy that calls hooks with the env before its own ``reset`` (see :func:`with_reset_hooks`)."""
-
-    def __init__(self, policy: Any, hooks: tuple[Callable[[Any], None], ...]) -> None:
-        self._policy = policy
-        self._hooks = hooks
-
-    def reset(self, env: Any, rng: np.random.Generator) -> None:
-        for hook in self._hooks:
-            hook(env)
-        self._policy.reset(env, rng)
-
-    def act(self, obs: Any) -> Any:
-        return self._policy.act(obs)
-
-    def __getattr__(self, name: str) -> Any:  # plan_times, replans, path, ...
-        if name.startswith("_"):  # never recurse while half-built (copy, pickle)
-            raise AttributeError(name)
-        return getattr(self._policy, name)
-
-
-def with_reset_hooks(policy: Any, *hooks: Callable[[Any], None]) -> Any:
-    """Wrap ``policy`` so that ``hooks(env)`` run at every episode start.
-
-    :func:`bulletnav.evaluation.run_episodes` calls ``policy.reset(env, rng)`` right after
-    ``env.reset`` but has no reset callback; this gives recorders and logs their reset::
-
-        run_episodes(env, with_reset_hooks(nav, rec.on_reset, log.on_reset), 5, seed=0,
-                     on_step=lambda e, i: (rec.on_step(e, i, nav.path), log.on_step(e, i)))
-    """
-    return _ResetHooked(policy, hooks)

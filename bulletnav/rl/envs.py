@@ -1,0 +1,38 @@
+"""Envs for training and evaluation: one thunk per worker, and the evaluation settings."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import gymnasium as gym
+
+from bulletnav import ENV_ID
+
+EVAL_SEED_BASE = 10_000_000
+"""Evaluation during training uses seeds from here up: training only seeds its first resets
+with ``seed + rank`` (small numbers), so these episodes are never trained on."""
+
+TRAINING_ONLY_KWARGS = ("collision_terminates",)
+"""Env options that shape learning, not the benchmark: evaluation leaves them out."""
+
+
+def make_env_fn(env_kwargs: dict[str, Any], env_id: str = ENV_ID) -> Callable[[], gym.Env]:
+    """A thunk building one training env; it pins torch to one thread in its process."""
+
+    def _thunk() -> gym.Env:
+        import torch
+
+        import bulletnav  # noqa: F401  (registers the env in a fresh worker)
+
+        torch.set_num_threads(1)
+        return gym.make(env_id, **env_kwargs)
+
+    return _thunk
+
+
+def evaluation_env_kwargs(env_kwargs: dict[str, Any]) -> dict[str, Any]:
+    """The env settings a model is evaluated with: its training settings minus the reward
+    overrides (``reward_*``) and the learning-only episode rules, so every agent is scored
+    on the env's own reward and rules."""
+    return {k: v for k, v in env_kwargs.items() if not k.startswith("reward_") and k not in TRAINING_ONLY_KWARGS}

@@ -1,0 +1,99 @@
+"""Hyperparameter files (RL Zoo's format, one YAML per algorithm keyed by env id) and
+their translation into SB3 constructor arguments."""
+
+from __future__ import annotations
+
+import copy
+import importlib
+import logging
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from bulletnav import ENV_ID
+from bulletnav.errors import ConfigError
+
+log = logging.getLogger(__name__)
+
+ENV_KEYS = frozenset({"policy", "n_envs", "env_kwargs", "normalize", "action_noise"})
+"""Keys of a hyperparameter entry that set up the envs, not the algorithm."""
+
+
+def load_hyperparams(algo: str, env_id: str = ENV_ID, path: str | Path | None = None) -> dict[str, Any]:
+    """The hyperparameters for ``algo`` on ``env_id`` from ``path`` (default
+    ``rl/hyperparams/<algo>.yml``).
+
+    Raises:
+        ConfigError: the file is missing, not YAML, or lacks the env id (the message names
+            file and key).
+    """
+    if path is None:
+        path = Path(str(resources.files("bulletnav").joinpath("rl", "hyperparams", f"{algo}.yml")))
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read hyperparameter file ({exc.strerror or exc})") from exc
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path}: not valid YAML ({exc})") from exc
+    if not isinstance(data, dict) or env_id not in data:
+        raise ConfigError(f"{path}: no hyperparameters for env id {env_id!r}")
+    if not isinstance(data[env_id], dict):
+        raise ConfigError(f"{path}: {env_id!r} must map hyperparameter names to values")
+    return upgrade_hyperparams(dict(data[env_id]), str(path))
+
+
+def upgrade_hyperparams(hp: dict[str, Any], where: str = "hyperparameters") -> dict[str, Any]:
+    """Hyperparameters in today's form: the old ``collision_terminal: true`` (a wrapper) is
+    the env option ``collision_terminates`` now, so runs recorded before still resume."""
+    if "collision_terminal" not in hp:
+        return hp
+    hp = dict(hp)
+    flag = bool(hp.pop("collision_terminal"))
+    env_kwargs = dict(hp.get("env_kwargs") or {})
+    env_kwargs.setdefault("collision_terminates", flag)
+    hp["env_kwargs"] = env_kwargs
+    log.warning("%s: 'collision_terminal' is now the env option env_kwargs.collision_terminates", where)
+    return hp
+
+
+def linear_schedule(initial: float):
+    """RL Zoo's ``lin_<value>``: the value decays linearly from ``initial`` to 0 over training."""
+
+    def schedule(progress_remaining: float) -> float:
+        return progress_remaining * initial
+
+    return schedule
+
+
+def model_kwargs(hp: dict[str, Any], n_actions: int) -> dict[str, Any]:
+    """SB3 constructor arguments from a hyperparameter entry: ``lin_X`` schedules, classes
+    named by dotted path, action noise."""
+    # a copy: SB3 adds entries to the dicts it is given (A2C puts its optimizer class into
+    # policy_kwargs), which must not leak into the recorded hyperparameters
+    kwargs = copy.deepcopy({k: v for k, v in hp.items() if k not in ENV_KEYS})
+    for key in ("learning_rate", "clip_range"):
+        value = kwargs.get(key)
+        if isinstance(value, str) and value.startswith("lin_"):
+            kwargs[key] = linear_schedule(float(value[4:]))
+    policy_kwargs = kwargs.get("policy_kwargs") or {}
+    for key in ("features_extractor_class", "activation_fn"):
+        if isinstance(policy_kwargs.get(key), str):  # "package.module.Name" in the YAML file
+            policy_kwargs[key] = import_name(policy_kwargs[key])
+    noise = hp.get("action_noise")
+    if noise:
+        from stable_baselines3.common.noise import NormalActionNoise
+
+        kwargs["action_noise"] = NormalActionNoise(np.zeros(n_actions), float(noise["sigma"]) * np.ones(n_actions))
+    return kwargs
+
+
+def import_name(dotted: str) -> Any:
+    """``"package.module.Name"`` -> the object, for classes named in hyperparameter files."""
+    module, _, name = dotted.rpartition(".")
+    try:
+        return getattr(importlib.import_module(module), name)
+    except (ImportError, AttributeError, ValueError) as exc:
+        raise ConfigError(f"hyperparameters name {dotted!r}, which cannot be imported ({exc})") from exc

@@ -1,0 +1,74 @@
+"""The robot's sensors as one typed set, built from :class:`~bulletnav.config.SensorsConfig`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from gymnasium import spaces
+
+from bulletnav.config import SensorsConfig
+from bulletnav.sensors.base import Sensor
+from bulletnav.sensors.camera import Camera
+from bulletnav.sensors.imu import Imu
+from bulletnav.sensors.lidar import Lidar
+from bulletnav.sensors.odometry import Odometry
+from bulletnav.sim.client import Clock
+from bulletnav.sim.robot import Robot
+
+ORDER = ("lidar", "camera", "imu", "odometry")
+"""Fixed order of the sensors: their noise seeds are drawn in it, one each, present or not."""
+
+
+@dataclass(frozen=True)
+class SensorSuite:
+    """The sensors on one robot, each a typed attribute (None when disabled in the config)."""
+
+    lidar: Lidar | None
+    camera: Camera | None
+    imu: Imu | None
+    odometry: Odometry | None
+
+    @classmethod
+    def build(cls, config: SensorsConfig, robot: Robot, clock: Clock, gravity: float = 9.81) -> SensorSuite:
+        return cls(
+            lidar=Lidar(robot, clock, config.lidar) if config.lidar.enabled else None,
+            camera=Camera(robot, clock, config.camera) if config.camera.enabled else None,
+            imu=Imu(robot, clock, config.imu, gravity=gravity) if config.imu.enabled else None,
+            odometry=Odometry(robot, clock, config.odometry) if config.odometry.enabled else None,
+        )
+
+    def present(self) -> dict[str, Sensor]:
+        """Name -> sensor for the sensors that exist, in :data:`ORDER`."""
+        return {name: s for name in ORDER if (s := getattr(self, name)) is not None}
+
+    def spaces(self) -> spaces.Dict:
+        """The space of each present sensor's reading."""
+        return spaces.Dict({name: s.space() for name, s in self.present().items()})
+
+    def reset(self, rng: np.random.Generator) -> None:
+        """Give each sensor its own generator drawn from ``rng`` (always four draws, so
+        disabling one sensor does not change another's noise)."""
+        seeds = rng.integers(0, 2**63 - 1, size=len(ORDER))
+        for name, seed in zip(ORDER, seeds):
+            sensor = getattr(self, name)
+            if sensor is not None:
+                sensor.reset(np.random.default_rng(int(seed)))
+
+    def update(self) -> None:
+        """Advance the stateful sensors after a control step."""
+        if self.imu is not None:
+            self.imu.update()
+        if self.odometry is not None:
+            self.odometry.update()
+
+    def require(self, *names: str, by: str) -> None:
+        """Raise a clear error when a sensor that ``by`` needs is disabled.
+
+        Raises:
+            ValueError: one of ``names`` is disabled.
+        """
+        missing = [n for n in names if getattr(self, n) is None]
+        if missing:
+            raise ValueError(f"{by} needs the {', '.join(missing)} sensor(s); enable them in SensorsConfig "
+                             f"(sensors.{missing[0]}.enabled=True)")

@@ -1,0 +1,173 @@
+"""Point-goal navigation (the article's task): drive to one goal point without touching anything.
+
+Observation (``lidar_rays + 7`` float32, see the env docstring for the table), the article's
+seven named reward terms, success inside ``goal_radius``, a collision truncating (or, with
+``collision_terminates``, terminating) the episode.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from gymnasium import spaces
+
+from bulletnav.config import EnvConfig
+from bulletnav.sim.sampler import sample_start_goal
+from bulletnav.tasks.base import Task, pose_option
+
+if TYPE_CHECKING:
+    from bulletnav.envs.scene import Scene
+
+
+class NavigationTask(Task):
+    """Go to a goal point: observation, reward and termination.
+
+    The start and goal come, in this order of precedence, from ``reset`` options
+    (``start`` = (x, y, yaw), ``goal`` = (x, y)), the YAML layout's ``start``/``goal``, or
+    :func:`~bulletnav.sim.sampler.sample_start_goal`.
+    """
+
+    reward_terms = ("progress", "goal", "collision", "time", "heading", "stuck", "proximity")
+
+    def __init__(self, config: EnvConfig, scene: Scene) -> None:
+        super().__init__(config, scene)
+        scene.sensors.require("lidar", "imu", "odometry", by="the navigation task")
+        t = config.task
+        self.task = t
+        self.reward_weights = t.reward
+        self.lidar_range = config.sensors.lidar.max_range
+        self.num_rays = n = config.sensors.lidar.num_rays
+        self.gravity = config.physics.gravity
+        self.goals = ((0.0, 0.0),)
+        self.initial_distance = 0.0
+        """Straight-line start-goal distance this episode (m)."""
+        self.path_length = 0.0
+        """Metres driven this episode (ground truth)."""
+        self.distance = 0.0
+        """Distance to the goal after the last step (m), from the pose the task observes with."""
+        self.collision = False
+        self._prev_distance = 0.0
+        self._prev_xy = (0.0, 0.0)
+        self._progress: deque[float] = deque(maxlen=t.reward.stuck_window)
+        self.obs_low = np.array([0.0] * n + [-1.0, -2.0, -2.0, -3.0, -3.0, -3.0, 0.0], dtype=np.float32)
+        self.obs_high = np.array([1.0] * n + [1.0, 2.0, 2.0, 3.0, 3.0, 3.0, 3.0], dtype=np.float32)
+        self._scalar_bounds = list(zip(self.obs_low[n:].tolist(), self.obs_high[n:].tolist()))
+        self._odometry_pose = t.pose_source == "odometry"
+        # per-step measurement, taken once in after_step
+        self._x = self._y = self._yaw = self._heading = 0.0
+        self._ranges = np.zeros(n, dtype=np.float32)
+        self._odometry = np.zeros(5, dtype=np.float32)
+        self._imu = np.zeros(6, dtype=np.float32)
+        self._success = False
+
+    def observation_space(self) -> spaces.Box:
+        return spaces.Box(self.obs_low, self.obs_high, dtype=np.float32)
+
+    # ------------------------------------------------------------------ episode
+    def initialize_episode(self, scene: Scene, rng: np.random.Generator, options: dict[str, Any]) -> None:
+        layout = scene.layout
+        assert layout is not None  # the env chose it before calling this
+        start: tuple[float, float, float] | None = layout.start
+        goal: tuple[float, float] | None = layout.goal
+        if start is None or goal is None:
+            sampled_start, sampled_goal = sample_start_goal(scene.free_space, rng, self.config.sampler)
+            start = start or sampled_start
+            goal = goal or sampled_goal
+        if "start" in options:
+            start = pose_option(options["start"], 3, "start")  # type: ignore[assignment]
+        if "goal" in options:
+            goal = pose_option(options["goal"], 2, "goal")  # type: ignore[assignment]
+        scene.place_robot(start, rng)
+        self.goals = ((float(goal[0]), float(goal[1])),)
+        self._measure(scene)
+        self.collision = self._success = False
+        self.initial_distance = self._prev_distance = self.distance
+        state = scene.robot.state
+        self._prev_xy = (state.x, state.y)
+        self.path_length = 0.0
+        self._progress.clear()
+
+    def after_step(self, scene: Scene) -> None:
+        self.collision = scene.in_collision()
+        self._measure(scene)
+
+    def _measure(self, scene: Scene) -> None:
+        sensors = scene.sensors
+        odometry = self._odometry = sensors.odometry.read()
+        if self._odometry_pose:
+            x, y, yaw = float(odometry[0]), float(odometry[1]), float(odometry[2])
+        else:
+            state = scene.robot.state
+            x, y, yaw = state.x, state.y, state.yaw
+        goal = self.goals[0]
+        dx, dy = goal[0] - x, goal[1] - y
+        self._x, self._y, self._yaw = x, y, yaw
+        self._heading = math.remainder(math.atan2(dy, dx) - yaw, 2 * math.pi)
+        self._ranges = sensors.lidar.read()
+        self._imu = sensors.imu.read()
+        self.distance = math.hypot(dx, dy)
+
+    # ------------------------------------------------------------------ step
+    def observe(self, scene: Scene) -> np.ndarray:
+        """The observation vector (see the env docstring for the table)."""
+        t = self.task
+        n = self.num_rays
+        obs = np.empty(n + 7, dtype=np.float32)
+        np.divide(self._ranges, self.lidar_range, out=obs[:n])  # lidar ranges are within [0, max]
+        odometry, imu = self._odometry, self._imu
+        values = (
+            self._heading / math.pi,
+            float(odometry[3]) / t.max_speed,
+            float(odometry[4]) / t.max_turn_rate,
+            float(imu[0]) / self.gravity,
+            float(imu[1]) / self.gravity,
+            float(imu[5]) / t.max_turn_rate,
+            self.distance / t.distance_scale,
+        )
+        obs[n:] = [min(max(v, a), b) for v, (a, b) in zip(values, self._scalar_bounds)]
+        return obs
+
+    def reward(self, scene: Scene) -> dict[str, float]:
+        w = self.reward_weights
+        if self._odometry_pose:  # path length is always measured on the true path
+            state = scene.robot.state
+            x, y = state.x, state.y
+        else:
+            x, y = self._x, self._y
+        self.path_length += math.hypot(x - self._prev_xy[0], y - self._prev_xy[1])
+        self._prev_xy = (x, y)
+        distance = self.distance
+        progress = self._prev_distance - distance
+        self._prev_distance = distance
+        self._progress.append(progress)
+        success = self._success = distance < self.task.goal_radius
+        far = distance > w.heading_distance
+        closest = float(self._ranges.min())
+        stuck = len(self._progress) == w.stuck_window and sum(self._progress) < w.stuck_progress and far
+        return {
+            "progress": w.progress * progress,
+            "goal": w.goal if success else 0.0,
+            "collision": w.collision if self.collision else 0.0,
+            "time": w.time,
+            "heading": w.heading * (1.0 - abs(self._heading) / math.pi) if far else 0.0,
+            "stuck": w.stuck if stuck else 0.0,
+            "proximity": w.proximity * (w.proximity_distance - closest) if closest < w.proximity_distance else 0.0,
+        }
+
+    def end(self, scene: Scene) -> tuple[bool, bool, str | None]:
+        if self._success:
+            return True, False, "success"
+        if self.collision:
+            return (True, False, "collision") if self.task.collision_terminates else (False, True, "collision")
+        return False, False, None
+
+    def info(self, scene: Scene) -> dict[str, Any]:
+        state = scene.robot.state
+        return {
+            "distance_to_goal": self.distance, "collision": self.collision, "is_success": self._success,
+            "path_length": self.path_length, "initial_distance": self.initial_distance, "goal": self.goals[0],
+            "pose": np.array((state.x, state.y, state.yaw)),
+        }

@@ -1,0 +1,101 @@
+"""Learning curves: one run's curve, and several runs compared in one figure with a table."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+from bulletnav.errors import RunError
+
+
+def plot_learning_curve(history: list[dict[str, Any]], path: Path, title: str = "") -> None:
+    """Success rate and mean evaluation reward against timesteps, one PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    steps = [h["timesteps"] for h in history]
+    fig, ax1 = plt.subplots(figsize=(7, 4), dpi=100)
+    ax1.plot(steps, [h["success_rate"] for h in history], "o-", color="tab:green", label="success rate")
+    ax1.plot(steps, [h["collision_rate"] for h in history], "s--", color="tab:red", label="collision rate")
+    ax1.set_xlabel("timesteps")
+    ax1.set_ylabel("rate")
+    ax1.set_ylim(-0.02, 1.02)
+    ax2 = ax1.twinx()
+    ax2.plot(steps, [h["mean_reward"] for h in history], "^-", color="tab:blue", label="mean reward")
+    ax2.set_ylabel("mean evaluation reward")
+    lines = ax1.get_lines() + ax2.get_lines()
+    ax1.legend(lines, [ln.get_label() for ln in lines], loc="lower right")
+    ax1.grid(alpha=0.3)
+    ax1.set_title(title)
+    fig.tight_layout()
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    fig.savefig(tmp)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
+REACH_SUCCESS = 0.8
+"""Success rate whose first crossing ``compare`` reports as the sample-efficiency mark."""
+
+
+def compare_runs(run_dirs: list[Path], out_png: Path) -> list[dict[str, Any]]:
+    """Learning curves of several runs in one PNG (success rate against timesteps and
+    against wall-clock time, mean reward against timesteps; one colour per algorithm, one
+    line per seed) and one summary row per run: final and best evaluation, wall time, and
+    when the in-training evaluation first reached :data:`REACH_SUCCESS`."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = []
+    fig, (ax1, ax3, ax2) = plt.subplots(1, 3, figsize=(15, 4), dpi=100)
+    colours: dict[str, Any] = {}  # one colour per algorithm; its seeds share it
+    for run in run_dirs:
+        for name in ("eval_history.json", "run.json"):
+            if not (run / name).is_file():
+                raise RunError(f"{run}: not a finished training run (no {name})")
+        history = json.loads((run / "eval_history.json").read_text())
+        record = json.loads((run / "run.json").read_text())
+        algo = record["algo"]
+        first = algo not in colours
+        colour = colours.setdefault(algo, f"C{len(colours) % 10}")
+        label = algo.upper() if first else None
+        steps = [h["timesteps"] for h in history]
+        ax1.plot(steps, [h["success_rate"] for h in history], "o-", color=colour, alpha=0.8, ms=3, label=label)
+        ax2.plot(steps, [h["mean_reward"] for h in history], "o-", color=colour, alpha=0.8, ms=3, label=label)
+        ax3.plot([h["wall_time"] / 60 for h in history], [h["success_rate"] for h in history], "o-", color=colour,
+                 alpha=0.8, ms=3, label=label)
+        final = history[-1]
+        best = max(history, key=lambda h: h["success_rate"])
+        reached = next((h for h in history if h["success_rate"] >= REACH_SUCCESS), None)
+        rows.append({"run": str(run), "algo": record["algo"], "seed": record["seed"],
+                     "timesteps": record["total_timesteps"],
+                     # a resumed run's record times only its last part; the history's clock runs from the start
+                     "wall_time_s": max([record["wall_time_s"], *(h.get("wall_time", 0.0) for h in history)]),
+                     "final_success": final["success_rate"], "final_collisions": final["collision_rate"],
+                     "final_reward": round(final["mean_reward"], 2), "best_success": best["success_rate"],
+                     "best_at": best["timesteps"],
+                     "reached_at": reached["timesteps"] if reached else None,
+                     "reached_wall_s": round(reached["wall_time"]) if reached else None})
+    for ax, name in ((ax1, "success rate (20 unseen episodes)"), (ax2, "mean evaluation reward")):
+        ax.set_xlabel("timesteps")
+        ax.set_ylabel(name)
+    ax3.set_xlabel("wall-clock time (min)")
+    ax3.set_ylabel("success rate (20 unseen episodes)")
+    for ax in (ax1, ax2, ax3):
+        ax.grid(alpha=0.3)
+    for ax in (ax1, ax3):
+        ax.set_ylim(-0.02, 1.02)
+    ax1.legend(loc="upper left")
+    fig.tight_layout()
+    out_png.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out_png.with_name(f".{out_png.name}.tmp.png")
+    fig.savefig(tmp)
+    plt.close(fig)
+    os.replace(tmp, out_png)
+    return rows
