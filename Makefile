@@ -17,6 +17,7 @@ demo: $(STAMP)
 	$(BIN)/bulletnav demo
 
 test: $(STAMP)
+	$(BIN)/ruff check bulletnav tests
 	$(BIN)/python -m pytest -q
 
 clean:

@@ -3,7 +3,8 @@
 Both loops live in one process, in the same warehouse, fed the same random actions. They
 run in alternating blocks of ``block`` steps, so that the machine's speed drifting over
 the run (these machines are noisy) hits both alike; the headline ``ratio`` is the median
-over blocks of (raw time / env time), robust to bursts of load from other processes. Episode resets of the env are mirrored in the raw loop (teleporting its robot to
+over blocks of (raw time / env time), robust to bursts of load from other processes.
+Episode resets of the env are mirrored in the raw loop (teleporting its robot to
 the same start) and are left out of both step timings (their mean is reported apart).
 """
 

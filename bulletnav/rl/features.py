@@ -20,24 +20,23 @@ observation stay as specified.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 import torch
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 
+from bulletnav.geometry import robot_geometry
 from bulletnav.sensors.lidar import ray_angles
 
-# Collision outline of bulletnav/assets/diff_drive.urdf in the body frame (m), seen from above:
-# the 0.3 x 0.2 m body box and the two wheels' 0.1 x 0.02 m guard boxes beside it, centred
-# 0.11 m left and right. Their union is two rectangles centred on the body origin:
-# |x| <= 0.15, |y| <= 0.10 (body) and |x| <= 0.05, |y| <= 0.12 (wheels, reaching past the sides).
-BODY_HALF_LENGTH = 0.15
-BODY_HALF_WIDTH = 0.10
-WHEEL_HALF_LENGTH = 0.05
-WHEEL_OUTER_Y = 0.12
-LIDAR_X = 0.10
-_RECTANGLES = ((BODY_HALF_LENGTH, BODY_HALF_WIDTH), (WHEEL_HALF_LENGTH, WHEEL_OUTER_Y))
+# The robot's collision outline seen from above, in the body frame (m), read from the URDF
+# (bulletnav.geometry): rectangles centred on the body origin, |x| <= hx and |y| <= hy each --
+# for the shipped robot the 0.3 x 0.2 m body and the two wheel guards reaching 2 cm past
+# its sides. The lidar sits LIDAR_X ahead of the centre.
+_GEOMETRY = robot_geometry()
+_RECTANGLES = _GEOMETRY.centred_rectangles
+LIDAR_X = _GEOMETRY.lidar_offset
 
 
 def _ray_interval(ox: float, c: float, s: float, hx: float, hy: float) -> tuple[float, float]:
@@ -123,9 +122,8 @@ class ClearanceFeatures(BaseFeaturesExtractor):
             return torch.clamp(ranges - self.footprint, min=0.0)
         x = (LIDAR_X + ranges * self.cos).abs()  # hit points in the body frame
         y = (ranges * self.sin).abs()
-        body, wheels = (torch.hypot(torch.clamp(x - hx, min=0.0), torch.clamp(y - hy, min=0.0))
-                        for hx, hy in _RECTANGLES)
-        return torch.minimum(body, wheels)
+        parts = [torch.hypot(torch.clamp(x - hx, min=0.0), torch.clamp(y - hy, min=0.0)) for hx, hy in _RECTANGLES]
+        return functools.reduce(torch.minimum, parts)
 
     def forward(self, observations: torch.Tensor) -> torch.Tensor:
         return torch.cat([observations, torch.exp(-self.clearance(observations) / self.scale)], dim=1)

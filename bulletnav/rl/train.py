@@ -20,7 +20,13 @@ from bulletnav.rl.algos import algo_class
 from bulletnav.rl.callbacks import CheckpointCallback, EvaluationCallback, save_checkpoint
 from bulletnav.rl.envs import EVAL_SEED_BASE, make_env_fn
 from bulletnav.rl.hyperparams import load_hyperparams, model_kwargs, upgrade_hyperparams
-from bulletnav.rl.io import atomic_save_model, atomic_save_vecnormalize, atomic_write_json, sidecar_path, vecnormalize_path
+from bulletnav.rl.io import (
+    atomic_save_model,
+    atomic_save_vecnormalize,
+    atomic_write_json,
+    sidecar_path,
+    vecnormalize_path,
+)
 
 log = logging.getLogger(__name__)
 

@@ -49,7 +49,7 @@ class Sensor(ABC):
         self.rng = rng
         self._episode = -1
 
-    def update(self) -> None:
+    def update(self) -> None:  # noqa: B027 (an optional hook: stateless sensors keep the default)
         """Advance internal state after a control step (stateless sensors do nothing)."""
 
     def read(self) -> Any:

@@ -119,9 +119,6 @@ class Layout:
         gx, gy = np.meshgrid(xs, ys, indexing="ij")
         return self.clearance(gx, gy) <= inflate
 
-    def with_obstacles(self, obstacles: tuple[Obstacle, ...]) -> Layout:
-        return Layout(self.size, obstacles, self.wall_height, self.name, self.start, self.goal, self.source)
-
 
 # --------------------------------------------------------------------------- YAML
 

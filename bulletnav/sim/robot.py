@@ -89,7 +89,8 @@ class Robot:
         right = p.getJointInfo(self.body, self.right_joint, physicsClientId=cid)[14]
         self.wheelbase = abs(left[1] - right[1])
         shape = p.getCollisionShapeData(self.body, self.left_joint, physicsClientId=cid)[0]
-        self.wheel_radius = float(shape[3][1] if shape[2] == p.GEOM_CYLINDER else shape[3][0])  # implicit cylinder dimensions: (length, radius, 0)
+        # an implicit cylinder's dimensions are (length, radius, 0); a sphere's (radius, ...)
+        self.wheel_radius = float(shape[3][1] if shape[2] == p.GEOM_CYLINDER else shape[3][0])
         for link in (-1, *range(p.getNumJoints(self.body, physicsClientId=cid))):
             p.setCollisionFilterGroupMask(self.body, link, ROBOT_GROUP, 0xFFFF, physicsClientId=cid)
         # The wheel spheres are for rolling only; obstacles meet the base's wheel guard boxes,
@@ -194,11 +195,6 @@ class Robot:
         angles, rates = self.wheel_states()
         self.state = RobotState(pos[0], pos[1], _yaw(orn), self._centre_velocity(lin, ang, m), ang, m, angles, rates)
         return self.state
-
-    def world_velocity(self) -> tuple[np.ndarray, np.ndarray]:
-        """Linear velocity of the body centre (m/s) and angular velocity (rad/s), world frame."""
-        lin, ang, _ = self.kinematics()
-        return np.array(lin), np.array(ang)
 
     def velocity(self) -> np.ndarray:
         """Ground-truth ``[v, w]``: forward speed along the heading (m/s) and yaw rate (rad/s)."""

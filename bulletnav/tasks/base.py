@@ -58,7 +58,7 @@ class Task(ABC):
         """Choose the episode (start, goals) with ``rng`` and ``options`` and place the robot
         with ``scene.place_robot``. The scene's layout is already chosen."""
 
-    def after_step(self, scene: Scene) -> None:
+    def after_step(self, scene: Scene) -> None:  # noqa: B027 (an optional hook)
         """Read what the other hooks of this step need (once, after physics)."""
 
     @abstractmethod
