@@ -250,8 +250,8 @@ class WarehouseEnv(gym.Env):
         return self._observation(), self._info(terms, None)
 
     def step(self, action):
-        v, w = self.command(action)
         scene, task = self._scene, self.task
+        v, w = self.command(action)
         scene.step(v, w)
         task.after_step(scene)
         terms = task.reward(scene)
@@ -270,7 +270,7 @@ class WarehouseEnv(gym.Env):
             ValueError: the action is not 2 finite numbers (a dict, a wrong shape, NaN).
         """
         if type(action) is np.ndarray and action.shape == (2,) and action.dtype.kind == "f":
-            a0, a1 = action.tolist()  # the common case, fast: no per-step array conversion
+            a0, a1 = action.tolist()  # the common case, fast
         else:
             try:
                 arr = np.asarray(action, dtype=np.float64)
@@ -306,7 +306,7 @@ class WarehouseEnv(gym.Env):
         return {"state": state, "rgb": image.rgb, "depth": image.depth[:, :, None]}
 
     def _info(self, terms: dict[str, float], reason: str | None) -> dict[str, Any]:
-        info: dict[str, Any] = {key: float(v) for key, v in zip(self._term_keys, terms.values())}
+        info: dict[str, Any] = dict(zip(self._term_keys, terms.values()))  # the task's terms are floats
         info.update(self.task.info(self._scene))
         info["end_reason"] = reason
         return info

@@ -54,12 +54,18 @@ class Sensor(ABC):
 
     def read(self) -> Any:
         """The current measurement as fresh NumPy array(s)."""
+        value = self.current()
+        return value.copy() if type(value) is np.ndarray else _copy(value)
+
+    def current(self) -> Any:
+        """The current measurement itself, not a copy (for the env's per-step code, which
+        only reads it; callers must not modify it). Measures when a new period has begun."""
         clock = self.clock
         slot = clock.tick // self.period
         if slot != self._slot or self._episode != clock.episode:
             self._value = self.measure()
             self._episode, self._slot = clock.episode, slot
-        return _copy(self._value)
+        return self._value
 
     @abstractmethod
     def measure(self) -> Any:

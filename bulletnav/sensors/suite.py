@@ -17,7 +17,10 @@ from bulletnav.sim.client import Clock
 from bulletnav.sim.robot import Robot
 
 ORDER = ("lidar", "camera", "imu", "odometry")
-"""Fixed order of the sensors: their noise seeds are drawn in it, one each, present or not."""
+"""Fixed order of the sensors: their noise seeds are handed out in it, present or not. A new
+sensor goes at the end."""
+_DRAWS = 4
+"""Seeds drawn from the env's generator at every reset (the original four sensors')."""
 
 
 @dataclass(frozen=True)
@@ -47,13 +50,18 @@ class SensorSuite:
         return spaces.Dict({name: s.space() for name, s in self.present().items()})
 
     def reset(self, rng: np.random.Generator) -> None:
-        """Give each sensor its own generator drawn from ``rng`` (always four draws, so
-        disabling one sensor does not change another's noise)."""
-        seeds = rng.integers(0, 2**63 - 1, size=len(ORDER))
-        for name, seed in zip(ORDER, seeds):
+        """Give each sensor its own generator drawn from ``rng``.
+
+        Always exactly four draws from ``rng``, whatever sensors exist, so disabling a sensor
+        or adding a new one never shifts another sensor's noise or the env's later draws
+        (layouts, starts, goals). Sensors after the first four in :data:`ORDER` get
+        generators seeded from the first draw and their position.
+        """
+        seeds = [int(s) for s in rng.integers(0, 2**63 - 1, size=_DRAWS)]
+        for i, name in enumerate(ORDER):
             sensor = getattr(self, name)
             if sensor is not None:
-                sensor.reset(np.random.default_rng(int(seed)))
+                sensor.reset(np.random.default_rng(seeds[i] if i < _DRAWS else [seeds[0], i]))
 
     def update(self) -> None:
         """Advance the stateful sensors after a control step."""

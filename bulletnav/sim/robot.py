@@ -12,6 +12,12 @@ import pybullet as p
 from bulletnav.config import RobotConfig
 from bulletnav.sim.world import FLOOR_GROUP, ROBOT_GROUP, WHEEL_GROUP
 
+_motors = p.setJointMotorControlArray
+_base_pose = p.getBasePositionAndOrientation
+_base_velocity = p.getBaseVelocity
+_joint_states = p.getJointStates
+_matrix = p.getMatrixFromQuaternion
+
 REST_HEIGHT = 0.07
 """Height of the base origin above the floor when the robot rests on its wheels (m)."""
 
@@ -49,6 +55,8 @@ class Robot:
         self.config = config
         self.body = -1
         self.left_joint = self.right_joint = -1
+        self._wheels: list[int] = []
+        self._torques = [config.max_wheel_torque] * 2
         self.lidar_link = self.camera_link = self.caster_link = -1
         self.wheel_radius = 0.0
         """Wheel radius read from the URDF collision shape (m)."""
@@ -85,6 +93,7 @@ class Robot:
             self.caster_link = links["caster_wheel"]
         except KeyError as exc:
             raise ValueError(f"{self.config.urdf_path()}: robot URDF lacks joint/link {exc}") from exc
+        self._wheels = [self.left_joint, self.right_joint]
         left = p.getJointInfo(self.body, self.left_joint, physicsClientId=cid)[14]
         right = p.getJointInfo(self.body, self.right_joint, physicsClientId=cid)[14]
         self.wheelbase = abs(left[1] - right[1])
@@ -128,12 +137,9 @@ class Robot:
         """Command forward speed ``v`` (m/s) and yaw rate ``w`` (rad/s) through the wheel motors."""
         if not (math.isfinite(v) and math.isfinite(w)):
             raise ValueError(f"set_velocity needs finite values, got v={v}, w={w}")
-        left, right = self.wheel_speeds(v, w)
-        torque = self.config.max_wheel_torque
-        p.setJointMotorControlArray(
-            self.body, [self.left_joint, self.right_joint], p.VELOCITY_CONTROL,
-            targetVelocities=[left, right], forces=[torque, torque], physicsClientId=self.cid,
-        )
+        half, r = self.wheelbase / 2, self.wheel_radius  # inverse kinematics, as wheel_speeds
+        _motors(self.body, self._wheels, p.VELOCITY_CONTROL, targetVelocities=[(v - w * half) / r, (v + w * half) / r],
+                forces=self._torques, physicsClientId=self.cid)
 
     def stop(self) -> None:
         self.set_velocity(0.0, 0.0)
@@ -188,12 +194,23 @@ class Robot:
         PyBullet's DIRECT client copies a large fixed-size buffer (~30k instructions, several
         times what the answer costs to build), so the per-step code shares this snapshot
         instead of asking again; :class:`~bulletnav.sim.simulation.Simulation` takes it after
-        every control step.
+        every control step. The arithmetic is :meth:`_frame`'s and :meth:`_centre_velocity`'s,
+        written out once (this runs every control step).
         """
-        pos, orn, m = self._frame()
-        lin, ang = p.getBaseVelocity(self.body, physicsClientId=self.cid)
-        angles, rates = self.wheel_states()
-        self.state = RobotState(pos[0], pos[1], _yaw(orn), self._centre_velocity(lin, ang, m), ang, m, angles, rates)
+        body, cid = self.body, self.cid
+        com, orn = _base_pose(body, physicsClientId=cid)
+        lin, ang = _base_velocity(body, physicsClientId=cid)
+        left, right = _joint_states(body, self._wheels, physicsClientId=cid)
+        m = _matrix(orn)
+        ox, oy, oz = self._com_offset
+        rx, ry, rz = m[0] * ox + m[1] * oy + m[2] * oz, m[3] * ox + m[4] * oy + m[5] * oz, m[6] * ox + m[7] * oy + m[8] * oz
+        qx, qy, qz, qw = orn
+        wx, wy, wz = ang
+        self.state = RobotState(
+            com[0] - rx, com[1] - ry, math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz)),
+            (lin[0] - (wy * rz - wz * ry), lin[1] - (wz * rx - wx * rz), lin[2] - (wx * ry - wy * rx)), ang, m,
+            (left[0], right[0]), (left[1], right[1]),
+        )
         return self.state
 
     def velocity(self) -> np.ndarray:

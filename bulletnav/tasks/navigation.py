@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from dataclasses import fields, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -37,7 +38,11 @@ class NavigationTask(Task):
         scene.sensors.require("lidar", "imu", "odometry", by="the navigation task")
         t = config.task
         self.task = t
-        self.reward_weights = t.reward
+        # weights as floats, so every term (and info entry) is a float whatever the config holds
+        self.reward_weights = w = replace(t.reward, **{f.name: float(getattr(t.reward, f.name))
+                                                       for f in fields(t.reward) if f.name != "stuck_window"})
+        self._max_speed, self._max_turn_rate, self._distance_scale = t.max_speed, t.max_turn_rate, t.distance_scale
+        self._goal_radius = t.goal_radius
         self.lidar_range = config.sensors.lidar.max_range
         self.num_rays = n = config.sensors.lidar.num_rays
         self.gravity = config.physics.gravity
@@ -51,7 +56,7 @@ class NavigationTask(Task):
         self.collision = False
         self._prev_distance = 0.0
         self._prev_xy = (0.0, 0.0)
-        self._progress: deque[float] = deque(maxlen=t.reward.stuck_window)
+        self._progress: deque[float] = deque(maxlen=w.stuck_window)
         self.obs_low = np.array([0.0] * n + [-1.0, -2.0, -2.0, -3.0, -3.0, -3.0, 0.0], dtype=np.float32)
         self.obs_high = np.array([1.0] * n + [1.0, 2.0, 2.0, 3.0, 3.0, 3.0, 3.0], dtype=np.float32)
         self._scalar_bounds = list(zip(self.obs_low[n:].tolist(), self.obs_high[n:].tolist()))
@@ -96,7 +101,7 @@ class NavigationTask(Task):
 
     def _measure(self, scene: Scene) -> None:
         sensors = scene.sensors
-        odometry = self._odometry = sensors.odometry.read()
+        odometry = self._odometry = sensors.odometry.current()
         if self._odometry_pose:
             x, y, yaw = float(odometry[0]), float(odometry[1]), float(odometry[2])
         else:
@@ -106,28 +111,22 @@ class NavigationTask(Task):
         dx, dy = goal[0] - x, goal[1] - y
         self._x, self._y, self._yaw = x, y, yaw
         self._heading = math.remainder(math.atan2(dy, dx) - yaw, 2 * math.pi)
-        self._ranges = sensors.lidar.read()
-        self._imu = sensors.imu.read()
+        self._ranges = sensors.lidar.current()
+        self._imu = sensors.imu.current()
         self.distance = math.hypot(dx, dy)
 
     # ------------------------------------------------------------------ step
     def observe(self, scene: Scene) -> np.ndarray:
         """The observation vector (see the env docstring for the table)."""
-        t = self.task
         n = self.num_rays
         obs = np.empty(n + 7, dtype=np.float32)
         np.divide(self._ranges, self.lidar_range, out=obs[:n])  # lidar ranges are within [0, max]
-        odometry, imu = self._odometry, self._imu
-        values = (
-            self._heading / math.pi,
-            float(odometry[3]) / t.max_speed,
-            float(odometry[4]) / t.max_turn_rate,
-            float(imu[0]) / self.gravity,
-            float(imu[1]) / self.gravity,
-            float(imu[5]) / t.max_turn_rate,
-            self.distance / t.distance_scale,
-        )
-        obs[n:] = [min(max(v, a), b) for v, (a, b) in zip(values, self._scalar_bounds)]
+        _, _, _, v, w = self._odometry.tolist()
+        ax, ay, _, _, _, gz = self._imu.tolist()
+        g, max_turn = self.gravity, self._max_turn_rate
+        values = (self._heading / math.pi, v / self._max_speed, w / max_turn, ax / g, ay / g, gz / max_turn,
+                  self.distance / self._distance_scale)
+        obs[n:] = [lo if x < lo else hi if x > hi else x for x, (lo, hi) in zip(values, self._scalar_bounds)]
         return obs
 
     def reward(self, scene: Scene) -> dict[str, float]:
@@ -143,7 +142,7 @@ class NavigationTask(Task):
         progress = self._prev_distance - distance
         self._prev_distance = distance
         self._progress.append(progress)
-        success = self._success = distance < self.task.goal_radius
+        success = self._success = distance < self._goal_radius
         far = distance > w.heading_distance
         closest = float(self._ranges.min())
         stuck = len(self._progress) == w.stuck_window and sum(self._progress) < w.stuck_progress and far
