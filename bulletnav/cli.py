@@ -118,7 +118,7 @@ class _Visuals:
 
     def on_reset(self, env, info) -> None:
         if self.recorder is not None:
-            self.recorder.on_reset(env, self._path())
+            self.recorder.on_reset(env, info, path=self._path())
         if self.log is not None:
             self.log.on_reset(env, info)
         if self.dashboard is not None:

@@ -5,7 +5,8 @@
 Writes ``tests/golden/warehouse_v0.json``: SHA-256 hashes of seeded rollouts (observation
 bytes, reward, and the info entries that existed when the references were made) for a few
 env settings, and the shipped PPO policy's per-episode results on the first 30 evaluation
-episodes at ``evaluate``'s default seed, and PID + A*'s on the first 10 of ``navigate``'s. ``tests/test_golden.py`` checks them bit for bit.
+episodes at ``evaluate``'s default seed,
+and PID + A*'s on the first 10 of ``navigate``'s. ``tests/test_golden.py`` checks them bit for bit.
 """
 
 from __future__ import annotations

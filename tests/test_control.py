@@ -7,7 +7,24 @@ import math
 import numpy as np
 import pytest
 
+from bulletnav.config import EnvConfig, PhysicsConfig, SensorsConfig
 from bulletnav.control.pid import PID
+from bulletnav.envs.scene import Scene
+
+
+@pytest.fixture
+def make_scene():
+    """Scenes (physics, robot and its sensors) that are closed after the test."""
+    scenes: list[Scene] = []
+
+    def _make(sensors: SensorsConfig = SensorsConfig(), physics: PhysicsConfig = PhysicsConfig()) -> Scene:
+        scene = Scene(EnvConfig(sensors=sensors, physics=physics))
+        scenes.append(scene)
+        return scene
+
+    yield _make
+    for scene in scenes:
+        scene.close()
 
 
 def test_pid_drives_a_first_order_plant_to_the_setpoint():
@@ -42,7 +59,7 @@ def test_pid_integral_limit_derivative_and_reset():
         d.update(1.0, 0.0)
 
 
-def test_lidar_map_matches_the_layout(make_sim, write_layout, report):
+def test_lidar_map_matches_the_layout(make_scene, write_layout, report):
     from bulletnav.planning.mapping import OCCUPIED, UNKNOWN, LidarMapper
 
     layout = write_layout({
@@ -54,15 +71,16 @@ def test_lidar_map_matches_the_layout(make_sim, write_layout, report):
             {"type": "cylinder", "center": [-1.5, 1.5], "radius": 0.2, "height": 2.0},
         ],
     })
-    sim = make_sim()
+    scene = make_scene()
+    scene.use_layout(layout)
     mapper = LidarMapper((-4.0, -3.0, 4.0, 3.0), 0.2)
-    lidar = sim.sensors["lidar"]
+    lidar = scene.sensors.lidar
     # A sweep as the robot would collect it: five stops, turning in place at each (36 rays
     # every 10 deg, so 6 headings 1.7 deg apart fill in between rays).
     for x, y in [(0.0, 0.0), (-1.0, 0.5), (1.0, -0.5), (3.0, -1.5), (-3.0, 0.5)]:
         for k in range(6):
-            sim.reset(layout, (x, y, k * math.radians(10) / 6), np.random.default_rng(0))
-            mapper.integrate(sim.robot.planar_pose(), lidar.angles, lidar.read(), lidar.config.max_range,
+            scene.place_robot((x, y, k * math.radians(10) / 6), np.random.default_rng(0))
+            mapper.integrate(scene.robot.planar_pose(), lidar.angles, lidar.read(), lidar.config.max_range,
                              sensor_offset=0.1)
     state = mapper.state()
     # Truth: the obstacle intersects the cell (centre within half a cell diagonal). The ring of

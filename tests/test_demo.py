@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 import sys
@@ -33,6 +34,7 @@ def _cli(*args: str, timeout: int = 300) -> subprocess.CompletedProcess:
     return done
 
 
+@pytest.mark.slow
 @needs_xvfb
 def test_view_runs_under_xvfb():
     done = _cli("view", "--seconds", "5")
@@ -40,6 +42,7 @@ def test_view_runs_under_xvfb():
     assert "viewed procedural warehouse for 5 s" in done.stdout
 
 
+@pytest.mark.slow
 @needs_xvfb
 @needs_model
 def test_demo_with_gui_runs_under_xvfb(tmp_path):
@@ -48,6 +51,7 @@ def test_demo_with_gui_runs_under_xvfb(tmp_path):
     assert "EVALUATION RESULTS" in done.stdout
 
 
+@pytest.mark.slow
 @needs_model
 def test_demo_prints_the_report_and_leaves_video_and_plot(tmp_path, capsys):
     out = tmp_path / "demo"
@@ -58,7 +62,9 @@ def test_demo_prints_the_report_and_leaves_video_and_plot(tmp_path, capsys):
     video, plot = out / "episodes.mp4", out / "trajectories.png"
     assert video.stat().st_size > 10_000 and plot.stat().st_size > 10_000
     frames = iio.imread(video)
-    assert frames.shape[1:] == (528, 960, 3) and len(frames) > 10
+    steps = int(re.search(r"\| Steps: (\d+) \|", text).group(1))
+    # every step of the episode the report describes, plus its reset frame (stride 1)
+    assert frames.shape[1:] == (528, 960, 3) and len(frames) == steps + 1 > 10
 
 
 def test_demo_without_a_model_says_so(tmp_path, capsys):

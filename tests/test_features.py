@@ -10,19 +10,32 @@ import pytest
 import torch
 from gymnasium import spaces
 
+from bulletnav.config import EnvConfig
+from bulletnav.envs.scene import Scene
 from bulletnav.rl.features import ClearanceFeatures, footprint_distances, outline_clearance
 from bulletnav.sensors.lidar import ray_angles
 from bulletnav.sim.layout import Layout
 
 
-def test_footprint_matches_the_robots_collision_outline(make_sim, rng, report):
+@pytest.fixture
+def scene_at_origin(rng):
+    """A scene with the robot at rest at the origin of an empty 10 x 10 m room; closed after the test."""
+    scene = Scene(EnvConfig())
+    try:
+        scene.use_layout(Layout((10.0, 10.0)))
+        scene.place_robot((0.0, 0.0, 0.0), rng)
+        yield scene
+    finally:
+        scene.close()
+
+
+def test_footprint_matches_the_robots_collision_outline(scene_at_origin, report):
     """Cast rays inward, at wheel-centre height, from 1 m outside toward the point under the
     lidar: the first hit is where the robot's outline ends along that ray."""
-    sim = make_sim()
-    sim.reset(Layout((10.0, 10.0)), (0.0, 0.0, 0.0), rng)
-    cid, body = sim.cid, sim.robot.body
-    lidar_xy = p.getLinkState(body, sim.robot.lidar_link, physicsClientId=cid)[4][:2]
-    wheel_z = p.getLinkState(body, sim.robot.left_joint, physicsClientId=cid)[4][2]
+    scene = scene_at_origin
+    cid, body, robot = scene.cid, scene.robot.body, scene.robot
+    lidar_xy = p.getLinkState(body, robot.lidar_link, physicsClientId=cid)[4][:2]
+    wheel_z = p.getLinkState(body, robot.left_joint, physicsClientId=cid)[4][2]
     angles = ray_angles(36, 360.0)
     starts = [[lidar_xy[0] + math.cos(a), lidar_xy[1] + math.sin(a), wheel_z] for a in angles]
     ends = [[lidar_xy[0], lidar_xy[1], wheel_z]] * len(angles)
@@ -56,15 +69,14 @@ def test_extractor_rejects_an_observation_shorter_than_the_scan():
         ClearanceFeatures(spaces.Box(0.0, 1.0, (10,), dtype=np.float32), num_rays=36)
 
 
-def test_point_clearance_matches_pybullet_closest_distance(make_sim, rng, report):
+def test_point_clearance_matches_pybullet_closest_distance(scene_at_origin, rng, report):
     """Probe points around the robot at wheel-centre height: the outline clearance equals
     PyBullet's closest distance between the base link's collision shapes (body and wheel
     guards; the wheel spheres meet only the floor) and a tiny sphere there."""
-    sim = make_sim()
-    sim.reset(Layout((10.0, 10.0)), (0.0, 0.0, 0.0), rng)
-    cid, body = sim.cid, sim.robot.body
-    x0, y0, yaw = sim.robot.pose()  # the body frame (PyBullet's base position is the centre of mass)
-    wheel_z = p.getLinkState(body, sim.robot.left_joint, physicsClientId=cid)[4][2]
+    scene = scene_at_origin
+    cid, body, robot = scene.cid, scene.robot.body, scene.robot
+    x0, y0, yaw = robot.pose()  # the body frame (PyBullet's base position is the centre of mass)
+    wheel_z = p.getLinkState(body, robot.left_joint, physicsClientId=cid)[4][2]
     probe_r = 1e-3
     probe = p.createMultiBody(0.0, p.createCollisionShape(p.GEOM_SPHERE, radius=probe_r, physicsClientId=cid),
                               basePosition=[5.0, 5.0, wheel_z], physicsClientId=cid)

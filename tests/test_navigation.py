@@ -29,7 +29,7 @@ def test_shortest_path_matches_geometry():
 
 def test_pid_astar_navigates_procedural_warehouses(report):
     env = gym.make("bulletnav/Warehouse-v0")
-    results = run_episodes(env, Navigator(NavigatorConfig(planner="astar")), episodes=6, seed=1000)
+    results = run_episodes(env, Navigator(env.unwrapped.scene, NavigatorConfig(planner="astar")), episodes=6, seed=1000)
     env.close()
     summary = summarize(results)
     report("PID+A* on 6 episodes: success / collisions / SPL",
@@ -39,22 +39,65 @@ def test_pid_astar_navigates_procedural_warehouses(report):
         # nobody beats the shortest path to the success disc (0.5 m around the goal)
         assert r.shortest_path - 0.5 <= r.path_length + 0.05
         assert 0.0 < r.spl <= 1.0
-        assert r.plan_ms and max(r.plan_ms) < 50
+        # it planned (at the start, then on every replan); how long that took is a benchmark's
+        # business (bulletnav bench planners), not a test's
+        assert len(r.plan_ms) >= r.replans + 1
+
+
+HALL = str(asset_path("worlds", "hall.yaml"))
+HALL_SEED, HALL_EPISODES = 6, 4
+"""Episodes 6-9 on the shipped hall: two with the goal in the open (the shortest path is the
+straight line) and two where a pallet or column stands in the way (a detour of 0.1-0.3 m)."""
+
+
+@pytest.fixture(scope="module")
+def hall_astar():
+    """The reference: PID + A* on the hall episodes."""
+    env = gym.make("bulletnav/Warehouse-v0", world=HALL)
+    try:
+        return run_episodes(env, Navigator(env.unwrapped.scene, NavigatorConfig(planner="astar")),
+                            episodes=HALL_EPISODES, seed=HALL_SEED)
+    finally:
+        env.close()
 
 
 @pytest.mark.parametrize("planner", ["none", "rrt"])
-def test_other_planners_run_episodes(planner):
-    env = gym.make("bulletnav/Warehouse-v0", world=str(asset_path("worlds", "hall.yaml")))
-    results = run_episodes(env, Navigator(NavigatorConfig(planner=planner)), episodes=2, seed=0)
-    env.close()
-    assert len(results) == 2
-    assert all(r.steps > 0 for r in results)
-    assert (len(results[0].plan_ms) > 0) == (planner != "none")
+def test_other_planners_run_episodes(planner, hall_astar, report):
+    env = gym.make("bulletnav/Warehouse-v0", world=HALL)
+    try:
+        results = run_episodes(env, Navigator(env.unwrapped.scene, NavigatorConfig(planner=planner)),
+                               episodes=HALL_EPISODES, seed=HALL_SEED)
+        goal_radius = env.unwrapped.scene.goal_radius
+    finally:
+        env.close()
+    assert len(results) == HALL_EPISODES
+    # the same episodes as the A* reference: same seeds, same start-goal distance and shortest path
+    assert [(r.seed, r.initial_distance, r.shortest_path) for r in results] == \
+           [(a.seed, a.initial_distance, a.shortest_path) for a in hall_astar]
+    assert any(r.shortest_path > r.initial_distance + 0.05 for r in results)  # some need a detour
+    # the known outcome on the open hall: PID + A* reaches every goal, and so does this planner
+    assert all(a.success and not a.collision for a in hall_astar)
+    report(f"PID+{planner} on hall.yaml episodes {HALL_SEED}-{HALL_SEED + HALL_EPISODES - 1}: "
+           "driven / shortest path to the goal disc (A*'s)",
+           ", ".join(f"{r.path_length / (r.shortest_path - goal_radius):.2f} "
+                     f"({a.path_length / (a.shortest_path - goal_radius):.2f})" for r, a in zip(results, hall_astar)))
+    for r in results:
+        assert r.success and not r.collision, f"episode {r.seed}: {r}"
+        # nobody beats the shortest path to the success disc; nobody wanders about either (an
+        # RRT plan is no shortest path, and its samples change with the planner's code: on 100
+        # procedural warehouses it drove up to 3.3 x, docs/results/navigate_rrt_100.json)
+        assert r.shortest_path - goal_radius <= r.path_length + 0.05
+        assert r.path_length <= 2.0 * (r.shortest_path - goal_radius)
+    if planner == "none":
+        assert all(not r.plan_ms and r.replans == 0 for r in results)
+    else:
+        assert all(len(r.plan_ms) >= r.replans + 1 for r in results)
 
 
 def test_odometry_pose_source_navigates_an_empty_room():
     env = gym.make("bulletnav/Warehouse-v0", world=str(asset_path("worlds", "empty.yaml")))
-    results = run_episodes(env, Navigator(NavigatorConfig(planner="astar", pose_source="odometry")), 2, seed=3)
+    nav = Navigator(env.unwrapped.scene, NavigatorConfig(planner="astar", pose_source="odometry"))
+    results = run_episodes(env, nav, 2, seed=3)
     env.close()
     assert all(r.success for r in results)
 
@@ -78,3 +121,17 @@ def test_navigate_cli_bad_world(tmp_path, capsys):
     assert main(["navigate", "--world", str(bad), "--episodes", "1"]) == 2
     err = capsys.readouterr().err
     assert str(bad) in err and "obstacles[0].size" in err
+
+
+def test_navigator_drives_an_env_with_normalized_actions_the_same_way():
+    """The navigator reads the action convention from the scene view: with
+    ``normalize_actions=True`` it maps its (v, w) into [-1, 1], and the episodes match the
+    physical-action env's (same steps and driven length to 1 mm)."""
+    runs = {}
+    for norm in (False, True):
+        env = gym.make("bulletnav/Warehouse-v0", normalize_actions=norm)
+        runs[norm] = run_episodes(env, Navigator(env.unwrapped.scene), episodes=2, seed=1000)
+        env.close()
+    for a, b in zip(runs[False], runs[True]):
+        assert a.success and b.success
+        assert a.steps == b.steps and a.path_length == pytest.approx(b.path_length, abs=1e-3)

@@ -1,33 +1,73 @@
 """Reinforcement learning: smoke training of every algorithm through the CLI, save/load,
-seeded determinism, evaluation output and model-file errors, atomic checkpoints."""
+seeded determinism, evaluation output and model-file errors, atomic checkpoints; the policy
+protocol the SB3 adapter shares with the navigator; the training-only ``collision_terminates``
+option and the upgrade of hyperparameter files that still say ``collision_terminal``."""
 
 from __future__ import annotations
 
 import json
+import logging
+import math
 import os
+import subprocess
+import time
 import zipfile
+from dataclasses import asdict
 from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 import pytest
 import torch
+import yaml
 
 import bulletnav  # noqa: F401
 from bulletnav.cli import main
+from bulletnav.config import asset_path
+from bulletnav.control.navigator import Navigator, NavigatorConfig
 from bulletnav.errors import ModelError
-from bulletnav.rl.common import atomic_save_model, load_model
+from bulletnav.evaluation import run_episodes
+from bulletnav.policy import Policy
+from bulletnav.provenance import command_line
+from bulletnav.rl.callbacks import EVAL_KEYS
+from bulletnav.rl.envs import EVAL_SEED_BASE, evaluation_env_kwargs, make_env_fn
+from bulletnav.rl.hyperparams import load_hyperparams, upgrade_hyperparams
+from bulletnav.rl.io import atomic_save_model, load_model
+from bulletnav.rl.policy import SB3Policy
 
 ENV_ID = "bulletnav/Warehouse-v0"
+ROOT = Path(__file__).resolve().parents[1]
+EMPTY = str(asset_path("worlds", "empty.yaml"))
+EVAL_EPISODES = 2
+"""``--eval-episodes`` of every run trained here."""
+_ELAPSED: dict[Path, float] = {}
+"""Wall-clock seconds of each ``bulletnav train`` call made here, by run directory."""
+_HEAD: dict[Path, str] = {}
+"""The checkout's HEAD when each run started (a commit may land while it trains)."""
 
 
 def _train(tmp_path: Path, algo: str, seed: int = 0, steps: int = 1024, name: str | None = None, extra=()) -> Path:
     out = tmp_path / (name or algo)
     argv = ["train", "--algo", algo, "--timesteps", str(steps), "--n-envs", "2", "--seed", str(seed),
-            "--out", str(out), "--eval-freq", str(steps), "--eval-episodes", "2", "--checkpoint-freq", "512",
-            "--no-progress", *extra]
+            "--out", str(out), "--eval-freq", str(steps), "--eval-episodes", str(EVAL_EPISODES),
+            "--checkpoint-freq", "512", "--no-progress", *extra]
+    _HEAD[out] = _head_commit()
+    t0 = time.perf_counter()
     assert main(argv) == 0
+    _ELAPSED[out] = time.perf_counter() - t0
     return out
+
+
+def _evaluate_json(capsys, model: Path, episodes: int, seed: int) -> dict:
+    """``bulletnav evaluate --json`` on ``model`` for episodes ``seed .. seed + episodes - 1``."""
+    capsys.readouterr()
+    assert main(["evaluate", "--model", str(model), "--episodes", str(episodes), "--seed", str(seed), "--json"]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def _head_commit() -> str:
+    done = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True, timeout=10)
+    return done.stdout.strip() if done.returncode == 0 else "unknown"
 
 
 @pytest.fixture(scope="module")
@@ -35,10 +75,12 @@ def ppo_run(tmp_path_factory):
     return _train(tmp_path_factory.mktemp("rl"), "ppo")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("algo", ["sac", "td3", "a2c"])
 def test_short_training_of_each_algorithm_then_evaluate(tmp_path, capsys, algo):
     out = _train(tmp_path, algo, steps=600)
     _check_run_dir(out, algo)
+    _check_final_evaluation(out, capsys)
     assert main(["evaluate", "--model", str(out / "model.zip"), "--episodes", "1", "--json"]) == 0
     result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert result["episodes"] == 1
@@ -49,10 +91,37 @@ def _check_run_dir(out: Path, algo: str) -> None:
                  "checkpoints/last.zip"):
         assert (out / name).is_file(), name
     run = json.loads((out / "run.json").read_text())
+    meta = json.loads((out / "model.json").read_text())
+    history = json.loads((out / "eval_history.json").read_text())
     assert run["algo"] == algo and run["seed"] == 0 and run["total_timesteps"] >= 512
-    assert run["git_commit"] and run["wall_time_s"] > 0 and run["final_eval"]["success_rate"] >= 0
-    assert run["command"]
+    assert meta["algo"] == algo and meta["timesteps"] == run["total_timesteps"]
+    # the settings trained with are the packaged file's (collision_terminates included)
+    packaged = load_hyperparams(algo)
+    assert run["env_kwargs"] == meta["env_kwargs"] == packaged["env_kwargs"]
+    # provenance: this checkout's HEAD, this process's command line, and a training time
+    # inside the `bulletnav train` call that produced it
+    assert run["git_commit"].removesuffix("-dirty") in (_HEAD[out], _head_commit())
+    assert run["command"] == command_line()
+    assert 0.0 < run["wall_time_s"] <= _ELAPSED[out] + 0.05
+    assert run["final_eval"] == history[-1] and history[-1]["timesteps"] == run["total_timesteps"]
     assert any((out / "tb").rglob("events.out.tfevents.*"))
+
+
+def _check_final_evaluation(out: Path, capsys) -> None:
+    """The recorded final evaluation is the saved model's: `bulletnav evaluate` on model.zip
+    for the same unseen episodes (seeds from EVAL_SEED_BASE) gives the same figures."""
+    final = json.loads((out / "run.json").read_text())["final_eval"]
+    evaluated = _evaluate_json(capsys, out / "model.zip", EVAL_EPISODES, EVAL_SEED_BASE)
+    assert [r["seed"] for r in evaluated["per_episode"]] == [EVAL_SEED_BASE + k for k in range(EVAL_EPISODES)]
+    for key in EVAL_KEYS:
+        assert final[key] == pytest.approx(evaluated[key], rel=1e-9, abs=1e-12), (
+            f"{key}: run.json's final evaluation {final[key]} differs from `bulletnav evaluate` on the saved "
+            f"model {evaluated[key]} (same seeds): the recorded evaluation is not of the saved model")
+
+
+def test_ppo_final_evaluation_is_the_saved_models(ppo_run, capsys):
+    # 1024 steps with --eval-freq 1024: the last in-training evaluation falls on the final timestep
+    _check_final_evaluation(ppo_run, capsys)
 
 
 def test_ppo_run_and_evaluate_report(ppo_run, capsys):
@@ -84,6 +153,7 @@ def test_save_load_predict_gives_identical_actions(ppo_run, tmp_path):
     np.testing.assert_array_equal(before, again.predict(obs, deterministic=True)[0])
 
 
+@pytest.mark.slow
 def test_two_seeded_ppo_runs_give_identical_parameters(ppo_run, tmp_path):
     other = _train(tmp_path, "ppo", seed=0, name="again")
     a = torch.load(zipfile.ZipFile(ppo_run / "model.zip").open("policy.pth"), weights_only=True)
@@ -169,10 +239,6 @@ def test_compare_plots_runs_and_tabulates(ppo_run, tmp_path, capsys):
 
 
 def test_hyperparams_file_replaces_the_packaged_one(tmp_path, capsys):
-    import yaml
-
-    from bulletnav.rl.common import load_hyperparams
-
     hp = load_hyperparams("ppo")
     hp.update(n_steps=64, batch_size=64, n_epochs=1)
     hp["env_kwargs"] = {**hp["env_kwargs"], "reward_collision": -7.0}
@@ -195,3 +261,114 @@ def test_hyperparams_file_replaces_the_packaged_one(tmp_path, capsys):
         err = capsys.readouterr().err
         assert name in err and "Traceback" not in err, err
     assert not (tmp_path / "never").exists()
+
+
+def test_sb3_policy_and_navigator_run_the_same_episodes(ppo_run, capsys):
+    """Both controllers are :class:`~bulletnav.policy.Policy` objects driven by the one
+    ``run_episodes``: given the same seeds they get the same warehouses, starts and goals,
+    and the adapter's episodes are exactly what ``bulletnav evaluate`` reports."""
+    seed, episodes = 1000, 3
+    model, meta, vecnorm = load_model(ppo_run / "model.zip")
+
+    def run(env, policy):
+        seen = []
+
+        def on_reset(e, info):
+            scene = e.unwrapped.scene
+            seen.append({"layout": scene.layout, "start": scene.start, "goal": scene.goal,
+                         "initial_distance": info["initial_distance"], "pose": tuple(float(v) for v in info["pose"])})
+
+        return run_episodes(env, policy, episodes, seed, on_reset=on_reset), seen
+
+    # the model acts in its evaluation env (normalised actions); the navigator in the default one
+    rl_env = gym.make(ENV_ID, **evaluation_env_kwargs(meta["env_kwargs"]))
+    nav_env = gym.make(ENV_ID)
+    try:
+        sb3 = SB3Policy(model, vecnorm)
+        nav = Navigator(nav_env.unwrapped.scene, NavigatorConfig(planner="astar"))
+        assert isinstance(sb3, Policy) and isinstance(nav, Policy)
+        rl_results, rl_seen = run(rl_env, sb3)
+        nav_results, nav_seen = run(nav_env, nav)
+    finally:
+        rl_env.close()
+        nav_env.close()
+    assert rl_seen == nav_seen  # same layouts, starts, goals and initial distances
+    for r, n, ep in zip(rl_results, nav_results, rl_seen):
+        assert r.seed == n.seed and r.initial_distance == n.initial_distance and r.shortest_path == n.shortest_path
+        # independent of the env's bookkeeping: the straight line from the start to the goal
+        assert r.initial_distance == pytest.approx(math.dist(ep["start"][:2], ep["goal"]), abs=1e-9)
+        assert ep["pose"] == pytest.approx(ep["start"], abs=1e-6)  # the robot stood at the start
+    assert len({ep["layout"] for ep in rl_seen}) == episodes  # three different warehouses
+
+    # the adapter under run_episodes is what `bulletnav evaluate` runs: same episodes, same figures
+    evaluated = _evaluate_json(capsys, ppo_run / "model.zip", episodes, seed)
+    for r, row in zip(rl_results, evaluated["per_episode"]):
+        mine = {k: v for k, v in asdict(r).items() if k not in ("wall_time", "plan_ms")}
+        theirs = {k: v for k, v in row.items() if k != "wall_time"}
+        assert mine == pytest.approx(theirs, rel=1e-12), r.episode
+
+
+def _drive_into_the_wall(env) -> tuple[int, bool, bool, dict]:
+    """Full speed straight at the east wall of the empty room, 1.35 m from the robot's nose."""
+    env.reset(seed=0, options={"start": (3.5, 0.0, 0.0), "goal": (-3.0, 0.0)})
+    forward = env.action_space.high.copy()  # top speed...
+    forward[1] = 0.0  # ...and no turning (0 is the middle of the yaw range, normalised or not)
+    for k in range(1, 301):
+        _, _, terminated, truncated, info = env.step(forward)
+        if terminated or truncated:
+            return k, terminated, truncated, info
+    raise AssertionError("no collision within 300 steps")
+
+
+def test_collision_terminates_reaches_the_training_envs_and_evaluation_drops_it():
+    env_kwargs = load_hyperparams("ppo")["env_kwargs"]
+    assert env_kwargs["collision_terminates"] is True  # the shipped file asks for it
+    train_env = make_env_fn({**env_kwargs, "world": EMPTY})()
+    try:
+        steps, terminated, truncated, info = _drive_into_the_wall(train_env)
+    finally:
+        train_env.close()
+    assert terminated and not truncated  # a real end: bootstrapped as terminal by the learner
+    assert info["collision"] and info["end_reason"] == "collision" and not info["is_success"]
+    # where the wall is: the body's front face (0.15 m ahead of its centre) at the room's 5 m half-width
+    assert 5.0 - 0.15 - 0.03 <= info["pose"][0] <= 5.0 - 0.15 + 0.005
+
+    eval_kwargs = evaluation_env_kwargs({**env_kwargs, "world": EMPTY})
+    assert "collision_terminates" not in eval_kwargs
+    assert not any(k.startswith("reward_") for k in eval_kwargs)
+    eval_env = gym.make(ENV_ID, **eval_kwargs)
+    try:
+        eval_steps, eval_terminated, eval_truncated, eval_info = _drive_into_the_wall(eval_env)
+    finally:
+        eval_env.close()
+    # the same drive into the same wall, ended by the env's own rule: a collision truncates
+    assert (eval_steps, eval_terminated, eval_truncated) == (steps, False, True)
+    assert eval_info["collision"] and eval_info["end_reason"] == "collision"
+    np.testing.assert_array_equal(eval_info["pose"], info["pose"])
+
+
+@pytest.mark.parametrize("flag", [True, False])
+def test_old_collision_terminal_key_is_upgraded(tmp_path, caplog, flag):
+    today = load_hyperparams("ppo")
+    old = {k: v for k, v in today.items() if k != "env_kwargs"}
+    old["env_kwargs"] = {k: v for k, v in today["env_kwargs"].items() if k != "collision_terminates"}
+    old["collision_terminal"] = flag  # how hyperparameter files said it before the env option existed
+    path = tmp_path / "old.yml"
+    path.write_text(yaml.safe_dump({ENV_ID: old}))
+    with caplog.at_level(logging.WARNING, logger="bulletnav.rl.hyperparams"):
+        upgraded = load_hyperparams("ppo", path=path)
+    assert "collision_terminal" not in upgraded
+    assert upgraded["env_kwargs"]["collision_terminates"] is flag
+    if flag:
+        assert upgraded == today  # exactly the packaged file's settings
+    assert "collision_terminal" in caplog.text and str(path) in caplog.text
+    assert upgrade_hyperparams(old) == upgraded and "collision_terminal" in old  # the input is left as it was
+    assert upgrade_hyperparams(today) == today  # today's form passes through
+    # and the upgraded settings reach the training env
+    env = make_env_fn({**upgraded["env_kwargs"], "world": EMPTY})()
+    try:
+        assert env.unwrapped.config.task.collision_terminates is flag
+        _, terminated, truncated, _ = _drive_into_the_wall(env)
+    finally:
+        env.close()
+    assert (terminated, truncated) == (flag, not flag)

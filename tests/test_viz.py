@@ -23,7 +23,6 @@ from bulletnav.viz import (
     figure_size,
     plot_trajectories,
     simplify_path,
-    with_reset_hooks,
 )
 from bulletnav.viz.video import GOAL, MAP_PX
 
@@ -108,7 +107,10 @@ def _run(env, recorders, seeds, steps_per_episode):
         obs, info = env.reset(seed=seed)
         trace.append(("reset", obs, info))
         for rec in recorders:
-            rec.on_reset(env)
+            if isinstance(rec, TrajectoryLog):
+                rec.on_reset(env, info)
+            else:  # EpisodeRecorder.on_reset(env, path=None)
+                rec.on_reset(env)
         for _ in range(steps_per_episode):
             obs, reward, terminated, truncated, info = env.step(scripted(obs))
             trace.append(("step", obs, reward, terminated, truncated, info))
@@ -169,6 +171,7 @@ def test_simplify_path_keeps_corners_and_caps_segments():
 
 
 @pytest.mark.gui
+@pytest.mark.slow
 def test_dashboard_throttles_and_replaces_in_place(display, monkeypatch):
     calls = {"new": [], "replace": [], "camera": 0}
     real_line, real_camera = pybullet.addUserDebugLine, pybullet.getCameraImage
@@ -227,17 +230,19 @@ def test_trajectory_log_and_plots(tmp_path):
     env = gym.make(ENV_ID, world=EMPTY, max_episode_steps=40)
 
     class Scripted:
-        def reset(self, env, rng):
+        def reset(self, info):
             pass
 
-        def act(self, obs):
+        def act(self, obs, info):
             return scripted(obs)
 
     try:
         log = TrajectoryLog()
         finals = []
-        results = run_episodes(env, with_reset_hooks(Scripted(), log.on_reset), 2, seed=5,
-                               on_step=lambda e, i: (log.on_step(e, i), finals.append(e.unwrapped.robot.planar_pose())),
+        # the pose after each step straight from PyBullet (the scene's robot), not from info
+        results = run_episodes(env, Scripted(), 2, seed=5, on_reset=log.on_reset,
+                               on_step=lambda e, i: (log.on_step(e, i),
+                                                     finals.append(e.unwrapped._scene.robot.planar_pose())),
                                on_episode=log.on_episode)
         # and one without the reset hook: the log starts the episode itself
         log2 = TrajectoryLog()
@@ -262,8 +267,8 @@ def test_trajectory_log_and_plots(tmp_path):
     env = gym.make(ENV_ID, max_episode_steps=15)
     try:
         multi = TrajectoryLog()
-        run_episodes(env, with_reset_hooks(Scripted(), multi.on_reset), 3, seed=7,
-                     on_step=multi.on_step, on_episode=multi.on_episode)
+        run_episodes(env, Scripted(), 3, seed=7, on_reset=multi.on_reset, on_step=multi.on_step,
+                     on_episode=multi.on_episode)
     finally:
         env.close()
     out = plot_trajectories(multi, tmp_path / "multi.png")
@@ -272,11 +277,29 @@ def test_trajectory_log_and_plots(tmp_path):
 
 
 @pytest.mark.gui
-def test_bench_gui_reports_frame_rates(display):
+@pytest.mark.slow
+def test_bench_gui_reports_frame_rates(display, monkeypatch, report):
     from bulletnav.bench.gui_bench import bench_gui
 
+    renders = []
+    real_camera = pybullet.getCameraImage
+
+    def counting_camera(*args, **kwargs):
+        renders.append(args[:2])
+        return real_camera(*args, **kwargs)
+
+    monkeypatch.setattr(pybullet, "getCameraImage", counting_camera)
     result = bench_gui(steps=3, repeats=1)
-    assert result["benchmark"] == "gui"
-    for key in ("fps_throttled", "fps_unthrottled", "fps_no_dashboard"):
-        assert result[key] > 0.0
+    report("GUI FPS throttled / unthrottled / no dashboard",
+           f"{result['fps_throttled']} / {result['fps_unthrottled']} / {result['fps_no_dashboard']}")
+    assert result["benchmark"] == "gui" and result["steps"] == 3 and result["repeats"] == 1
     assert result["throttles"]["camera_every"] == 10 and result["throttles"]["lidar_ray_stride"] == 10
+    # Each setting drove 10 warm-up + 3 timed steps of one episode (2 m or more from its goal:
+    # it cannot end in 13 steps), so the dashboards did exactly their documented work: the
+    # throttled one rendered the camera once (every 10 steps), the unthrottled one every
+    # step, none without a dashboard. A figure from a run that skipped its drawing would be
+    # no frame rate of the dashboard at all.
+    assert len(renders) == 13 // 10 + 13 // 1 + 0
+    # the ratio is the two figures' (rounded after dividing)
+    assert result["throttled_vs_unthrottled"] == pytest.approx(result["fps_throttled"] / result["fps_unthrottled"],
+                                                               abs=0.011)

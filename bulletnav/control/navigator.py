@@ -64,7 +64,7 @@ class NavigatorConfig:
     """Robot pose used for mapping and steering: 'truth' or 'odometry'."""
     rrt_step: float = 0.5
     """RRT extension step (m)."""
-    rrt_max_iters: int = 20000
+    rrt_max_iters: int = 50_000
     """RRT iteration budget per plan (no wall-clock budget: the same map gives the same plan on any machine)."""
     seed: int = 0
     """RRT's random numbers come from ``(seed, episode start pose, goal)``: the same episode
@@ -218,6 +218,9 @@ class Navigator:
             if self.path:
                 target = self._lookahead(pose)
         v, w = self.controller.command(pose, target, ranges, self.dt, goal_distance)
+        if self.scene.normalized_actions:  # the env expects [-1, 1] mapped onto the physical ranges
+            (v_lo, v_hi), (w_lo, w_hi) = self.scene.command_limits
+            v, w = 2.0 * (v - v_lo) / (v_hi - v_lo) - 1.0, 2.0 * (w - w_lo) / (w_hi - w_lo) - 1.0
         return np.array([v, w], dtype=np.float32)
 
     # ------------------------------------------------------------------ planning

@@ -186,6 +186,18 @@ class SceneView:
         """Distance (m) from a goal under which it counts as reached."""
         return self._scene.config.task.goal_radius
 
+    # ------------------------------------------------------------------ actions
+    @property
+    def command_limits(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """Physical command ranges: (v min, v max) m/s and (w min, w max) rad/s."""
+        t = self._scene.config.task
+        return (0.0, t.max_speed), (-t.max_turn_rate, t.max_turn_rate)
+
+    @property
+    def normalized_actions(self) -> bool:
+        """True when actions are [-1, 1] mapped linearly onto :attr:`command_limits`."""
+        return self._scene.config.normalize_actions
+
     # ------------------------------------------------------------------ time
     @property
     def control_dt(self) -> float:

@@ -123,6 +123,10 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
     atomic_save_model(model, final_path)
     if vecnorm is not None:
         atomic_save_vecnormalize(vecnorm, vecnormalize_path(final_path))
+    if history and history[-1]["timesteps"] == model.num_timesteps and remaining:
+        # that evaluation ran inside the last rollout, before the last update: evaluate the
+        # model that is saved instead, so the record and model.zip agree
+        history.pop()
     if not history or history[-1]["timesteps"] != model.num_timesteps:
         evaluation.evaluate(model)
     evaluation.close()

@@ -242,8 +242,10 @@ class EpisodeRecorder:
         self._done_written = False
 
     # ------------------------------------------------------------------ hooks
-    def on_reset(self, env: Any, path: Sequence[tuple[float, float]] | None = None) -> None:
-        """Start an episode (call right after ``env.reset``) and write its first frame."""
+    def on_reset(self, env: Any, info: dict[str, Any] | None = None,
+                 path: Sequence[tuple[float, float]] | None = None) -> None:
+        """Start an episode (call right after ``env.reset``; fits ``run_episodes``' ``on_reset``)
+        and write its first frame, with ``path`` (a plan to draw) if given."""
         self._begin(env)
         self._write(self.compose(env, path=path))
 
