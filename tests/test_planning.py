@@ -1,8 +1,9 @@
 """Planning algorithms checked against independent references.
 
 A* costs against scipy's Dijkstra on an explicitly built graph, segment checks against dense
-point sampling, inflation against brute-force distances, RRT paths by sampling. No timing
-assertions: the benchmark figures are only reported.
+point sampling, inflation against brute-force distances, RRT paths by sampling and RRT's grid
+analyses against brute force. No timing assertions: RRT is bounded by iterations only, and the
+benchmark figures are only reported. Fresh-process RRT checks are in test_rrt_fresh_process.py.
 """
 
 from __future__ import annotations
@@ -14,8 +15,9 @@ import pytest
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from bulletnav.planning import OccupancyGrid, astar, astar_cost, astar_result, bench_planners, rrt, warmup
-from bulletnav.planning.bench import box_world, rrt_problem
+from bulletnav.bench.planner_bench import bench_planners, box_world, narrow_problem, rrt_problem
+from bulletnav.planning import OccupancyGrid, astar, astar_cost, astar_result, rrt, warmup
+from bulletnav.planning.rrt import _connected, _narrow_cells
 
 SQRT2 = math.sqrt(2.0)
 
@@ -311,36 +313,36 @@ def sampled_path_free(grid: OccupancyGrid, path) -> bool:
 
 def test_rrt_paths_are_valid():
     rng = np.random.default_rng(2)
-    solved = 0
-    for i in range(40):
-        grid, start, goal = rrt_problem(rng)
-        for shortcut in (True, False):
-            path = rrt(grid, start, goal, np.random.default_rng(i), shortcut=shortcut, time_budget_s=1.0)
-            if path is None:
-                continue
-            solved += shortcut
-            assert path[0] == start and path[-1] == goal
-            assert sampled_path_free(grid, path)
-            if not shortcut:
-                assert all(math.dist(p, q) <= 0.5 + 1e-12 for p, q in zip(path[:-1], path[1:]))
-    assert solved >= 38
+    for make in (rrt_problem, narrow_problem):
+        for i in range(40):
+            grid, start, goal = make(rng)
+            for shortcut in (True, False):
+                path = rrt(grid, start, goal, np.random.default_rng(i), shortcut=shortcut)
+                assert path is not None  # connected on the grid, and the default budget is ample
+                assert path[0] == start and path[-1] == goal
+                assert all(grid.segment_free(p, q) for p, q in zip(path[:-1], path[1:]))
+                assert sampled_path_free(grid, path)
+                if not shortcut:
+                    assert all(math.dist(p, q) <= 0.5 + 1e-12 for p, q in zip(path[:-1], path[1:]))
 
 
 def test_rrt_shortcut_never_lengthens():
     rng = np.random.default_rng(4)
-    for i in range(10):
-        grid, start, goal = rrt_problem(rng)
-        raw = rrt(grid, start, goal, np.random.default_rng(i), shortcut=False, time_budget_s=1.0)
-        short = rrt(grid, start, goal, np.random.default_rng(i), shortcut=True, time_budget_s=1.0)
-        assert (raw is None) == (short is None)
-        if raw is not None:
-            length = lambda path: sum(math.dist(p, q) for p, q in zip(path[:-1], path[1:]))  # noqa: E731
-            assert set(short) <= set(raw) and length(short) <= length(raw) + 1e-12
+    for make in (rrt_problem, narrow_problem):
+        for i in range(10):
+            grid, start, goal = make(rng)
+            raw = rrt(grid, start, goal, np.random.default_rng(i), shortcut=False)
+            short = rrt(grid, start, goal, np.random.default_rng(i), shortcut=True)
+            assert (raw is None) == (short is None)
+            if raw is not None:
+                length = lambda path: sum(math.dist(p, q) for p, q in zip(path[:-1], path[1:]))  # noqa: E731
+                assert set(short) <= set(raw) and length(short) <= length(raw) + 1e-12
 
 
-def test_rrt_deterministic_per_seed():
-    grid, start, goal = rrt_problem(np.random.default_rng(9))
-    plan = lambda seed: rrt(grid, start, goal, np.random.default_rng(seed), shortcut=False, time_budget_s=10.0)  # noqa: E731
+@pytest.mark.parametrize("make", [rrt_problem, narrow_problem])
+def test_rrt_deterministic_per_seed(make):
+    grid, start, goal = make(np.random.default_rng(9))
+    plan = lambda seed: rrt(grid, start, goal, np.random.default_rng(seed), shortcut=False)  # noqa: E731
     np.random.seed(0)
     first = plan(123)
     np.random.seed(1)  # global random state must not matter
@@ -348,25 +350,110 @@ def test_rrt_deterministic_per_seed():
     assert len({tuple(plan(seed)) for seed in range(6)}) > 1
 
 
+def test_rrt_budget_only_truncates():
+    """A larger budget changes nothing once a smaller one has found the path: the iterations
+    run the same way, only the stopping point differs."""
+    rng = np.random.default_rng(5)
+    for i in range(20):
+        grid, start, goal = narrow_problem(rng)
+        full = rrt(grid, start, goal, np.random.default_rng(i))
+        assert full is not None
+        for budget in (1, 255, 256, 257, 1000):
+            path = rrt(grid, start, goal, np.random.default_rng(i), max_iters=budget)
+            assert path is None or path == full
+
+
 def test_rrt_none_cases():
     occ = np.zeros((40, 40), dtype=bool)
     occ[25:32, 25] = occ[25:32, 31] = occ[25, 25:32] = occ[31, 25:32] = True  # a closed box
     grid = OccupancyGrid(occ, 0.1)
     rng = np.random.default_rng(0)
-    assert rrt(grid, (0.5, 0.5), (2.8, 2.8), rng, max_iters=2000) is None  # goal enclosed
+    assert rrt(grid, (0.5, 0.5), (2.8, 2.8), rng) is None  # goal enclosed: disconnected on the grid
     assert rrt(grid, (2.5, 2.8), (0.5, 0.5), rng) is None  # start occupied
     assert rrt(grid, (0.5, 0.5), (9.0, 0.5), rng) is None  # goal off the map
     assert rrt(grid, (0.5, 0.5), (3.5, 0.5), rng, max_iters=0) is None
     assert rrt(grid, (0.5, 0.5), (0.7, 0.6), rng) == [(0.5, 0.5), (0.7, 0.6)]  # direct reach
-    for bad in ({"step": 0.0}, {"goal_bias": 1.5}, {"max_iters": -1}, {"time_budget_s": 0.0}):
+    for bad in ({"step": 0.0}, {"goal_bias": 1.5}, {"max_iters": -1}):
         with pytest.raises(ValueError):
             rrt(grid, (0.5, 0.5), (3.5, 0.5), rng, **bad)
+    with pytest.raises(TypeError):  # the wall-clock budget is gone
+        rrt(grid, (0.5, 0.5), (3.5, 0.5), rng, time_budget_s=0.05)
+
+
+def test_rrt_none_when_iterations_run_out():
+    # A 4 x 4 m map split by a wall at x = 2 m with a gap at its top: one iteration adds one
+    # node within 0.5 m of the start (0.5, 0.5), which neither sees the goal (3.5, 0.5) nor lies
+    # within a step of it, so it cannot reach the goal; the default budget always does.
+    occ = np.zeros((40, 40), dtype=bool)
+    occ[20, :36] = True
+    grid = OccupancyGrid(occ, 0.1)
+    start, goal = (0.5, 0.5), (3.5, 0.5)
+    for seed in range(20):
+        assert rrt(grid, start, goal, np.random.default_rng(seed), max_iters=1) is None
+        path = rrt(grid, start, goal, np.random.default_rng(seed))
+        assert path is not None and path[0] == start and path[-1] == goal
+        assert all(grid.segment_free(p, q) for p, q in zip(path[:-1], path[1:]))
+
+
+def test_connected_matches_astar():
+    """RRT's early exit: 4-connectivity of free cells is what A* (no corner cutting) reaches."""
+    rng = np.random.default_rng(6)
+    for _ in range(200):
+        grid = OccupancyGrid(rng.random((12, 9)) < rng.uniform(0.2, 0.6), 0.1)
+        s, g = sample_free_cell(rng, grid.occupied), sample_free_cell(rng, grid.occupied)
+        want = astar_result(grid, grid.cell_to_world(*s), grid.cell_to_world(*g)) is not None
+        assert _connected(grid.occupied, *s, *g) == want
+
+
+def narrow_cells_reference(occ: np.ndarray, res: float, width: float) -> np.ndarray:
+    """Free cells whose free run through them along x, y or a diagonal spans <= ``width`` m, by walking."""
+    nx, ny = occ.shape
+    free = lambda x, y: 0 <= x < nx and 0 <= y < ny and not occ[x, y]  # noqa: E731
+    out = []
+    for x in range(nx):
+        for y in range(ny):
+            if not free(x, y):
+                continue
+            for dx, dy in ((1, 0), (0, 1), (1, 1), (1, -1)):
+                n = 1
+                for sign in (1, -1):
+                    k = 1
+                    while free(x + sign * k * dx, y + sign * k * dy):
+                        n += 1
+                        k += 1
+                if n * res * math.hypot(dx, dy) <= width * (1 + 1e-9):
+                    out.append(x * ny + y)
+                    break
+    return np.array(out, dtype=np.int64)
+
+
+def test_narrow_cells_match_brute_force():
+    rng = np.random.default_rng(8)
+    for _ in range(60):
+        occ = rng.random((int(rng.integers(1, 20)), int(rng.integers(1, 20)))) < rng.uniform(0.0, 0.5)
+        occ = OccupancyGrid(occ, 0.1).occupied  # read-only, as rrt passes it
+        for width in (0.1, 0.3, 0.5, 1.0):
+            assert np.array_equal(_narrow_cells(occ, 0.1, width), narrow_cells_reference(occ, 0.1, width))
+
+
+def test_narrow_problems_are_narrow():
+    """The benchmark's narrow-passage maps do have a gap of at most 0.4 m between start and goal."""
+    rng = np.random.default_rng(10)
+    for _ in range(20):
+        grid, start, goal = narrow_problem(rng)
+        assert astar(grid, start, goal) is not None
+        # Closing every narrow cell (free runs <= 0.4 m wide) must disconnect start from goal.
+        closed = grid.occupied.copy()
+        closed.ravel()[_narrow_cells(grid.occupied, grid.resolution, 0.4)] = True
+        s, g = grid.world_to_cell(start), grid.world_to_cell(goal)
+        assert closed[s] or closed[g] or not _connected(closed, *s, *g)
 
 
 def test_bench_planners_reports(report):
     figures = bench_planners(seed=1, n=30)
-    assert set(figures) == {"astar_median_ms", "astar_p95_ms", "rrt_median_ms", "rrt_p95_ms", "rrt_success_rate", "n"}
+    assert set(figures) == {"astar_median_ms", "astar_p95_ms", "rrt_median_ms", "rrt_p95_ms", "rrt_success_rate",
+                            "rrt_narrow_median_ms", "rrt_narrow_p95_ms", "rrt_narrow_success_rate", "n"}
     assert all(math.isfinite(v) and v >= 0 for v in figures.values())
-    assert 0.0 <= figures["rrt_success_rate"] <= 1.0
+    assert 0.0 <= figures["rrt_success_rate"] <= 1.0 and 0.0 <= figures["rrt_narrow_success_rate"] <= 1.0
     for key, value in figures.items():
         report(key, f"{value:.4g}")

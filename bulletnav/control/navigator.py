@@ -14,6 +14,7 @@ from bulletnav.control.pid import PID
 from bulletnav.geometry import RobotGeometry
 from bulletnav.planning import OccupancyGrid, astar, rrt, warmup
 from bulletnav.planning.mapping import LidarMapper
+from bulletnav.planning.rrt import DEFAULT_MAX_ITERS
 
 
 @dataclass(frozen=True)
@@ -64,7 +65,7 @@ class NavigatorConfig:
     """Robot pose used for mapping and steering: 'truth' or 'odometry'."""
     rrt_step: float = 0.5
     """RRT extension step (m)."""
-    rrt_max_iters: int = 50_000
+    rrt_max_iters: int = DEFAULT_MAX_ITERS
     """RRT iteration budget per plan (no wall-clock budget: the same map gives the same plan on any machine)."""
     seed: int = 0
     """RRT's random numbers come from ``(seed, episode start pose, goal)``: the same episode
