@@ -1,4 +1,4 @@
-"""Shared fixtures: layouts written as YAML files, and a simulation factory."""
+"""Shared fixtures: layouts written as YAML files, simulation and scene factories."""
 
 from __future__ import annotations
 
@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import yaml
 
-from bulletnav.config import PhysicsConfig, SensorsConfig
+from bulletnav.config import EnvConfig, PhysicsConfig, RobotConfig, SensorsConfig
+from bulletnav.envs.scene import Scene
 from bulletnav.sim.layout import Layout, load_layout
 from bulletnav.sim.simulation import Simulation
 
@@ -27,11 +28,11 @@ def write_layout(tmp_path: Path):
 
 @pytest.fixture
 def make_sim():
-    """Simulations that are closed after the test."""
+    """Physics-only simulations (world and robot, no sensors), closed after the test."""
     sims: list[Simulation] = []
 
-    def _make(sensors: SensorsConfig = SensorsConfig(), physics: PhysicsConfig = PhysicsConfig()) -> Simulation:
-        sim = Simulation(physics=physics, sensors=sensors)
+    def _make(physics: PhysicsConfig = PhysicsConfig(), robot: RobotConfig = RobotConfig()) -> Simulation:
+        sim = Simulation(physics=physics, robot=robot)
         sims.append(sim)
         return sim
 
@@ -40,10 +41,36 @@ def make_sim():
         sim.close()
 
 
-def drive(sim: Simulation, v: float, w: float, seconds: float) -> None:
-    """Hold the command (v, w) for ``seconds`` of simulated time."""
-    for _ in range(int(round(seconds * sim.physics.control_hz))):
-        sim.step(v, w)
+@pytest.fixture
+def make_scene():
+    """Scenes (physics + the robot's sensors, as an env has them), closed after the test.
+
+    ``place(scene, layout, start, rng)`` starts an episode in one."""
+    scenes: list[Scene] = []
+
+    def _make(sensors: SensorsConfig = SensorsConfig(), physics: PhysicsConfig = PhysicsConfig()) -> Scene:
+        scene = Scene(EnvConfig(sensors=sensors, physics=physics))
+        scenes.append(scene)
+        return scene
+
+    yield _make
+    for scene in scenes:
+        scene.close()
+
+
+def place(scene: Scene, layout: Layout, start: tuple[float, float, float], rng: np.random.Generator) -> None:
+    """Start an episode of ``scene`` in ``layout`` with the robot at rest at ``start``; the
+    sensors draw their noise generators from ``rng``."""
+    scene.use_layout(layout)
+    scene.place_robot(start, rng)
+
+
+def drive(target: Simulation | Scene, v: float, w: float, seconds: float) -> None:
+    """Hold the command (v, w) for ``seconds`` of simulated time (on a simulation, or on a
+    scene, whose sensors then update every step)."""
+    physics = target.config.physics if isinstance(target, Scene) else target.physics
+    for _ in range(int(round(seconds * physics.control_hz))):
+        target.step(v, w)
 
 
 @pytest.fixture
@@ -71,9 +98,30 @@ def pytest_terminal_summary(terminalreporter):
             terminalreporter.write_line(f"{what} = {value}")
 
 
+_GUI_PROBE = "import pybullet as p; p.disconnect(p.connect(p.GUI)); print('gui ok')"
+
+
+def _gui_opens(display: str) -> bool:
+    """PyBullet's GUI opens on ``display`` (tried in a child process: when it cannot open the
+    display, PyBullet calls exit() in its GUI thread, which ends the process with status 0, or
+    deadlocks it once torch is imported)."""
+    import os
+    import subprocess
+    import sys
+
+    try:
+        out = subprocess.run([sys.executable, "-c", _GUI_PROBE], env={**os.environ, "DISPLAY": display},
+                             capture_output=True, text=True, timeout=60)
+    except subprocess.TimeoutExpired:
+        return False
+    return out.returncode == 0 and "gui ok" in out.stdout
+
+
 @pytest.fixture(scope="session")
 def display():
-    """An X display for GUI tests: the current one if it answers, else a private Xvfb."""
+    """An X display for GUI tests: the current one if it answers, else a private Xvfb on which
+    PyBullet's GUI has been seen to open (a fresh Xvfb now and then refuses PyBullet's first
+    connection; a new one is started then, up to three times)."""
     import os
     import shutil
     import subprocess
@@ -86,18 +134,24 @@ def display():
         return
     if shutil.which("Xvfb") is None:
         pytest.skip("no X display and Xvfb is not installed (apt-get install xvfb)")
-    number = 90 + os.getpid() % 500
-    proc = subprocess.Popen(["Xvfb", f":{number}", "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     old = os.environ.get("DISPLAY")
-    os.environ["DISPLAY"] = f":{number}"
-    for _ in range(100):
-        if display_available():
+    proc = None
+    for attempt in range(3):
+        number = 90 + (os.getpid() + 7 * attempt) % 500
+        proc = subprocess.Popen(["Xvfb", f":{number}", "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        for _ in range(100):
+            if display_available(f":{number}"):
+                break
+            time.sleep(0.05)
+        if display_available(f":{number}") and _gui_opens(f":{number}"):
             break
-        time.sleep(0.05)
-    else:
         proc.kill()
-        pytest.skip("Xvfb did not start")
+        proc.wait(timeout=10)
+        proc = None
+    if proc is None:
+        pytest.skip("PyBullet's GUI could not open a private Xvfb (3 tries)")
+    os.environ["DISPLAY"] = f":{number}"
     yield os.environ["DISPLAY"]
     proc.terminate()
     proc.wait(timeout=10)

@@ -4,8 +4,13 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import re
+import subprocess
+import sys
+import time
 import warnings
+from dataclasses import replace
 
 import gymnasium as gym
 import numpy as np
@@ -14,10 +19,12 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import bulletnav  # noqa: F401  (registers the env)
+from bulletnav.bench.env_bench import bench_env
 from bulletnav.cli import main
-from bulletnav.config import asset_path
-from bulletnav.envs.task import REWARD_TERMS
+from bulletnav.config import EnvConfig, ImuConfig, LidarConfig, OdometryConfig, SensorsConfig, asset_path
 from bulletnav.errors import DisplayError
+from bulletnav.sim.generators import WORLDS
+from bulletnav.tasks import TASKS, NavigationTask
 
 ENV_ID = "bulletnav/Warehouse-v0"
 ACTION_SPACE_ADVICE = ("symmetric and normalized", "symmetric and normalized Box action space")
@@ -53,19 +60,29 @@ def test_spaces_match_the_article(make_env):
     assert env.spec.max_episode_steps == 1000
     obs, info = env.reset(seed=0)
     assert env.observation_space.contains(obs)
-    assert len(env.unwrapped.world.obstacle_ids) == 31
-    assert set(env.unwrapped.sensors) == {"lidar", "camera", "imu", "odometry"}
-    for name in REWARD_TERMS:
-        assert info[f"reward_{name}"] == 0.0
-    # Observation entries against their sources.
     u = env.unwrapped
-    x, y, yaw = u.robot.pose()
+    scene = u.scene
+    assert len(u._scene.sim.world.obstacle_ids) == 31 and len(scene.layout.obstacles) == 31
+    assert set(scene.sensors.present()) == {"lidar", "camera", "imu", "odometry"}
+    assert u.task.reward_terms == NavigationTask.reward_terms
+    assert len(u.task.reward_terms) == 7
+    for name in u.task.reward_terms:
+        assert info[f"reward_{name}"] == 0.0
+    assert info["end_reason"] is None
+    # Observation entries against their sources (the live PyBullet pose, not the view's snapshot).
+    x, y, yaw = u._scene.robot.pose()
+    assert scene.pose == (x, y, yaw)
+    np.testing.assert_array_equal(info["pose"], scene.pose)
+    np.testing.assert_allclose(scene.start, scene.pose, atol=1e-9)  # placed at rest where it starts
     gx, gy = info["goal"]
+    assert scene.goal == (gx, gy) and scene.goals == ((gx, gy),)
     assert obs[42] == pytest.approx(math.hypot(gx - x, gy - y) / 10, abs=1e-6)
     assert obs[36] * math.pi == pytest.approx(math.remainder(math.atan2(gy - y, gx - x) - yaw, 2 * math.pi), abs=1e-5)
-    np.testing.assert_allclose(obs[:36], u.sensors["lidar"].read() / 5.0, atol=1e-6)
+    np.testing.assert_allclose(obs[:36], scene.sensors.lidar.read() / 5.0, atol=1e-6)
 
 
+@pytest.mark.gui
+@pytest.mark.slow
 @pytest.mark.parametrize("render_mode", [None, "rgb_array"])
 def test_checkers_pass_without_warnings_with_normalized_actions(make_env, display, render_mode):
     env = make_env(normalize_actions=True, render_mode=render_mode)
@@ -77,6 +94,8 @@ def test_checkers_pass_without_warnings_with_normalized_actions(make_env, displa
     assert all(WRAPPED_ADVICE in w for w in _all_warnings(lambda: gym_check_env(env, skip_render_check=True)))
 
 
+@pytest.mark.gui
+@pytest.mark.slow
 def test_checkers_pass_in_human_mode(make_env, display):
     env = make_env(normalize_actions=True, render_mode="human")
     # PyBullet allows one GUI connection per process, and Gymnasium's render and close
@@ -122,7 +141,7 @@ def _rollout(seed: int, steps: int = 300):
             obs, info = env.reset()
             resets += 1
             trace.append((obs, info))
-    layout = env.unwrapped.layout
+    layout = env.unwrapped.scene.layout
     env.close()
     return trace, resets, layout
 
@@ -160,19 +179,127 @@ def test_seeded_reset_is_independent_of_history(make_env):
     np.testing.assert_array_equal(step_a, step_b)
 
 
-def test_reward_terms_sum_to_the_reward(make_env):
-    env = make_env()
-    env.action_space.seed(0)
-    env.reset(seed=5)
-    seen = set()
-    for _ in range(400):
-        _, reward, terminated, truncated, info = env.step(env.action_space.sample())
-        terms = [info[f"reward_{name}"] for name in REWARD_TERMS]
-        assert sum(terms) == pytest.approx(reward, abs=1e-12)
-        seen |= {name for name, t in zip(REWARD_TERMS, terms) if t != 0.0}
+# Env settings for the property tests over random rollouts, each with its own rollout seed
+# (the same seed would drive the normalized env along the default env's path).
+ROLLOUT_SETTINGS = {
+    "default": ({}, 5),
+    "normalized": ({"normalize_actions": True}, 6),
+    "odometry-pose-noisy": ({"pose_source": "odometry", "lidar_noise": 0.05, "odometry_noise": 0.01}, 7),
+}
+
+
+def _random_rollout(env, steps: int, seed: int):
+    """``steps`` uniform random actions from ``np.random.default_rng(seed)``, reaching 25 %
+    past each bound of the action box (clipped by the env); a new episode at every end.
+    Yields ``(obs, reward, terminated, truncated, info)``, the reset's with reward None."""
+    rng = np.random.default_rng(seed)
+    low, high = env.action_space.low, env.action_space.high
+    pad = 0.25 * (high - low)
+    obs, info = env.reset(seed=seed)
+    yield obs, None, False, False, info
+    for _ in range(steps):
+        obs, reward, terminated, truncated, info = env.step(rng.uniform(low - pad, high + pad).astype(np.float32))
+        yield obs, reward, terminated, truncated, info
         if terminated or truncated:
-            env.reset()
+            obs, info = env.reset()
+            yield obs, None, False, False, info
+
+
+@pytest.mark.parametrize("setting", ROLLOUT_SETTINGS)
+def test_reward_terms_sum_to_the_reward(make_env, setting):
+    kwargs, seed = ROLLOUT_SETTINGS[setting]
+    env = make_env(**kwargs)
+    names = env.unwrapped.task.reward_terms
+    seen, steps, ends = set(), 0, 0
+    for _, reward, terminated, truncated, info in _random_rollout(env, 1000, seed=seed):
+        terms = [info[f"reward_{name}"] for name in names]
+        if reward is None:  # a reset: every term starts at zero
+            assert terms == [0.0] * len(names)
+            continue
+        steps += 1
+        ends += terminated or truncated
+        assert type(reward) is float and all(type(t) is float for t in terms)
+        assert reward == sum(terms)  # exactly: the env adds the same floats in the same order
+        seen |= {name for name, t in zip(names, terms) if t != 0.0}
+    assert steps == 1000 and ends >= 2, "the rollout should span several episodes"
     assert {"progress", "time", "heading"} <= seen
+
+
+@pytest.mark.parametrize("setting", ROLLOUT_SETTINGS)
+def test_every_observation_lies_in_the_observation_space(make_env, setting):
+    kwargs, seed = ROLLOUT_SETTINGS[setting]
+    env = make_env(**kwargs)
+    space = env.observation_space
+    count, resets = 0, 0
+    lo, hi = np.full(space.shape, np.inf), np.full(space.shape, -np.inf)
+    for obs, reward, _, _, _ in _random_rollout(env, 1000, seed=seed + 100):
+        assert space.contains(obs), f"observation {count} is outside {space}: {obs}"
+        lo, hi = np.minimum(lo, obs), np.maximum(hi, obs)
+        count += 1
+        resets += reward is None
+    assert count == 1000 + resets and resets >= 2
+    # The rollout reaches the lidar's range limit (nothing hit) and comes within 0.25 m of obstacles.
+    assert lo[:36].min() < 0.05 and hi[:36].max() == 1.0
+
+
+_HASH_SCRIPT = """
+import hashlib
+
+import gymnasium as gym
+import numpy as np
+
+import bulletnav  # noqa: F401
+
+
+def trace_hash(seed, steps):
+    \"\"\"SHA-256 of every observation, reward, end flag and float info entry of a seeded
+    random rollout (seeded resets), and the number of episode ends.\"\"\"
+    env = gym.make("bulletnav/Warehouse-v0", lidar_noise=0.02)
+    rng = np.random.default_rng(seed)
+    digest = hashlib.sha256()
+
+    def add(obs, info):
+        digest.update(obs.tobytes())
+        for key in sorted(info):
+            value = info[key]
+            if isinstance(value, (float, tuple, np.ndarray)) and not isinstance(value, bool):
+                digest.update(key.encode() + np.asarray(value, dtype=np.float64).tobytes())
+
+    ends = 0
+    obs, info = env.reset(seed=seed)
+    add(obs, info)
+    for _ in range(steps):
+        obs, reward, terminated, truncated, info = env.step(rng.uniform(env.action_space.low, env.action_space.high))
+        digest.update(np.float64(reward).tobytes() + bytes([terminated, truncated]))
+        add(obs, info)
+        if terminated or truncated:
+            ends += 1
+            obs, info = env.reset(seed=seed + ends)
+            add(obs, info)
+    env.close()
+    return digest.hexdigest(), ends
+"""
+
+
+def test_same_seed_gives_the_same_trajectory_in_two_processes():
+    """Two fresh interpreters (with different string-hash seeds) run the same seeded rollout;
+    the hashes of everything they saw agree bit for bit, and agree with this process's."""
+    seed, steps = 3, 200
+    code = _HASH_SCRIPT + f"\nprint(*trace_hash({seed}, {steps}))\n"
+    procs = [subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                              env={**os.environ, "PYTHONHASHSEED": str(k)}) for k in (1, 2)]
+    results = []
+    for proc in procs:
+        out, err = proc.communicate(timeout=300)
+        assert proc.returncode == 0, err
+        digest, ends = out.strip().splitlines()[-1].split()
+        results.append((digest, int(ends)))
+    assert results[0] == results[1]
+    assert re.fullmatch(r"[0-9a-f]{64}", results[0][0]) and results[0][1] >= 1, "the rollout should end an episode"
+    namespace: dict = {}
+    exec(compile(_HASH_SCRIPT, "<trace_hash>", "exec"), namespace)
+    assert namespace["trace_hash"](seed, steps) == results[0]  # here too, after other tests' envs
+    assert namespace["trace_hash"](seed + 1, steps)[0] != results[0][0]  # the hash sees the trajectory
 
 
 EMPTY = str(asset_path("worlds", "empty.yaml"))
@@ -204,7 +331,30 @@ def test_driving_into_a_wall_truncates_with_the_collision_term(make_env):
             break
     assert truncated and not terminated
     assert info["collision"] and info["reward_collision"] == -10.0 and not info["is_success"]
-    assert env.unwrapped.robot.pose()[0] == pytest.approx(5.0 - 0.15, abs=0.06)  # front face at the wall
+    assert info["end_reason"] == "collision"
+    assert env.unwrapped.scene.pose[0] == pytest.approx(5.0 - 0.15, abs=0.06)  # front face at the wall
+
+
+def _into_the_wall(env):
+    """Rewards, end flags and last info of the same seeded drive into the east wall as above."""
+    env.reset(seed=0, options={"start": (3.5, 0.0, 0.0), "goal": (-3.0, 0.0)})
+    rewards = []
+    for _ in range(200):
+        _, reward, terminated, truncated, info = env.step(np.array([0.5, 0.0]))
+        rewards.append(reward)
+        if terminated or truncated:
+            break
+    return rewards, terminated, truncated, info
+
+
+def test_driving_into_a_wall_terminates_with_collision_terminates(make_env):
+    default = _into_the_wall(make_env(world=EMPTY))
+    rewards, terminated, truncated, info = _into_the_wall(make_env(world=EMPTY, collision_terminates=True))
+    assert terminated and not truncated
+    assert info["end_reason"] == "collision" and info["collision"] and not info["is_success"]
+    assert info["reward_collision"] == -10.0
+    assert default[1:3] == (False, True) and default[3]["end_reason"] == "collision"
+    assert rewards == default[0]  # the same episode, step for step: only the end flag differs
 
 
 def test_top_speed_into_a_wall_never_passes_through(make_env):
@@ -213,7 +363,7 @@ def test_top_speed_into_a_wall_never_passes_through(make_env):
     xs = []
     for _ in range(24 * 20):  # keep pushing for 20 s after the contact, ignoring truncation
         env.unwrapped.step(np.array([0.5, 0.0]))
-        xs.append(env.unwrapped.robot.pose()[0])
+        xs.append(env.unwrapped._scene.robot.pose()[0])
     assert max(xs) < 5.0  # the wall's inner face is at x = 5 m
 
 
@@ -226,6 +376,14 @@ def test_bad_actions_and_options(make_env):
         env.step(np.array([0.1, np.inf]))
     assert env.unwrapped.command(np.array([9.0, -9.0])) == (0.5, -1.5)  # clipped
     assert env.unwrapped.command(np.array([-1.0, 0.7])) == (0.0, 0.7)
+    assert env.unwrapped.command([0.25, -0.5]) == (0.25, -0.5)  # any 2 numbers will do
+    assert env.unwrapped.command(np.array([0, 1])) == (0.0, 1.0)
+    for bad in ({"v": 0.1, "w": 0.0}, np.array([0.1, 0.0, 0.0]), [0.1, 0.0, 0.0], "fast"):
+        with pytest.raises(ValueError, match="action must be 2 numbers"):
+            env.step(bad)
+    with pytest.raises(ValueError) as err:
+        gym.make(ENV_ID, min_goal_distance=5, max_goal_distance=3)
+    assert "min_goal_distance" in str(err.value) and "max_goal_distance" in str(err.value)
     with pytest.raises(ValueError, match="options\\['start'\\]"):
         env.reset(options={"start": (1.0, 2.0)})
     with pytest.raises(TypeError, match="unknown keyword argument 'num_obstacle'"):
@@ -243,13 +401,17 @@ def test_normalized_actions_map_onto_the_physical_range(make_env):
 def test_options_place_start_and_goal_exactly(make_env):
     env = make_env(layouts_every=100)  # keep the warehouse across resets
     obs, info = env.reset(seed=2)
-    layout = env.unwrapped.layout
-    free = env.unwrapped.free_space
+    u = env.unwrapped
+    layout = u.scene.layout
+    free = u._scene.free_space
+    builds = u.scene.scene_builds
     (sx, sy, _), goal = info["pose"], info["goal"]
     _, info2 = env.reset(options={"start": (float(sx), float(sy), 0.5), "goal": goal})
-    assert env.unwrapped.layout is layout and free is env.unwrapped.free_space
+    assert u.scene.layout is layout and free is u._scene.free_space
+    assert u.scene.scene_builds == builds  # teleported, not rebuilt
     np.testing.assert_allclose(info2["pose"], [sx, sy, 0.5], atol=1e-9)
     assert info2["goal"] == goal
+    assert u.scene.start == (float(sx), float(sy), 0.5) and u.scene.goal == goal
 
 
 def test_kwargs_reach_the_configs(make_env):
@@ -258,12 +420,16 @@ def test_kwargs_reach_the_configs(make_env):
     u = env.unwrapped
     assert env.observation_space.shape == (79,)
     _, info = env.reset(seed=0)
-    assert len(u.world.obstacle_ids) == 12
+    assert len(u._scene.sim.world.obstacle_ids) == 12
     assert u.config.physics.substeps == 20
     assert u.config.task.reward.collision == -20.0
     assert 3.0 <= info["initial_distance"] <= 4.0
     with pytest.raises(ValueError, match="must divide"):
         gym.make(ENV_ID, control_hz=7)
+    cfg = make_env(collision_terminates=True, layout_style="scattered", lidar_rate_hz=12.0, camera_enabled=False,
+                   task_name="navigation").unwrapped.config
+    assert cfg.task.collision_terminates is True and cfg.world.style == "scattered" and cfg.task_name == "navigation"
+    assert cfg.sensors.lidar.rate_hz == 12.0 and cfg.sensors.camera.enabled is False
 
 
 def test_camera_observations(make_env):
@@ -275,22 +441,101 @@ def test_camera_observations(make_env):
     assert _all_warnings(lambda: gym_check_env(env.unwrapped, skip_render_check=True)) == []
 
 
+def _free_client_slot() -> int:
+    """The id PyBullet gives the next client (it reuses the lowest free one)."""
+    import pybullet as p
+
+    cid = p.connect(p.DIRECT)
+    p.disconnect(cid)
+    return cid
+
+
+def test_disabled_camera_changes_no_observation(make_env):
+    """The camera is only rendered when read, and its noise seed is drawn whether it exists or
+    not: without it the env gives the same episodes, observation for observation."""
+    on, off = make_env(lidar_noise=0.02), make_env(lidar_noise=0.02, camera_enabled=False)
+    assert on.unwrapped._scene.sensors.camera is not None
+    assert off.unwrapped._scene.sensors.camera is None
+    assert set(off.unwrapped.scene.sensors.present()) == {"lidar", "imu", "odometry"}
+    a, b = list(_random_rollout(on, 300, seed=8)), list(_random_rollout(off, 300, seed=8))
+    assert sum(r is None for _, r, *_ in a) >= 2, "the rollout should span several episodes"
+    assert len(a) == len(b)
+    for (obs_a, *rest_a, info_a), (obs_b, *rest_b, info_b) in zip(a, b):
+        np.testing.assert_array_equal(obs_a, obs_b)
+        assert rest_a == rest_b and info_a["distance_to_goal"] == info_b["distance_to_goal"]
+    slot = _free_client_slot()
+    with pytest.raises(ValueError, match="camera_obs=True needs the camera sensor"):
+        gym.make(ENV_ID, camera_obs=True, camera_enabled=False)
+    assert _free_client_slot() == slot  # the failed env closed its physics client
+
+
+def test_lidar_rate_holds_each_scan_for_its_period(make_env):
+    """At 12 Hz (half the 24 Hz control rate) a new scan comes every second step and the step
+    in between repeats it; the rest of the observation, and the physics, are untouched."""
+    fast, slow = make_env(), make_env(lidar_rate_hz=12)
+    assert slow.unwrapped._scene.sensors.lidar.period == 2 * fast.unwrapped._scene.sensors.lidar.period == 20
+    runs = []
+    for env in (fast, slow):
+        obs, _ = env.reset(seed=4)
+        trace = [obs]
+        for _ in range(48):  # 2 s driving a tight circle (ignoring any episode end)
+            trace.append(env.unwrapped.step(np.array([0.1, 1.5]))[0])
+        runs.append(np.array(trace))
+        yaw_turned = abs(math.remainder(env.unwrapped.scene.pose[2] - env.unwrapped.scene.start[2], 2 * math.pi))
+        assert yaw_turned > 0.3  # the robot moved (2.9 rad of turn, wrapped)
+    f, s = runs
+    n = 36
+    assert np.all(np.any(f[1:, :n] != f[:-1, :n], axis=1)), "the default lidar scans every step"
+    changed = np.any(s[1:, :n] != s[:-1, :n], axis=1)
+    np.testing.assert_array_equal(changed, np.arange(1, 49) % 2 == 0)
+    for k in range(len(s)):  # the held scan is the one taken at the last even step
+        np.testing.assert_array_equal(s[k, :n], f[k - k % 2, :n])
+    np.testing.assert_array_equal(s[:, n:], f[:, n:])
+
+
+@pytest.mark.parametrize("sensor, config", [("lidar", LidarConfig(enabled=False)), ("imu", ImuConfig(enabled=False)),
+                                            ("odometry", OdometryConfig(enabled=False))])
+def test_navigation_task_refuses_a_missing_sensor(sensor, config):
+    cfg = EnvConfig(sensors=replace(SensorsConfig(), **{sensor: config}))
+    slot = _free_client_slot()
+    with pytest.raises(ValueError, match=f"the navigation task needs the {sensor} sensor"):
+        gym.make(ENV_ID, config=cfg)
+    assert _free_client_slot() == slot  # the failed env closed its physics client
+
+
+def test_unknown_task_and_world_style_list_the_registered_ones():
+    with pytest.raises(ValueError, match="unknown task_name 'nope'") as err:
+        gym.make(ENV_ID, task_name="nope")
+    assert "navigation" in TASKS and all(name in str(err.value) for name in TASKS)
+    with pytest.raises(ValueError, match="unknown layout_style 'nope'") as err:
+        gym.make(ENV_ID, layout_style="nope")
+    assert "scattered" in WORLDS and all(style in str(err.value) for style in WORLDS)
+
+
 def test_yaml_world_uses_its_start_and_goal(make_env):
     env = make_env(world=str(asset_path("worlds", "aisles.yaml")))
     _, info = env.reset(seed=0)
     np.testing.assert_allclose(info["pose"], [-5.0, -4.0, 0.0], atol=1e-6)
     assert info["goal"] == (4.5, 4.2)
-    assert len(env.unwrapped.world.obstacle_ids) == 10
+    assert len(env.unwrapped._scene.sim.world.obstacle_ids) == 10 and len(env.unwrapped.scene.layout.obstacles) == 10
 
 
 def test_bench_env_cli_prints_the_ratio_with_its_provenance(capsys):
     """``bulletnav bench env --json``: both loops' rates, their ratio, and where the figures
     came from (no timing is asserted: these machines are noisy)."""
+    t0 = time.perf_counter()
     assert main(["bench", "env", "--steps", "200", "--json"]) == 0
+    elapsed = time.perf_counter() - t0
     result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert result["benchmark"] == "env" and result["steps"] == 200
-    assert result["env_steps_per_s"] > 0 and result["raw_steps_per_s"] > 0
-    assert result["ratio"] > 0 and result["env_overhead_us_per_step"] == pytest.approx(
+    # Both timed loops ran inside the command: their times add up to less than its wall time.
+    assert 200 / result["env_steps_per_s"] + 200 / result["raw_steps_per_s"] < elapsed
+    assert result["ratio_of_totals"] == pytest.approx(result["env_steps_per_s"] / result["raw_steps_per_s"], rel=1e-3)
+    assert result["env_overhead_us_per_step"] == pytest.approx(
         (1 / result["env_steps_per_s"] - 1 / result["raw_steps_per_s"]) * 1e6, abs=0.5)
+    # The headline ratio is the median of per-block ratios: with one block, the ratio of totals.
+    single = bench_env(steps=100, block=100)
+    assert single["ratio"] == single["ratio_of_totals"]
+    assert single["ratio"] == pytest.approx(single["env_steps_per_s"] / single["raw_steps_per_s"], rel=1e-3)
     assert re.fullmatch(r"([0-9a-f]{40}(-dirty)?|unknown)", result["git_commit"])
     assert "cores, python" in result["machine"] and result["command"]

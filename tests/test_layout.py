@@ -8,18 +8,20 @@ import numpy as np
 import pytest
 from scipy.sparse import csgraph
 
-from bulletnav.config import SamplerConfig, WorldConfig, asset_path
+from bulletnav.config import RobotConfig, SamplerConfig, WorldConfig, asset_path
 from bulletnav.errors import LayoutError, SamplingError
+from bulletnav.geometry import robot_geometry
 from bulletnav.sim.layout import generate_warehouse, layout_to_dict, load_layout, parse_layout
 from bulletnav.sim.sampler import FreeSpace, sample_start_goal
 
+RADIUS = robot_geometry().radius  # the robot's disc for reachability (RobotConfig.footprint_radius)
 BASE = {"size": [10.0, 8.0], "obstacles": [{"type": "box", "center": [1.0, 1.0], "size": [1.0, 0.5, 1.0]}]}
 
 
 @pytest.mark.parametrize("name", ["aisles", "hall", "empty"])
 def test_sample_layouts_load_and_admit_start_goal_pairs(name):
     layout = load_layout(asset_path("worlds", f"{name}.yaml"))
-    free = FreeSpace.build(layout, SamplerConfig())
+    free = FreeSpace.build(layout, SamplerConfig(), RADIUS)
     start, goal = sample_start_goal(free, np.random.default_rng(0), SamplerConfig())
     assert free.reachable(start[:2], goal)
     if layout.start is not None:
@@ -107,10 +109,11 @@ def test_too_many_obstacles_raise_a_clear_error():
 
 def test_sampler_respects_distance_clearance_and_reachability():
     cfg = SamplerConfig()
+    assert RADIUS == RobotConfig().footprint_radius == 0.2  # what SamplerConfig.robot_radius was
     rng = np.random.default_rng(11)
     for seed in range(10):
         layout = generate_warehouse(np.random.default_rng(seed))
-        free = FreeSpace.build(layout, cfg)
+        free = FreeSpace.build(layout, cfg, RADIUS)
         for _ in range(5):
             (sx, sy, syaw), (gx, gy) = sample_start_goal(free, rng, cfg)
             d = math.hypot(gx - sx, gy - sy)
@@ -121,16 +124,19 @@ def test_sampler_respects_distance_clearance_and_reachability():
 
 
 def _reachable_independent(layout, a, b, cfg):
-    """Reachability by scipy connected components on a 4-connected graph of passable cells."""
-    passable = ~layout.occupancy(cfg.grid_resolution, inflate=cfg.robot_radius)
+    """Reachability by scipy connected components on an 8-connected graph of passable cells
+    (the layout's own occupancy grid, obstacles grown by the robot's disc)."""
+    passable = ~layout.occupancy(cfg.grid_resolution, inflate=RADIUS)
     idx = -np.ones(passable.shape, dtype=int)
     idx[passable] = np.arange(passable.sum())
     rows, cols = [], []
-    for di, dj in ((1, 0), (0, 1), (1, 1), (1, -1)):
-        src = idx[max(0, -di):passable.shape[0] - max(0, di), max(0, -dj):passable.shape[1] - max(0, dj)]
-        dst = idx[max(0, di):, max(0, dj):][: src.shape[0], : src.shape[1]] if dj >= 0 else idx[di:, : passable.shape[1] + dj][: src.shape[0]]
+    h, w = passable.shape
+    for di, dj in ((1, 0), (0, 1), (1, 1), (1, -1)):  # each neighbour pair once
+        src = idx[max(0, -di):h - max(0, di), max(0, -dj):w - max(0, dj)]
+        dst = idx[max(0, di):h - max(0, -di), max(0, dj):w - max(0, -dj)]
         ok = (src >= 0) & (dst >= 0)
-        rows += list(src[ok]); cols += list(dst[ok])
+        rows += list(src[ok])
+        cols += list(dst[ok])
     from scipy.sparse import coo_matrix
 
     n = int(passable.sum())
@@ -146,12 +152,12 @@ def test_layout_without_valid_pair_raises(write_layout):
     # A wall of boxes splits the room; each half is too small for a 2 m start-goal distance.
     layout = write_layout({"size": [2.5, 3.0], "obstacles": [{"type": "box", "center": [0.0, 0.0], "size": [2.5, 0.4, 1.0]}]})
     with pytest.raises(SamplingError, match="no reachable start/goal pair"):
-        sample_start_goal(FreeSpace.build(layout, SamplerConfig()), np.random.default_rng(0), SamplerConfig(max_tries=50))
+        sample_start_goal(FreeSpace.build(layout, SamplerConfig(), RADIUS), np.random.default_rng(0), SamplerConfig(max_tries=50))
 
 
 def test_disconnected_halves_are_not_reachable(write_layout):
     layout = write_layout({"size": [10.0, 4.0], "obstacles": [{"type": "box", "center": [0.0, 0.0], "size": [0.4, 4.0, 1.0]}]})
-    free = FreeSpace.build(layout, SamplerConfig())
+    free = FreeSpace.build(layout, SamplerConfig(), RADIUS)
     assert not free.reachable((-3.0, 0.0), (3.0, 0.0))
     assert free.reachable((-3.0, 0.0), (-1.0, 1.0))
     for seed in range(20):

@@ -6,18 +6,23 @@ import math
 
 import numpy as np
 import pytest
-from conftest import drive
 
+from bulletnav.geometry import robot_geometry
 from bulletnav.sim.layout import Layout
+from conftest import drive
 
 FLAT = Layout((30.0, 30.0))
 
 
-def test_geometry_is_read_from_the_urdf(make_sim, rng):
+def test_geometry_is_read_from_the_urdf(make_sim):
     sim = make_sim()
-    sim.reset(FLAT, (0.0, 0.0, 0.0), rng)
+    sim.reset(FLAT, (0.0, 0.0, 0.0))
     assert sim.robot.wheel_radius == pytest.approx(0.05)
     assert sim.robot.wheelbase == pytest.approx(0.22)
+    # PyBullet's loaded model and the URDF parse that every other consumer uses agree.
+    geometry = robot_geometry()
+    assert geometry.wheel_radius == pytest.approx(sim.robot.wheel_radius, abs=1e-9)
+    assert geometry.wheelbase == pytest.approx(sim.robot.wheelbase, abs=1e-9)
     # Resting on wheels and caster, level, body origin 7 cm up.
     drive(sim, 0.0, 0.0, 1.0)
     pos, orn = sim.robot.pose3d()
@@ -26,9 +31,9 @@ def test_geometry_is_read_from_the_urdf(make_sim, rng):
 
 
 @pytest.mark.parametrize("yaw", [0.0, 2.0])
-def test_straight_line_covers_the_commanded_distance_without_drift(make_sim, rng, report, yaw):
+def test_straight_line_covers_the_commanded_distance_without_drift(make_sim, report, yaw):
     sim = make_sim()
-    sim.reset(FLAT, (1.0, -2.0, yaw), rng)
+    sim.reset(FLAT, (1.0, -2.0, yaw))
     drive(sim, 0.4, 0.0, 3.0)
     x, y, _ = sim.robot.pose()
     dx, dy = x - 1.0, y + 2.0
@@ -41,9 +46,9 @@ def test_straight_line_covers_the_commanded_distance_without_drift(make_sim, rng
 
 
 @pytest.mark.parametrize("w", [1.0, -1.0, 0.5])
-def test_turn_in_place_reaches_the_commanded_yaw_rate(make_sim, rng, report, w):
+def test_turn_in_place_reaches_the_commanded_yaw_rate(make_sim, report, w):
     sim = make_sim()
-    sim.reset(FLAT, (0.0, 0.0, 0.0), rng)
+    sim.reset(FLAT, (0.0, 0.0, 0.0))
     drive(sim, 0.0, w, 0.5)  # settle
     yaws = []
     for _ in range(48):  # 2 s
@@ -55,24 +60,24 @@ def test_turn_in_place_reaches_the_commanded_yaw_rate(make_sim, rng, report, w):
     assert np.hypot(*sim.robot.pose()[:2]) < 0.03  # turned in place
 
 
-def test_arc_matches_kinematics(make_sim, rng):
+def test_arc_matches_kinematics(make_sim):
     sim = make_sim()
-    sim.reset(FLAT, (0.0, 0.0, 0.0), rng)
+    sim.reset(FLAT, (0.0, 0.0, 0.0))
     drive(sim, 0.3, 0.6, 1.0)
     v, w = sim.robot.velocity()
     assert v == pytest.approx(0.3, rel=0.05)
     assert w == pytest.approx(0.6, rel=0.05)
 
 
-def test_non_finite_command_is_refused(make_sim, rng):
+def test_non_finite_command_is_refused(make_sim):
     sim = make_sim()
-    sim.reset(FLAT, (0.0, 0.0, 0.0), rng)
+    sim.reset(FLAT, (0.0, 0.0, 0.0))
     with pytest.raises(ValueError, match="finite"):
         sim.robot.set_velocity(float("nan"), 0.0)
 
 
 @pytest.mark.parametrize("face_y, touching", [(-0.14, False), (-0.125, False), (-0.115, True), (-0.095, True)])
-def test_obstacles_meet_the_wheels_true_width(make_sim, rng, face_y, touching):
+def test_obstacles_meet_the_wheels_true_width(make_sim, face_y, touching):
     """A wall beside the right wheel counts as contact only once it reaches the wheel's
     0.02 m-wide footprint (outer face at y = -0.12), not the 0.05 m rolling sphere's
     (y = -0.16), and it does touch the body side (y = -0.10)."""
@@ -82,6 +87,10 @@ def test_obstacles_meet_the_wheels_true_width(make_sim, rng, face_y, touching):
 
     wall = Obstacle("box", (0.0, face_y - 0.05), (0.04, 0.1, 0.5))
     sim = make_sim()
-    sim.reset(Layout((10.0, 10.0), obstacles=(wall,)), (0.0, 0.0, 0.0), rng)
+    sim.reset(Layout((10.0, 10.0), obstacles=(wall,)), (0.0, 0.0, 0.0))
     p.performCollisionDetection(physicsClientId=sim.cid)
     assert sim.in_collision() is touching
+    # The outline every planner and sampler uses (parsed from the URDF) puts the edge at the same place.
+    edge = max(half_y for _, half_y in robot_geometry().centred_rectangles)
+    assert edge == pytest.approx(0.12)
+    assert (face_y > -edge) is touching

@@ -1,39 +1,43 @@
-"""The composed simulation: client isolation, episode resets without leaks, determinism."""
+"""The simulation and its scene: client isolation, episode resets without leaks, determinism."""
 
 from __future__ import annotations
 
 import numpy as np
 import psutil
 import pytest
-from conftest import drive
 
 from bulletnav.config import WorldConfig
 from bulletnav.sim.layout import generate_warehouse
+from conftest import drive, place
 
 
-def test_two_worlds_in_one_process_stay_independent(make_sim):
-    a, b = make_sim(), make_sim()
+def test_two_worlds_in_one_process_stay_independent(make_scene):
+    a, b = make_scene(), make_scene()
     assert a.cid != b.cid
     layout_a = generate_warehouse(np.random.default_rng(1))
     layout_b = generate_warehouse(np.random.default_rng(2), WorldConfig(num_obstacles=10))
-    a.reset(layout_a, (0.0, 0.0, 0.0), np.random.default_rng(0))
-    b.reset(layout_b, (0.0, 0.0, 0.0), np.random.default_rng(0))
+    place(a, layout_a, (0.0, 0.0, 0.0), np.random.default_rng(0))
+    place(b, layout_b, (0.0, 0.0, 0.0), np.random.default_rng(0))
     # Reference: `a` driven alone in a third client.
-    ref = make_sim()
-    ref.reset(layout_a, (0.0, 0.0, 0.0), np.random.default_rng(0))
+    ref = make_scene()
+    place(ref, layout_a, (0.0, 0.0, 0.0), np.random.default_rng(0))
     for _ in range(48):
         a.step(0.3, 0.4)
         b.step(0.0, -1.0)  # interleaved commands to the other world
         ref.step(0.3, 0.4)
     np.testing.assert_array_equal(a.robot.pose(), ref.robot.pose())
-    np.testing.assert_array_equal(a.sensors["lidar"].read(), ref.sensors["lidar"].read())
-    assert len(a.world.obstacle_ids) == 31 and len(b.world.obstacle_ids) == 10
+    np.testing.assert_array_equal(a.sensors.lidar.read(), ref.sensors.lidar.read())
+    np.testing.assert_array_equal(a.sensors.imu.read(), ref.sensors.imu.read())
+    np.testing.assert_array_equal(a.sensors.odometry.read(), ref.sensors.odometry.read())
+    assert len(a.sim.world.obstacle_ids) == 31 and len(b.sim.world.obstacle_ids) == 10
     assert np.hypot(*b.robot.pose()[:2]) < 0.05  # b turned in place, unaffected by a's driving
     b.close()
     a.step(0.3, 0.4)  # closing one client leaves the other working
+    ref.step(0.3, 0.4)
+    np.testing.assert_array_equal(a.robot.pose(), ref.robot.pose())
 
 
-def test_robot_snapshot_equals_live_state_after_every_step_and_reset(make_sim, rng):
+def test_robot_snapshot_equals_live_state_after_every_step_and_reset(make_sim):
     """Sensors and task read ``robot.state`` instead of querying PyBullet again; it must be
     exactly what the live queries say at every control step, and fresh after a reset."""
     sim = make_sim()
@@ -45,57 +49,60 @@ def test_robot_snapshot_equals_live_state_after_every_step_and_reset(make_sim, r
         assert (s.linear_velocity, s.angular_velocity, s.rotation) == robot.kinematics()
         assert (s.wheel_angles, s.wheel_rates) == robot.wheel_states()
 
-    sim.reset(layout, (0.0, 0.0, 0.3), rng)
+    sim.reset(layout, (0.0, 0.0, 0.3))
     assert_fresh()
     for k in range(30):
         sim.step(0.4, 1.2 if k % 10 < 5 else -0.8)
         assert_fresh()
     assert sim.robot.state.linear_velocity != (0.0, 0.0, 0.0)
-    sim.reset(layout, (1.0, -1.0, -2.0), rng)  # teleport without rebuilding
+    sim.reset(layout, (1.0, -1.0, -2.0))  # teleport without rebuilding
+    assert sim.rebuilds == 1
     assert_fresh()
     assert sim.robot.state.wheel_rates == (0.0, 0.0)
 
 
-def test_same_layout_reset_teleports_without_rebuilding(make_sim, rng):
+def test_same_layout_reset_teleports_without_rebuilding(make_sim):
     sim = make_sim()
     layout = generate_warehouse(np.random.default_rng(5))
     free_pose = (0.0, 0.0, 0.0)
-    sim.reset(layout, free_pose, rng)
+    sim.reset(layout, free_pose)
     drive(sim, 0.4, 0.0, 1.0)
-    sim.reset(layout, free_pose, rng)
+    sim.reset(layout, free_pose)
     assert sim.rebuilds == 1
     assert np.allclose(sim.robot.pose(), [0.0, 0.0, 0.0], atol=1e-9)
     assert sim.clock.tick == 0
+    sim.reset(layout, free_pose, rebuild=True)  # forced
+    assert sim.rebuilds == 2
 
 
-def test_seeded_rollouts_are_bit_identical(make_sim):
+def test_seeded_rollouts_are_bit_identical(make_scene):
     layout = generate_warehouse(np.random.default_rng(9))
     runs = []
     for _ in range(2):
-        sim = make_sim()
-        sim.reset(layout, (0.5, 0.5, 1.0), np.random.default_rng(42))
+        scene = make_scene()
+        place(scene, layout, (0.5, 0.5, 1.0), np.random.default_rng(42))
         trace = []
         for k in range(60):
-            sim.step(0.3, 0.8 * np.sin(k / 5))
-            trace.append(np.concatenate([sim.robot.pose(), sim.sensors["imu"].read(), sim.sensors["odometry"].read()]))
+            scene.step(0.3, 0.8 * np.sin(k / 5))
+            trace.append(np.concatenate([scene.robot.pose(), scene.sensors.imu.read(), scene.sensors.odometry.read()]))
         runs.append(np.array(trace))
     np.testing.assert_array_equal(runs[0], runs[1])
 
 
 @pytest.mark.slow
-def test_thousand_resets_do_not_grow_memory(make_sim, report):
+def test_thousand_resets_do_not_grow_memory(make_scene, report):
     """Alternating two layouts forces a full scene rebuild on every one of the 1,000 resets."""
-    sim = make_sim()
+    scene = make_scene()
     layouts = [generate_warehouse(np.random.default_rng(s)) for s in (1, 2)]
     rng = np.random.default_rng(0)
     proc = psutil.Process()
     rss0 = 0
     for i in range(1000):
-        sim.reset(layouts[i % 2], (0.0, 0.0, 0.0), rng)
-        sim.step(0.2, 0.1)
+        place(scene, layouts[i % 2], (0.0, 0.0, 0.0), rng)
+        scene.step(0.2, 0.1)
         if i == 20:  # after warm-up allocations
             rss0 = proc.memory_info().rss
     growth = (proc.memory_info().rss - rss0) / 2**20
     report("RSS growth over 1,000 rebuilding resets (MiB)", f"{growth:.2f}")
-    assert sim.rebuilds == 1000
+    assert scene.sim.rebuilds == 1000
     assert growth < 20

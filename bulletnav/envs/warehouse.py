@@ -276,10 +276,10 @@ class WarehouseEnv(gym.Env):
                 arr = np.asarray(action, dtype=np.float64)
             except (TypeError, ValueError):
                 arr = None
-            if arr is None or arr.shape != (2,):
+            if arr is None or arr.shape != (2,) or np.iscomplexobj(action):
                 raise ValueError(f"action must be 2 numbers (v, w), got {action!r} of type {type(action).__name__}"
                                  f"{'' if arr is None else f' and shape {arr.shape}'}")
-            a0, a1 = float(action[0]), float(action[1])
+            a0, a1 = float(arr[0]), float(arr[1])
         if not (math.isfinite(a0) and math.isfinite(a1)):
             names = [n for n, x in (("v", a0), ("w", a1)) if not math.isfinite(x)]
             raise ValueError(f"action {[a0, a1]} has non-finite entries: {', '.join(names)}")
