@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from array import array
 from typing import Any
 
 import numpy as np
@@ -74,6 +75,47 @@ class Sensor(ABC):
     @abstractmethod
     def space(self) -> spaces.Space:
         """The Gymnasium space that every :meth:`read` lies in."""
+
+
+class VectorSensor(Sensor):
+    """A sensor whose reading is a flat float32 vector (lidar, IMU, odometry).
+
+    It measures into Python floats rounded to float32 (:meth:`measure_floats`), once per
+    period: :meth:`floats` hands that list to per-step code without touching NumPy (each
+    small NumPy call costs microseconds on a path that runs thousands of times a second),
+    and :meth:`read` / :meth:`current` give the same values as a float32 array.
+    """
+
+    def __init__(self, robot: Robot, clock: Clock, rate_hz: float | None = None) -> None:
+        super().__init__(robot, clock, rate_hz)
+        self._floats: list[float] = []
+        self._float_episode = self._float_slot = -1
+
+    def reset(self, rng: np.random.Generator) -> None:
+        super().reset(rng)
+        self._float_episode = -1
+
+    def floats(self) -> list[float]:
+        """The current reading as a list of Python floats (float32 values, exactly); the
+        caller must not modify it. Measures when a new period has begun."""
+        clock = self.clock
+        slot = clock.tick // self.period
+        if slot != self._float_slot or self._float_episode != clock.episode:
+            self._floats = self.measure_floats()
+            self._float_episode, self._float_slot = clock.episode, slot
+        return self._floats
+
+    def measure(self) -> np.ndarray:
+        return np.array(self.floats(), dtype=np.float32)
+
+    @abstractmethod
+    def measure_floats(self) -> list[float]:
+        """Take a new measurement as float32-rounded Python floats (see :func:`float32_list`)."""
+
+
+def float32_list(values: Any) -> list[float]:
+    """``values`` rounded to float32 (as NumPy's cast rounds) and returned as Python floats."""
+    return array("f", values).tolist()
 
 
 def _copy(value: Any) -> Any:

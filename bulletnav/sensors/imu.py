@@ -6,12 +6,12 @@ import numpy as np
 from gymnasium import spaces
 
 from bulletnav.config import ImuConfig
-from bulletnav.sensors.base import Sensor
+from bulletnav.sensors.base import VectorSensor, float32_list
 from bulletnav.sim.client import Clock
 from bulletnav.sim.robot import Robot
 
 
-class Imu(Sensor):
+class Imu(VectorSensor):
     """Reads ``[ax, ay, az, gx, gy, gz]``: body-frame specific force (m/s^2, gravity included,
     so +g on z at rest) and angular rate (rad/s), with white noise and constant bias.
 
@@ -30,7 +30,7 @@ class Imu(Sensor):
         self._bias = np.concatenate([config.accel_bias, config.gyro_bias])
         self._prev_velocity: tuple[float, ...] = (0.0, 0.0, 0.0)
         self._prev_time = 0.0
-        self._latest = np.zeros(6, dtype=np.float32)
+        self._latest = [0.0] * 6
         self._offsets: list[list[float]] = []
 
     def space(self) -> spaces.Box:
@@ -56,7 +56,7 @@ class Imu(Sensor):
         self._prev_velocity, self._prev_time = velocity, self.clock.time
         self._latest = self._sample(accel, state.angular_velocity, state.rotation)
 
-    def _sample(self, accel_world: tuple[float, ...], omega: tuple[float, ...], m: tuple[float, ...]) -> np.ndarray:
+    def _sample(self, accel_world: tuple[float, ...], omega: tuple[float, ...], m: tuple[float, ...]) -> list[float]:
         """Body-frame reading of world-frame ``accel_world`` and ``omega`` (``m``: row-major
         body-to-world rotation), plus this step's noise and bias."""
         g = self._gravity
@@ -67,11 +67,11 @@ class Imu(Sensor):
             self._offsets = block.tolist()[::-1]
         e = self._offsets.pop()
         # body frame = R^T @ world vector (m is row-major R)
-        return np.array([
+        return float32_list((
             m[0] * fx + m[3] * fy + m[6] * fz + e[0], m[1] * fx + m[4] * fy + m[7] * fz + e[1],
             m[2] * fx + m[5] * fy + m[8] * fz + e[2], m[0] * wx + m[3] * wy + m[6] * wz + e[3],
             m[1] * wx + m[4] * wy + m[7] * wz + e[4], m[2] * wx + m[5] * wy + m[8] * wz + e[5],
-        ], dtype=np.float32)
+        ))
 
-    def measure(self) -> np.ndarray:
+    def measure_floats(self) -> list[float]:
         return self._latest

@@ -9,7 +9,7 @@ import pybullet as p
 from gymnasium import spaces
 
 from bulletnav.config import LidarConfig
-from bulletnav.sensors.base import Sensor
+from bulletnav.sensors.base import VectorSensor, float32_list
 from bulletnav.sim.client import Clock
 from bulletnav.sim.robot import Robot
 from bulletnav.sim.world import STATIC_GROUP
@@ -26,7 +26,7 @@ def ray_angles(num_rays: int, fov_deg: float) -> np.ndarray:
     return np.where(angles > math.pi, angles - 2 * math.pi, angles)
 
 
-class Lidar(Sensor):
+class Lidar(VectorSensor):
     """Ranges (m) along ``num_rays`` evenly spaced horizontal rays from the lidar link.
 
     Ray ``i`` points at ``angles[i]`` radians from the robot heading (counter-clockwise),
@@ -60,19 +60,19 @@ class Lidar(Sensor):
         """Hit fractions of the rays in [0, 1] (1 = nothing within ``max_range``), noise-free."""
         return np.array([r[2] for r in self._rays()])
 
-    def measure(self) -> np.ndarray:
+    def measure_floats(self) -> list[float]:
         cfg = self.config
         if cfg.noise_std > 0:
             ranges = self.cast() * cfg.max_range
             ranges += self.rng.normal(0.0, cfg.noise_std, ranges.shape)
             np.clip(ranges, cfg.min_range, cfg.max_range, out=ranges)
-            return ranges.astype(np.float32)
-        # Noise-free (the default, once per step): the same double products rounded to
-        # float32, in one pass.
+            return float32_list(ranges.tolist())
+        # Noise-free (the default, once per step): the double products rounded to float32.
         max_range = cfg.max_range
-        ranges = np.array([r[2] * max_range for r in self._rays()], dtype=np.float32)
+        ranges = float32_list([r[2] * max_range for r in self._rays()])
         if cfg.min_range > 0:
-            np.maximum(ranges, np.float32(cfg.min_range), out=ranges)
+            floor = float32_list([cfg.min_range])[0]
+            ranges = [r if r > floor else floor for r in ranges]
         return ranges
 
     def origin(self) -> tuple[float, float, float]:

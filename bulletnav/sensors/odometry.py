@@ -8,12 +8,12 @@ import numpy as np
 from gymnasium import spaces
 
 from bulletnav.config import OdometryConfig
-from bulletnav.sensors.base import Sensor
+from bulletnav.sensors.base import VectorSensor, float32_list
 from bulletnav.sim.client import Clock
 from bulletnav.sim.robot import Robot
 
 
-class Odometry(Sensor):
+class Odometry(VectorSensor):
     """Reads ``[x, y, yaw, v, w]`` (m, m, rad, m/s, rad/s).
 
     ``v = r (wl + wr) / 2`` and ``w = r (wr - wl) / L`` come from the wheel joint rates
@@ -66,9 +66,10 @@ class Odometry(Sensor):
         self.state = (x + ds * math.cos(mid), y + ds * math.sin(mid), math.remainder(yaw + dyaw, 2 * math.pi))
         self.distance += abs(ds)
 
-    def measure(self) -> np.ndarray:
+    def measure_floats(self) -> list[float]:
         rates = self._rates  # sampled with the angles in the last update
         r, base = self.robot.wheel_radius, self.robot.wheelbase
         v = r * (rates[0] + rates[1]) / 2
         w = r * (rates[1] - rates[0]) / base
-        return np.array([*self.state, v, w], dtype=np.float32)
+        x, y, yaw = self.state
+        return float32_list((x, y, yaw, v, w))
