@@ -7,24 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from bulletnav.config import EnvConfig, PhysicsConfig, SensorsConfig
 from bulletnav.control.pid import PID
-from bulletnav.envs.scene import Scene
-
-
-@pytest.fixture
-def make_scene():
-    """Scenes (physics, robot and its sensors) that are closed after the test."""
-    scenes: list[Scene] = []
-
-    def _make(sensors: SensorsConfig = SensorsConfig(), physics: PhysicsConfig = PhysicsConfig()) -> Scene:
-        scene = Scene(EnvConfig(sensors=sensors, physics=physics))
-        scenes.append(scene)
-        return scene
-
-    yield _make
-    for scene in scenes:
-        scene.close()
 
 
 def test_pid_drives_a_first_order_plant_to_the_setpoint():

@@ -42,13 +42,13 @@ class Sensor(ABC):
                 raise ValueError(f"{self.name} rate_hz={rate_hz} exceeds the physics rate {physics_hz:g} Hz")
             self.period = max(1, round(physics_hz / rate_hz))
         """Physics steps between new measurements."""
-        self._episode = self._slot = -1  # clock stamp of the cached measurement
+        self._stamp = (-1, -1)  # (episode, period index) of the cached measurement
         self._value: Any = None
 
     def reset(self, rng: np.random.Generator) -> None:
         """Start a new episode with noise drawn from ``rng``."""
         self.rng = rng
-        self._episode = -1
+        self._stamp = (-1, -1)
 
     def update(self) -> None:  # noqa: B027 (an optional hook: stateless sensors keep the default)
         """Advance internal state after a control step (stateless sensors do nothing)."""
@@ -61,12 +61,16 @@ class Sensor(ABC):
     def current(self) -> Any:
         """The current measurement itself, not a copy (for the env's per-step code, which
         only reads it; callers must not modify it). Measures when a new period has begun."""
-        clock = self.clock
-        slot = clock.tick // self.period
-        if slot != self._slot or self._episode != clock.episode:
+        stamp = self.period_stamp()
+        if stamp != self._stamp:
             self._value = self.measure()
-            self._episode, self._slot = clock.episode, slot
+            self._stamp = stamp
         return self._value
+
+    def period_stamp(self) -> tuple[int, int]:
+        """(episode, index of the sensor period) now: a measurement is new when this changes."""
+        clock = self.clock
+        return clock.episode, clock.tick // self.period
 
     @abstractmethod
     def measure(self) -> Any:
@@ -89,20 +93,19 @@ class VectorSensor(Sensor):
     def __init__(self, robot: Robot, clock: Clock, rate_hz: float | None = None) -> None:
         super().__init__(robot, clock, rate_hz)
         self._floats: list[float] = []
-        self._float_episode = self._float_slot = -1
+        self._float_stamp = (-1, -1)
 
     def reset(self, rng: np.random.Generator) -> None:
         super().reset(rng)
-        self._float_episode = -1
+        self._float_stamp = (-1, -1)
 
     def floats(self) -> list[float]:
         """The current reading as a list of Python floats (float32 values, exactly); the
         caller must not modify it. Measures when a new period has begun."""
-        clock = self.clock
-        slot = clock.tick // self.period
-        if slot != self._float_slot or self._float_episode != clock.episode:
+        stamp = self.period_stamp()
+        if stamp != self._float_stamp:
             self._floats = self.measure_floats()
-            self._float_episode, self._float_slot = clock.episode, slot
+            self._float_stamp = stamp
         return self._floats
 
     def measure(self) -> np.ndarray:
