@@ -119,11 +119,13 @@ def _check_final_evaluation(out: Path, capsys) -> None:
             f"model {evaluated[key]} (same seeds): the recorded evaluation is not of the saved model")
 
 
+@pytest.mark.slow  # uses the module's smoke PPO training (14 s), or trains itself
 def test_ppo_final_evaluation_is_the_saved_models(ppo_run, capsys):
     # 1024 steps with --eval-freq 1024: the last in-training evaluation falls on the final timestep
     _check_final_evaluation(ppo_run, capsys)
 
 
+@pytest.mark.slow  # uses the module's smoke PPO training (14 s), or trains itself
 def test_ppo_run_and_evaluate_report(ppo_run, capsys):
     _check_run_dir(ppo_run, "ppo")
     assert (ppo_run / "model_vecnormalize.pkl").is_file()  # reward normalisation stats beside the model
@@ -140,6 +142,7 @@ def test_ppo_run_and_evaluate_report(ppo_run, capsys):
     assert len(result["per_episode"]) == 2
 
 
+@pytest.mark.slow  # uses the module's smoke PPO training (14 s), or trains itself
 def test_save_load_predict_gives_identical_actions(ppo_run, tmp_path):
     model, meta, _ = load_model(ppo_run / "model.zip")
     env = gym.make(ENV_ID, **meta["env_kwargs"])
@@ -166,6 +169,7 @@ def test_two_seeded_ppo_runs_give_identical_parameters(ppo_run, tmp_path):
     assert any(not torch.equal(a[k], c[k]) for k in a)
 
 
+@pytest.mark.slow  # uses the module's smoke PPO training (14 s), or trains itself
 def test_resume_continues_from_the_checkpoint(ppo_run, tmp_path):
     import shutil
 
@@ -180,6 +184,7 @@ def test_resume_continues_from_the_checkpoint(ppo_run, tmp_path):
     assert record["hyperparams"] == json.loads((ppo_run / "config.json").read_text())["hyperparams"]
 
 
+@pytest.mark.slow  # uses the module's smoke PPO training (14 s), or trains itself
 def test_bad_model_files_give_clear_errors(tmp_path, ppo_run, capsys):
     missing = tmp_path / "nope.zip"
     truncated = tmp_path / "truncated.zip"
@@ -202,6 +207,7 @@ def test_bad_model_files_give_clear_errors(tmp_path, ppo_run, capsys):
         load_model(missing)
 
 
+@pytest.mark.slow  # uses the module's smoke PPO training (14 s), or trains itself
 def test_interrupted_checkpoint_write_leaves_the_old_model_intact(ppo_run, tmp_path, monkeypatch):
     model, _, _ = load_model(ppo_run / "model.zip")
     target = tmp_path / "last.zip"
@@ -221,6 +227,7 @@ def test_interrupted_checkpoint_write_leaves_the_old_model_intact(ppo_run, tmp_p
     load_model(target)  # still a valid model
 
 
+@pytest.mark.slow  # uses the module's smoke PPO training (14 s), or trains itself
 def test_compare_plots_runs_and_tabulates(ppo_run, tmp_path, capsys):
     png = tmp_path / "curves.png"
     assert main(["compare", str(ppo_run), "--out", str(png)]) == 0
@@ -238,6 +245,7 @@ def test_compare_plots_runs_and_tabulates(ppo_run, tmp_path, capsys):
     assert "not a finished training run" in capsys.readouterr().err
 
 
+@pytest.mark.slow  # uses the module's smoke PPO training (14 s), or trains itself
 def test_hyperparams_file_replaces_the_packaged_one(tmp_path, capsys):
     hp = load_hyperparams("ppo")
     hp.update(n_steps=64, batch_size=64, n_epochs=1)
@@ -263,6 +271,7 @@ def test_hyperparams_file_replaces_the_packaged_one(tmp_path, capsys):
     assert not (tmp_path / "never").exists()
 
 
+@pytest.mark.slow  # uses the module's smoke PPO training (14 s), or trains itself
 def test_sb3_policy_and_navigator_run_the_same_episodes(ppo_run, capsys):
     """Both controllers are :class:`~bulletnav.policy.Policy` objects driven by the one
     ``run_episodes``: given the same seeds they get the same warehouses, starts and goals,
