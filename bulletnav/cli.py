@@ -27,7 +27,9 @@ def cmd_bench(args: argparse.Namespace) -> int:
         result = bench_env(steps=args.steps or 6000, seed=args.seed)
         lines = [
             f"env  {result['env_steps_per_s']:8.1f} steps/s   (gym.make, random actions, headless, lidar obs)",
-            f"raw  {result['raw_steps_per_s']:8.1f} steps/s   (same physics steps and ray casts, plain PyBullet)",
+            f"raw  {result['raw_steps_per_s']:8.1f} steps/s   (same physics, rays and state queries, plain PyBullet)",
+            f"lean {result['physics_and_rays_steps_per_s']:8.1f} steps/s   (physics and rays only; "
+            f"ratio {result['ratio_physics_and_rays']:.3f})",
             f"ratio env/raw {result['ratio']:.3f} (median over {result['steps'] // result['block']} blocks), "
             f"overhead {result['env_overhead_us_per_step']:.1f} us/step, reset {result['reset_ms_mean']:.2f} ms",
         ]
