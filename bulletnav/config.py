@@ -83,6 +83,61 @@ class RobotConfig:
 
 
 @dataclass(frozen=True)
+class AislesConfig:
+    """Aisle warehouses (``WorldConfig.style="aisles"``, :func:`bulletnav.sim.aisles.generate_aisles`):
+    parallel rack rows with aisles between them, cross aisles, dead ends, clutter and columns."""
+
+    row_axis: str = "random"
+    """Direction the rack rows run along: 'x', 'y', or 'random' (one draw per layout)."""
+    rack_depth: tuple[float, float] = (0.8, 1.2)
+    """Range of one rack's depth across its row (m); a double row is two racks back to back."""
+    rack_length: tuple[float, float] = (4.0, 10.0)
+    """Range of one rack's length along its row (m); a longer row is several racks end to end."""
+    rack_height: float = 2.0
+    """Height of every rack (m)."""
+    aisle_width: tuple[float, float] = (1.0, 2.5)
+    """Range of the width of an aisle between two rows, or between a row and a side wall (m)."""
+    cross_aisle_width: tuple[float, float] = (1.5, 2.5)
+    """Range of the width of a cross aisle, and of an open end aisle along an end wall (m)."""
+    max_cross_aisles: int = 1
+    """Most cross aisles cutting the rows (always at least one; fewer where racks would get too short)."""
+    double_row_prob: float = 0.6
+    """Chance that a row between two aisles is a back-to-back double row rather than a single rack."""
+    wall_row_prob: float = 0.4
+    """Chance, for each side wall, that a single row stands against it instead of an aisle running beside it."""
+    end_weights: tuple[float, float, float] = (0.2, 0.4, 0.4)
+    """Relative chances, for each end wall, of an open end aisle, rows running into the wall, and a rack
+    row along the wall that the rows run into (the last two dead-end every aisle on that side)."""
+    pallet_stack_prob: float = 0.4
+    """Chance that an aisle segment open at both ends gets one end closed by a pallet stack
+    (at least one aisle is always dead-ended)."""
+    clutter_per_metre: float = 0.15
+    """Mean number of pallets and boxes per metre of aisle segment, standing against a rack face or a wall."""
+    pallet_share: float = 0.5
+    """Share of that clutter that is loaded pallets (1.2 x 0.8 m); the rest are boxes (0.3-0.7 m)."""
+    min_passage: float = 0.8
+    """Narrowest free width (m) an aisle keeps beside its pallets and boxes (the robot's disc is 0.4 m)."""
+    columns: tuple[int, int] = (2, 6)
+    """Range of the number of building columns, standing at row ends in cross and end aisles."""
+
+    def __post_init__(self) -> None:
+        if self.row_axis not in ("x", "y", "random"):
+            raise ValueError(f"aisles row_axis must be 'x', 'y' or 'random', got {self.row_axis!r}")
+        for name in ("rack_depth", "rack_length", "aisle_width", "cross_aisle_width", "columns"):
+            lo, hi = getattr(self, name)
+            if not 0 <= lo <= hi:
+                raise ValueError(f"aisles {name} must be a range (lo, hi) with 0 <= lo <= hi, got {(lo, hi)}")
+        if self.rack_length[1] < 2 * self.rack_length[0]:
+            raise ValueError(f"aisles rack_length needs hi >= 2 lo so that any row length can be split, got {self.rack_length}")
+        if self.rack_depth[0] <= 0 or self.aisle_width[0] <= 0 or self.cross_aisle_width[0] <= 0:
+            raise ValueError("aisles rack_depth, aisle_width and cross_aisle_width must be positive")
+        if self.max_cross_aisles < 1:
+            raise ValueError(f"aisles max_cross_aisles must be >= 1, got {self.max_cross_aisles}")
+        if len(self.end_weights) != 3 or min(self.end_weights) < 0 or sum(self.end_weights) <= 0:
+            raise ValueError(f"aisles end_weights must be 3 non-negative weights, not all 0, got {self.end_weights}")
+
+
+@dataclass(frozen=True)
 class WorldConfig:
     """Procedural warehouse generation (ignored for the obstacles of a YAML layout)."""
 
@@ -98,6 +153,8 @@ class WorldConfig:
     """Minimum free gap between any two obstacle footprints, and between obstacles and walls (m)."""
     max_placement_tries: int = 4000
     """Rejection-sampling attempts before a procedural layout gives up on an obstacle."""
+    aisles: AislesConfig = field(default_factory=AislesConfig)
+    """Parameters of the ``"aisles"`` style (other styles ignore them)."""
 
     def __post_init__(self) -> None:
         if self.num_obstacles < 0:
@@ -121,6 +178,17 @@ class SamplerConfig:
     robot's disc for the reachability check is ``RobotConfig.footprint_radius``."""
     max_tries: int = 200
     """Goal draws per start before the sampler gives up."""
+    min_detour: float = 1.0
+    """Planning episodes need a shortest path at least this many times the straight start-goal
+    distance; 1.0 turns the test off. The path is measured on the free-space grid: Dijkstra over
+    the 8-connected cells passable for the robot's disc, in octile length (diagonal steps
+    sqrt(2) cells), which exceeds the true shortest path by at most 8 %."""
+    blocked_by: tuple[str, ...] = ()
+    """Planning episodes need the straight start-goal segment to cross the footprint of an
+    obstacle with one of these labels (e.g. ``("rack",)``); empty turns the test off."""
+    detour_share: float = 1.0
+    """Share of episodes drawn as planning episodes when ``min_detour`` > 1 or ``blocked_by`` is set
+    (one extra uniform draw per episode when below 1); the others are sampled as without them."""
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.min_goal_distance <= self.max_goal_distance:
@@ -128,6 +196,10 @@ class SamplerConfig:
                 "need 0 <= min_goal_distance <= max_goal_distance, got "
                 f"min_goal_distance={self.min_goal_distance} and max_goal_distance={self.max_goal_distance}"
             )
+        if self.min_detour < 1.0:
+            raise ValueError(f"min_detour must be >= 1, got {self.min_detour}")
+        if not 0.0 <= self.detour_share <= 1.0:
+            raise ValueError(f"detour_share must be in [0, 1], got {self.detour_share}")
 
 
 @dataclass(frozen=True)

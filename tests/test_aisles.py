@@ -287,7 +287,7 @@ def _all_warnings(fn) -> list[str]:
 def test_env_is_registered_with_its_settings():
     env = gym.make(AISLES_ID)
     cfg = env.unwrapped.config
-    assert env.spec.max_episode_steps == 2000
+    assert env.spec.max_episode_steps == 2400
     assert cfg.world.style == "aisles" and cfg.task.collision_terminates is True
     assert cfg.sampler.min_detour > 1.0 and cfg.sampler.blocked_by == ("rack",)
     env.close()

@@ -12,13 +12,16 @@ from collections.abc import Callable
 import numpy as np
 
 from bulletnav.config import WorldConfig
+from bulletnav.sim.aisles import generate_aisles
 from bulletnav.sim.layout import Layout, generate_warehouse
 
 WorldGenerator = Callable[[np.random.Generator, WorldConfig], Layout]
 
-WORLDS: dict[str, WorldGenerator] = {"scattered": generate_warehouse}
+WORLDS: dict[str, WorldGenerator] = {"scattered": generate_warehouse, "aisles": generate_aisles}
 """Style name -> generator. ``scattered``: racks, pallets, boxes and columns placed apart
-at random (the article's warehouse, ``Warehouse-v0``)."""
+at random (the article's warehouse, ``Warehouse-v0``). ``aisles``: parallel rack rows with
+aisles, cross aisles, dead ends, clutter in the aisles and columns (``WorldConfig.aisles``,
+``WarehouseAisles-v0``)."""
 
 
 def register_world(style: str, generator: WorldGenerator) -> None:

@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy import ndimage
+from scipy.sparse import coo_matrix, csr_matrix
+from scipy.sparse.csgraph import dijkstra
 
 from bulletnav.config import SamplerConfig
 from bulletnav.errors import SamplingError
-from bulletnav.sim.layout import Layout
+from bulletnav.sim.layout import Layout, Obstacle
 
 
 @dataclass(frozen=True)
@@ -51,6 +54,31 @@ class FreeSpace:
         ca, cb = self.component[self.cell(a)], self.component[self.cell(b)]
         return bool(ca != 0 and ca == cb)
 
+    @cached_property
+    def _graph(self) -> csr_matrix:
+        """The 8-connected graph of passable cells (node = flat cell index), edges in cells."""
+        passable = self.component > 0
+        nx, ny = passable.shape
+        index = np.arange(nx * ny).reshape(nx, ny)
+        rows, cols, weights = [], [], []
+        for dx, dy in ((1, 0), (0, 1), (1, 1), (1, -1)):
+            a = (slice(0, nx - dx), slice(max(-dy, 0), ny - max(dy, 0)))
+            b = (slice(dx, nx), slice(max(dy, 0), ny - max(-dy, 0)))
+            both = passable[a] & passable[b]  # the same neighbourhood as the component labels
+            rows.append(index[a][both])
+            cols.append(index[b][both])
+            weights.append(np.full(int(both.sum()), math.hypot(dx, dy)))
+        r, c, w = np.concatenate(rows), np.concatenate(cols), np.concatenate(weights)
+        return coo_matrix((w, (r, c)), shape=(nx * ny, nx * ny)).tocsr()
+
+    def path_lengths(self, cell: tuple[int, int]) -> np.ndarray:
+        """Shortest path length (m) from ``cell`` to every cell for the robot's disc: Dijkstra
+        over the 8-connected passable cells (diagonal steps sqrt(2) cells long), inf where
+        unreachable. This octile length exceeds the Euclidean shortest path by at most 8 %."""
+        nx, ny = self.component.shape
+        dist = dijkstra(self._graph, directed=False, indices=cell[0] * ny + cell[1])
+        return dist.reshape(nx, ny) * self.resolution
+
 
 def sample_start_goal(
     free: FreeSpace, rng: np.random.Generator, config: SamplerConfig
@@ -71,6 +99,10 @@ def sample_start_goal(
     points = np.stack([free.xs[cells[:, 0]], free.ys[cells[:, 1]]], axis=1)
     labels = free.component[cells[:, 0], cells[:, 1]]
     jitter = free.resolution / 2
+    if config.min_detour > 1.0 or config.blocked_by:
+        # planning episodes: drawn only with these options, so the default path draws what it always drew
+        if config.detour_share >= 1.0 or rng.random() < config.detour_share:
+            return _sample_planning(free, rng, config, cells, points, labels)
     for _ in range(config.max_tries):
         i = int(rng.integers(len(points)))
         d = np.hypot(points[:, 0] - points[i, 0], points[:, 1] - points[i, 1])
@@ -89,3 +121,66 @@ def sample_start_goal(
         f"{config.min_goal_distance}-{config.max_goal_distance} m apart with {config.clearance} m clearance "
         f"after {config.max_tries} tries"
     )
+
+
+def _sample_planning(free: FreeSpace, rng: np.random.Generator, config: SamplerConfig, cells: np.ndarray,
+                     points: np.ndarray, labels: np.ndarray) -> tuple[tuple[float, float, float], tuple[float, float]]:
+    """A start and goal as in :func:`sample_start_goal` whose straight segment also crosses an
+    obstacle labelled in ``config.blocked_by`` and whose shortest path (:meth:`FreeSpace.path_lengths`)
+    is at least ``config.min_detour`` times the straight-line distance (drawn with the same jitter)."""
+    jitter = free.resolution / 2
+    blockers = [o for o in free.layout.obstacles if o.label in config.blocked_by]
+    for _ in range(config.max_tries):
+        i = int(rng.integers(len(points)))
+        d = np.hypot(points[:, 0] - points[i, 0], points[:, 1] - points[i, 1])
+        ok = (labels == labels[i]) & (d >= config.min_goal_distance + jitter * 1.5) & (d <= config.max_goal_distance - jitter * 1.5)
+        if config.blocked_by:
+            crossed = np.zeros(len(points), dtype=bool)
+            for obstacle in blockers:
+                crossed[ok] |= segments_cross(obstacle, points[i], points[ok])
+            ok &= crossed
+        if config.min_detour > 1.0 and ok.any():
+            lengths = free.path_lengths((int(cells[i, 0]), int(cells[i, 1])))[cells[:, 0], cells[:, 1]]
+            # jitter moves each end by up to a quarter cell: demand the ratio with that much to spare
+            ok &= lengths >= config.min_detour * (d + jitter)
+        candidates = np.flatnonzero(ok)
+        if len(candidates) == 0:
+            continue
+        j = int(candidates[rng.integers(len(candidates))])
+        sx, sy = points[i] + rng.uniform(-jitter, jitter, 2) * 0.5
+        gx, gy = points[j] + rng.uniform(-jitter, jitter, 2) * 0.5
+        yaw = float(rng.uniform(-math.pi, math.pi))
+        return (float(sx), float(sy), yaw), (float(gx), float(gy))
+    raise SamplingError(
+        f"layout {free.layout.source or free.layout.name!r}: no reachable start/goal pair "
+        f"{config.min_goal_distance}-{config.max_goal_distance} m apart with {config.clearance} m clearance, "
+        f"a straight line crossing {list(config.blocked_by)} and a detour of {config.min_detour} "
+        f"after {config.max_tries} tries"
+    )
+
+
+def segments_cross(obstacle: Obstacle, start: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """For each segment from ``start`` (x, y) to a row of ``ends`` (n, 2): does it meet the
+    obstacle's footprint? (Liang-Barsky clipping in the box's frame; distance for a cylinder.)"""
+    p = np.asarray(start, dtype=float) - np.asarray(obstacle.center)
+    q = np.asarray(ends, dtype=float) - np.asarray(obstacle.center)
+    if obstacle.kind == "cylinder":
+        d = q - p
+        t = np.clip(-(d @ p) / np.maximum(np.einsum("ij,ij->i", d, d), 1e-18), 0.0, 1.0)
+        closest = p + t[:, None] * d
+        return np.hypot(closest[:, 0], closest[:, 1]) <= obstacle.radius
+    c, s = math.cos(obstacle.yaw), math.sin(obstacle.yaw)
+    rot = np.array([[c, s], [-s, c]])  # world -> box frame
+    p, q = rot @ p, q @ rot.T
+    t0, t1 = np.zeros(len(q)), np.ones(len(q))
+    for axis, half in ((0, obstacle.size[0] / 2), (1, obstacle.size[1] / 2)):
+        d = q[:, axis] - p[axis]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ta, tb = (-half - p[axis]) / d, (half - p[axis]) / d
+        lo, hi = np.minimum(ta, tb), np.maximum(ta, tb)
+        parallel = d == 0
+        inside = abs(p[axis]) <= half
+        lo = np.where(parallel, np.where(inside, -np.inf, np.inf), lo)
+        hi = np.where(parallel, np.where(inside, np.inf, -np.inf), hi)
+        t0, t1 = np.maximum(t0, lo), np.minimum(t1, hi)
+    return t0 <= t1
