@@ -99,14 +99,17 @@ def sample_start_goal(
     points = np.stack([free.xs[cells[:, 0]], free.ys[cells[:, 1]]], axis=1)
     labels = free.component[cells[:, 0], cells[:, 1]]
     jitter = free.resolution / 2
+    planning = False
     if config.min_detour > 1.0 or config.blocked_by:
         # planning episodes: drawn only with these options, so the default path draws what it always drew
-        if config.detour_share >= 1.0 or rng.random() < config.detour_share:
-            return _sample_planning(free, rng, config, cells, points, labels)
+        planning = config.detour_share >= 1.0 or rng.random() < config.detour_share
+    blockers = [o for o in free.layout.obstacles if o.label in config.blocked_by] if planning else []
     for _ in range(config.max_tries):
         i = int(rng.integers(len(points)))
         d = np.hypot(points[:, 0] - points[i, 0], points[:, 1] - points[i, 1])
         ok = (labels == labels[i]) & (d >= config.min_goal_distance + jitter * 1.5) & (d <= config.max_goal_distance - jitter * 1.5)
+        if planning:
+            ok &= _planning_pairs(free, config, blockers, cells, points, i, d, ok)
         candidates = np.flatnonzero(ok)
         if len(candidates) == 0:
             continue
@@ -116,47 +119,31 @@ def sample_start_goal(
         gx, gy = points[j] + rng.uniform(-jitter, jitter, 2) * 0.5
         yaw = float(rng.uniform(-math.pi, math.pi))
         return (float(sx), float(sy), yaw), (float(gx), float(gy))
+    planning_rule = (f", a straight line crossing {list(config.blocked_by)} and a detour of {config.min_detour}"
+                     if planning else "")
     raise SamplingError(
         f"layout {free.layout.source or free.layout.name!r}: no reachable start/goal pair "
-        f"{config.min_goal_distance}-{config.max_goal_distance} m apart with {config.clearance} m clearance "
-        f"after {config.max_tries} tries"
+        f"{config.min_goal_distance}-{config.max_goal_distance} m apart with {config.clearance} m clearance"
+        f"{planning_rule} after {config.max_tries} tries"
     )
 
 
-def _sample_planning(free: FreeSpace, rng: np.random.Generator, config: SamplerConfig, cells: np.ndarray,
-                     points: np.ndarray, labels: np.ndarray) -> tuple[tuple[float, float, float], tuple[float, float]]:
-    """A start and goal as in :func:`sample_start_goal` whose straight segment also crosses an
-    obstacle labelled in ``config.blocked_by`` and whose shortest path (:meth:`FreeSpace.path_lengths`)
-    is at least ``config.min_detour`` times the straight-line distance (drawn with the same jitter)."""
-    jitter = free.resolution / 2
-    blockers = [o for o in free.layout.obstacles if o.label in config.blocked_by]
-    for _ in range(config.max_tries):
-        i = int(rng.integers(len(points)))
-        d = np.hypot(points[:, 0] - points[i, 0], points[:, 1] - points[i, 1])
-        ok = (labels == labels[i]) & (d >= config.min_goal_distance + jitter * 1.5) & (d <= config.max_goal_distance - jitter * 1.5)
-        if config.blocked_by:
-            crossed = np.zeros(len(points), dtype=bool)
-            for obstacle in blockers:
-                crossed[ok] |= segments_cross(obstacle, points[i], points[ok])
-            ok &= crossed
-        if config.min_detour > 1.0 and ok.any():
-            lengths = free.path_lengths((int(cells[i, 0]), int(cells[i, 1])))[cells[:, 0], cells[:, 1]]
-            # jitter moves each end by up to a quarter cell: demand the ratio with that much to spare
-            ok &= lengths >= config.min_detour * (d + jitter)
-        candidates = np.flatnonzero(ok)
-        if len(candidates) == 0:
-            continue
-        j = int(candidates[rng.integers(len(candidates))])
-        sx, sy = points[i] + rng.uniform(-jitter, jitter, 2) * 0.5
-        gx, gy = points[j] + rng.uniform(-jitter, jitter, 2) * 0.5
-        yaw = float(rng.uniform(-math.pi, math.pi))
-        return (float(sx), float(sy), yaw), (float(gx), float(gy))
-    raise SamplingError(
-        f"layout {free.layout.source or free.layout.name!r}: no reachable start/goal pair "
-        f"{config.min_goal_distance}-{config.max_goal_distance} m apart with {config.clearance} m clearance, "
-        f"a straight line crossing {list(config.blocked_by)} and a detour of {config.min_detour} "
-        f"after {config.max_tries} tries"
-    )
+def _planning_pairs(free: FreeSpace, config: SamplerConfig, blockers: list[Obstacle], cells: np.ndarray,
+                    points: np.ndarray, i: int, d: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """Which goal candidates make a planning episode with start cell ``i``: the straight
+    segment crosses an obstacle labelled in ``config.blocked_by``, and the shortest path
+    (:meth:`FreeSpace.path_lengths`) is at least ``config.min_detour`` times the straight line."""
+    keep = ok.copy()
+    if config.blocked_by:
+        crossed = np.zeros(len(points), dtype=bool)
+        for obstacle in blockers:
+            crossed[keep] |= segments_cross(obstacle, points[i], points[keep])
+        keep &= crossed
+    if config.min_detour > 1.0 and keep.any():
+        lengths = free.path_lengths((int(cells[i, 0]), int(cells[i, 1])))[cells[:, 0], cells[:, 1]]
+        # jitter moves each end by up to a quarter cell: demand the ratio with that much to spare
+        keep &= lengths >= config.min_detour * (d + free.resolution / 2)
+    return keep
 
 
 def segments_cross(obstacle: Obstacle, start: np.ndarray, ends: np.ndarray) -> np.ndarray:
