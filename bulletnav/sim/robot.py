@@ -128,16 +128,12 @@ class Robot:
         self.sample()
 
     # ------------------------------------------------------------------ commands
-    def wheel_speeds(self, v: float, w: float) -> tuple[float, float]:
-        """Inverse kinematics: body (v m/s, w rad/s) -> (left, right) wheel rates (rad/s)."""
-        half = self.wheelbase / 2
-        return (v - w * half) / self.wheel_radius, (v + w * half) / self.wheel_radius
-
     def set_velocity(self, v: float, w: float) -> None:
         """Command forward speed ``v`` (m/s) and yaw rate ``w`` (rad/s) through the wheel motors."""
         if not (math.isfinite(v) and math.isfinite(w)):
             raise ValueError(f"set_velocity needs finite values, got v={v}, w={w}")
-        half, r = self.wheelbase / 2, self.wheel_radius  # inverse kinematics, as wheel_speeds
+        # inverse kinematics: wheel rates (left, right) = (v -+ w L / 2) / r
+        half, r = self.wheelbase / 2, self.wheel_radius
         _motors(self.body, self._wheels, p.VELOCITY_CONTROL, targetVelocities=[(v - w * half) / r, (v + w * half) / r],
                 forces=self._torques, physicsClientId=self.cid)
 
