@@ -159,3 +159,14 @@ def display():
         os.environ.pop("DISPLAY", None)
     else:
         os.environ["DISPLAY"] = old
+
+
+def bit_equal(a, b) -> bool:
+    """Exact equality of nested dicts, sequences and arrays (same dtypes, same bits, same types)."""
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(bit_equal(a[k], b[k]) for k in a)
+    if isinstance(a, (tuple, list)):
+        return len(a) == len(b) and all(bit_equal(x, y) for x, y in zip(a, b))
+    if isinstance(a, np.ndarray):
+        return a.dtype == b.dtype and np.array_equal(a, b)
+    return a == b and type(a) is type(b)

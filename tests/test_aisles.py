@@ -20,6 +20,7 @@ from bulletnav.envs.warehouse import make_config
 from bulletnav.evaluation import shortest_path_length
 from bulletnav.sim.generators import WORLDS, world_generator
 from bulletnav.sim.sampler import FreeSpace, sample_start_goal
+from conftest import bit_equal
 
 AISLES_ID = "bulletnav/WarehouseAisles-v0"
 SPEC = AislesConfig()  # the ranges are the defaults
@@ -316,18 +317,8 @@ def _rollout(seed: int, steps: int = 150):
     return trace, layout
 
 
-def _equal(a, b) -> bool:
-    if isinstance(a, dict):
-        return a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
-    if isinstance(a, (tuple, list)):
-        return len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b))
-    if isinstance(a, np.ndarray):
-        return a.dtype == b.dtype and np.array_equal(a, b)
-    return a == b and type(a) is type(b)
-
-
 def test_env_is_deterministic_for_a_seed():
     a, layout_a = _rollout(4)
     b, layout_b = _rollout(4)
-    assert layout_a == layout_b and _equal(a, b)
+    assert layout_a == layout_b and bit_equal(a, b)
     assert _rollout(5, steps=0)[1] != layout_a

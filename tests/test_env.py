@@ -25,6 +25,7 @@ from bulletnav.config import EnvConfig, ImuConfig, LidarConfig, OdometryConfig, 
 from bulletnav.errors import DisplayError
 from bulletnav.sim.generators import WORLDS
 from bulletnav.tasks import TASKS, NavigationTask
+from conftest import bit_equal
 
 ENV_ID = "bulletnav/Warehouse-v0"
 ACTION_SPACE_ADVICE = ("symmetric and normalized", "symmetric and normalized Box action space")
@@ -146,22 +147,12 @@ def _rollout(seed: int, steps: int = 300):
     return trace, resets, layout
 
 
-def _equal(a, b) -> bool:
-    if isinstance(a, dict):
-        return a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
-    if isinstance(a, (tuple, list)):
-        return len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b))
-    if isinstance(a, np.ndarray):
-        return a.dtype == b.dtype and np.array_equal(a, b)
-    return a == b and type(a) is type(b)
-
-
 def test_same_seed_is_bit_identical_across_resets():
     a, resets_a, layout_a = _rollout(seed=3)
     b, resets_b, layout_b = _rollout(seed=3)
     assert resets_a >= 2, "the rollout should span several episodes"
     assert resets_a == resets_b and layout_a == layout_b
-    assert _equal(a, b)
+    assert bit_equal(a, b)
     _, _, layout_c = _rollout(seed=4, steps=1)
     assert layout_c != layout_a
 

@@ -52,6 +52,17 @@ DEFAULT_MAX_ITERS = 50_000
 
 
 @njit(cache=True, nogil=True)
+def _append(nodes: np.ndarray, parent: np.ndarray, count: np.ndarray, t: int, x: float, y: float, p: int) -> int:
+    """Add node (x, y) with parent ``p`` to tree ``t``; returns its index."""
+    k = count[t]
+    nodes[t, k, 0] = x
+    nodes[t, k, 1] = y
+    parent[t, k] = p
+    count[t] = k + 1
+    return k
+
+
+@njit(cache=True, nogil=True)
 def _nearest(nodes: np.ndarray, t: int, n: int, qx: float, qy: float) -> tuple[int, float]:
     """Index of the node of tree ``t`` (``nodes[t, :n]``) nearest to (qx, qy), and its squared distance (m^2)."""
     best = 0
@@ -112,11 +123,7 @@ def _grow(occ: np.ndarray, res: float, ox: float, oy: float,
             else:
                 px, py = qx, qy
             if _segment_free(occ, res, ox, oy, bx, by, px, py):
-                k = count[t]
-                nodes[t, k, 0] = px
-                nodes[t, k, 1] = py
-                parent[t, k] = best
-                count[t] = k + 1
+                _append(nodes, parent, count, t, px, py, best)
                 added = True
         if added and not bidirectional:
             # One tree (t == 0): join the goal, tree 1's root, when it is within a step in free sight.
@@ -145,12 +152,7 @@ def _grow(occ: np.ndarray, res: float, ox: float, oy: float,
                 sy = jy + (py - jy) * scale
                 if not _segment_free(occ, res, ox, oy, jx, jy, sx, sy):
                     break
-                k = count[o]
-                nodes[o, k, 0] = sx
-                nodes[o, k, 1] = sy
-                parent[o, k] = j
-                count[o] = k + 1
-                j = k
+                j = _append(nodes, parent, count, o, sx, sy, j)
                 ddx = px - sx
                 ddy = py - sy
                 d2 = ddx * ddx + ddy * ddy
