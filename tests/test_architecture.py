@@ -51,7 +51,6 @@ REFLECTION = frozenset({"getattr", "setattr", "hasattr"})
 NOT_ENV_INTERNALS = {
     ("bulletnav/cli.py", "args.world"): "the --world option (a layout file path) on argparse's namespace",
     ("bulletnav/bench/env_bench.py", "cfg.robot"): "EnvConfig.robot, the robot's configuration (RobotConfig)",
-    ("bulletnav/bench/env_bench.py", "raw.robot"): "the raw reference loop's own robot, not the env's",
     ("bulletnav/bench/physics_bench.py", "sim.robot"): "the physics benchmark drives a bare Simulation, no env",
 }
 """Exact (file, expression) pairs that carry one of the internal names without being the

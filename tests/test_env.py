@@ -521,6 +521,8 @@ def test_bench_env_cli_prints_the_ratio_with_its_provenance(capsys):
     assert result["benchmark"] == "env" and result["steps"] == 200
     # Both timed loops ran inside the command: their times add up to less than its wall time.
     assert 200 / result["env_steps_per_s"] + 200 / result["raw_steps_per_s"] < elapsed
+    # The raw loops replayed the env's own physics: every block ended at the env's pose, to the bit.
+    assert result["replay_exact"] == 1.0
     assert result["ratio_of_totals"] == pytest.approx(result["env_steps_per_s"] / result["raw_steps_per_s"], rel=1e-3)
     assert result["env_overhead_us_per_step"] == pytest.approx(
         (1 / result["env_steps_per_s"] - 1 / result["raw_steps_per_s"]) * 1e6, abs=0.5)

@@ -8,12 +8,17 @@ check). The headline ``ratio`` is env steps/s over raw steps/s, so ``1 - ratio``
 of a step the env's own Python costs. ``ratio_physics_and_rays`` keeps the earlier, stricter
 reference (motors, physics and rays only: no state queries) for comparison.
 
-All loops live in one process, in the same warehouse, fed the same random actions. They
-run in alternating blocks of ``block`` steps, so that the machine's speed drifting over
-the run (these machines are noisy) hits them alike; ratios are medians over blocks of
-(raw time / env time), robust to bursts of load from other processes. Episode resets of
-the env are mirrored in the raw loops (teleporting their robot to the same start) and are
-left out of all step timings (their mean is reported apart).
+Same physics, exactly: the raw loops run in the env's own physics client on the env's own
+robot. Before each block of ``block`` env steps the bench saves PyBullet's state
+(``saveState``, also at each episode reset inside the block); after it, it restores the
+block's first state and the raw loops replay the env's commands from there, restoring the
+saved state at each reset, so they step the very same bodies through the very same contacts
+(``replay_exact`` is the fraction of blocks whose replay ended at the env's pose to the bit).
+Finally the state the env left is restored, and the env goes on as if nothing happened.
+Alternating blocks make the machine's speed drifting over the run (these machines are
+noisy) hit both loops alike; ratios are medians over blocks of (raw time / env time),
+robust to bursts of load from other processes. Resets and state restores are not timed
+(the env's mean reset time is reported apart).
 """
 
 from __future__ import annotations
@@ -28,38 +33,39 @@ import numpy as np
 import pybullet as p
 
 from bulletnav.config import EnvConfig
-from bulletnav.sim.client import connect
-from bulletnav.sim.robot import Robot
-from bulletnav.sim.world import STATIC_GROUP, World
+from bulletnav.sensors.lidar import ray_angles
+from bulletnav.sim.world import STATIC_GROUP
 
 
 class _RawLoop:
-    """The env's physics work written directly against PyBullet: motors, substeps, one ray batch."""
+    """The env's PyBullet work per step written directly against PyBullet, on the env's robot."""
 
-    def __init__(self, cfg: EnvConfig, layout, start) -> None:
-        self.cid = cid = connect()
-        World(cid, cfg.physics).build(layout)
-        self.robot = robot = Robot(cid, cfg.robot)
-        robot.load(start)
-        self.joints = [robot.left_joint, robot.right_joint]
+    def __init__(self, cfg: EnvConfig, cid: int, body: int, half_wheelbase: float, wheel_radius: float) -> None:
+        self.cid, self.body = cid, body
+        joints, links = {}, {}
+        for j in range(p.getNumJoints(body, physicsClientId=cid)):
+            info = p.getJointInfo(body, j, physicsClientId=cid)
+            joints[info[1].decode()], links[info[12].decode()] = j, j
+        self.joints = [joints["left_wheel_joint"], joints["right_wheel_joint"]]
+        self.link = links["lidar_link"]
         self.torque = [cfg.robot.max_wheel_torque] * 2
-        self.half, self.r = robot.wheelbase / 2, robot.wheel_radius
+        self.half, self.r = half_wheelbase, wheel_radius
         lidar = cfg.sensors.lidar
-        angles = np.arange(lidar.num_rays) * (2 * math.pi / lidar.num_rays)
+        angles = ray_angles(lidar.num_rays, lidar.fov)
         self.ray_from = [[0.0, 0.0, 0.0]] * lidar.num_rays
         self.ray_to = [[lidar.max_range * math.cos(a), lidar.max_range * math.sin(a), 0.0] for a in angles]
         self.substeps = cfg.physics.substeps
 
-    def run(self, actions: np.ndarray, state_queries: bool = True) -> float:
-        """Seconds for the steps of ``actions``; ``state_queries=False`` leaves out the robot
-        state and contact queries (the physics-and-rays reference)."""
-        cid, body, link = self.cid, self.robot.body, self.robot.lidar_link
+    def run(self, commands: list[tuple[float, float]], state_queries: bool = True) -> float:
+        """Seconds for the steps of ``commands`` ((v, w) pairs); ``state_queries=False`` leaves
+        out the robot state and contact queries (the physics-and-rays reference)."""
+        cid, body, link = self.cid, self.body, self.link
         half, r, joints, torque, substeps = self.half, self.r, self.joints, self.torque, self.substeps
         step_sim, motors, rays = p.stepSimulation, p.setJointMotorControlArray, p.rayTestBatch
         pose, velocity, wheels, contacts = (p.getBasePositionAndOrientation, p.getBaseVelocity, p.getJointStates,
                                             p.getContactPoints)
         t0 = time.perf_counter()
-        for v, w in actions.tolist():
+        for v, w in commands:
             motors(body, joints, p.VELOCITY_CONTROL, targetVelocities=[(v - w * half) / r, (v + w * half) / r],
                    forces=torque, physicsClientId=cid)
             for _ in range(substeps):
@@ -73,8 +79,8 @@ class _RawLoop:
                  collisionFilterMask=STATIC_GROUP, physicsClientId=cid)
         return time.perf_counter() - t0
 
-    def close(self) -> None:
-        p.disconnect(physicsClientId=self.cid)
+    def base_pose(self) -> tuple[float, ...]:
+        return p.getBasePositionAndOrientation(self.body, physicsClientId=self.cid)[0]
 
 
 def bench_env(steps: int = 6000, block: int = 100, seed: int = 0, config: EnvConfig | None = None) -> dict[str, Any]:
@@ -85,46 +91,53 @@ def bench_env(steps: int = 6000, block: int = 100, seed: int = 0, config: EnvCon
     cfg = replace(config or EnvConfig(), layouts_every=10**9)  # one warehouse for the whole run
     env = gym.make("bulletnav/Warehouse-v0", config=cfg)
     env.reset(seed=seed)
-    raw = _RawLoop(cfg, env.unwrapped.scene.layout, env.unwrapped.scene.start)
+    scene = env.unwrapped.scene
+    cid = scene.client
+    raw = _RawLoop(cfg, cid, scene.robot_body, scene.geometry.wheelbase / 2, scene.geometry.wheel_radius)
     rng = np.random.default_rng(seed)
     actions = rng.uniform(env.action_space.low, env.action_space.high, size=(steps, 2)).astype(np.float32)
+    commands = [env.unwrapped.command(a) for a in actions]  # what the env sends to the motors
     env_time = raw_time = lean_time = reset_time = 0.0
-    episodes = 0
+    episodes = exact = 0
     block_ratios, lean_ratios = [], []
     clock = time.perf_counter
+    save, restore, remove = p.saveState, p.restoreState, p.removeState
     for b in range(0, steps, block):
         chunk = actions[b:b + block]
-        chunk_start = env.unwrapped.scene.pose  # both raw replays start where the env's robot stands
-        pending: list[tuple[int, tuple]] = []
+        segments = [(0, save(physicsClientId=cid))]  # (first step, state before it)
         t_env = 0.0
+        t0 = clock()  # the env is timed per segment between resets, like the raw loop
         for i, a in enumerate(chunk):
-            t0 = clock()
             _, _, terminated, truncated, _ = env.step(a)
-            t_env += clock() - t0
             if terminated or truncated:
-                t0 = clock()
+                t1 = clock()
+                t_env += t1 - t0
                 env.reset()
-                reset_time += clock() - t0
+                reset_time += clock() - t1
                 episodes += 1
-                pending.append((i + 1, env.unwrapped.scene.start))
-        # The raw loops replay the chunk, teleporting where the env reset (untimed).
+                segments.append((i + 1, save(physicsClientId=cid)))
+                t0 = clock()
+        t_env += clock() - t0
+        env_end = raw.base_pose()
+        after = save(physicsClientId=cid)
+        bounds = [s for s, _ in segments[1:]] + [len(chunk)]
         t_raw = t_lean = 0.0
         for queries in (True, False):
-            start = 0
-            raw.robot.reset_pose(chunk_start)
-            for end, pose in [*pending, (len(chunk), None)]:
-                t = raw.run(chunk[start:end], state_queries=queries)
+            for (first, state), last in zip(segments, bounds):
+                restore(state, physicsClientId=cid)
+                t = raw.run(commands[b + first:b + last], state_queries=queries)
                 t_raw, t_lean = (t_raw + t, t_lean) if queries else (t_raw, t_lean + t)
-                if pose is not None:
-                    raw.robot.reset_pose(pose)
-                start = end
+            exact += queries is False and raw.base_pose() == env_end
+        restore(after, physicsClientId=cid)
+        for state in [after, *(s for _, s in segments)]:
+            remove(state, physicsClientId=cid)
         env_time += t_env
         raw_time += t_raw
         lean_time += t_lean
         block_ratios.append(t_raw / t_env)
         lean_ratios.append(t_lean / t_env)
     env.close()
-    raw.close()
+    blocks = len(block_ratios)
     return {
         "benchmark": "env",
         "steps": steps,
@@ -136,6 +149,7 @@ def bench_env(steps: int = 6000, block: int = 100, seed: int = 0, config: EnvCon
         "ratio_physics_and_rays": round(float(np.median(lean_ratios)), 4),
         "physics_and_rays_steps_per_s": round(steps / lean_time, 1),
         "env_overhead_us_per_step": round((env_time - raw_time) / steps * 1e6, 1),
+        "replay_exact": round(exact / blocks, 4),
         "episodes": episodes,
         "reset_ms_mean": round(reset_time / max(episodes, 1) * 1e3, 2),
         "physics_hz": cfg.physics.physics_hz,
