@@ -1,7 +1,7 @@
 """bulletnav: PyBullet warehouse navigation with classical and learned controllers.
 
-Importing the package registers ``bulletnav/Warehouse-v0`` and ``bulletnav/WarehouseAisles-v0``
-with Gymnasium.
+Importing the package registers ``bulletnav/Warehouse-v0``, ``bulletnav/WarehouseAisles-v0`` and
+``bulletnav/WarehouseDynamic-v0`` with Gymnasium.
 """
 
 import gymnasium as gym
@@ -29,3 +29,17 @@ AISLES_KWARGS = {
 if AISLES_ENV_ID not in gym.registry:
     gym.register(id=AISLES_ENV_ID, entry_point="bulletnav.envs.warehouse:WarehouseEnv", max_episode_steps=2400,
                  kwargs=AISLES_KWARGS)
+
+DYNAMIC_ENV_ID = "bulletnav/WarehouseDynamic-v0"
+DYNAMIC_KWARGS = {
+    **AISLES_KWARGS,
+    "forklifts": (2, 4),
+    "workers": (2, 6),
+    "pallet_events_per_min": 2.0,
+}
+"""``WarehouseDynamic-v0``: the aisle warehouses of ``WarehouseAisles-v0`` with 2-4 forklifts,
+2-6 workers and pallets appearing and vanishing (2 events a minute on average)."""
+
+if DYNAMIC_ENV_ID not in gym.registry:
+    gym.register(id=DYNAMIC_ENV_ID, entry_point="bulletnav.envs.warehouse:WarehouseEnv", max_episode_steps=2400,
+                 kwargs=DYNAMIC_KWARGS)

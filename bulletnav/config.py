@@ -375,6 +375,59 @@ class TaskConfig:
 
 
 @dataclass(frozen=True)
+class DynamicConfig:
+    """Procedural moving obstacles and events, drawn for every episode (``bulletnav.sim.dynamic``).
+
+    Counts are inclusive ranges drawn uniformly per episode; all zero (the default) keeps an
+    env static. A YAML layout's own ``dynamic:`` and ``events:`` sections always apply.
+    """
+
+    forklifts: tuple[int, int] = (0, 0)
+    """Forklifts per episode (min, max)."""
+    forklift_speed: tuple[float, float] = (0.3, 1.0)
+    """Forklift cruise speed range (m/s)."""
+    forklift_size: tuple[float, float, float] = (1.1, 0.8, 2.0)
+    """Forklift box: length, width, height (m)."""
+    workers: tuple[int, int] = (0, 0)
+    """Workers per episode (min, max)."""
+    worker_speed: tuple[float, float] = (0.5, 1.4)
+    """Walking speed range (m/s)."""
+    worker_pause: tuple[float, float] = (0.5, 3.0)
+    """Pause at each waypoint (s)."""
+    worker_radius: float = 0.25
+    """Worker cylinder radius (m); 1.7 m tall."""
+    pallet_events_per_min: float = 0.0
+    """Rate of drawn pallet events (appear or vanish), per simulated minute."""
+    event_pallets: int = 4
+    """Pallets in the event pool (at most this many appear at once)."""
+    yield_to_robot: bool = True
+    """Movers stop for the robot (forklift safety field, worker stop distance)."""
+    keep_clear: float = 2.0
+    """No mover starts within this distance (m) of the robot's start or a goal."""
+    near: float = 0.5
+    """Movers within this gap (m) of the robot are moved at every physics step (the rest once
+    per control step, before the sensors read); robot and mover close at most 1.9 m/s, 8 cm
+    a control step."""
+
+    def __post_init__(self) -> None:
+        for name in ("forklifts", "workers"):
+            lo, hi = getattr(self, name)
+            if not 0 <= lo <= hi:
+                raise ValueError(f"dynamic.{name} must be (min, max) with 0 <= min <= max, got {(lo, hi)}")
+        for name in ("forklift_speed", "worker_speed"):
+            lo, hi = getattr(self, name)
+            if not 0 < lo <= hi:
+                raise ValueError(f"dynamic.{name} must be (min, max) m/s with 0 < min <= max, got {(lo, hi)}")
+        if self.pallet_events_per_min < 0:
+            raise ValueError(f"dynamic.pallet_events_per_min must be >= 0, got {self.pallet_events_per_min}")
+
+    @property
+    def active(self) -> bool:
+        """True when episodes draw movers or events."""
+        return self.forklifts[1] > 0 or self.workers[1] > 0 or self.pallet_events_per_min > 0
+
+
+@dataclass(frozen=True)
 class EnvConfig:
     """Everything that defines a ``bulletnav/Warehouse-v0`` episode."""
 
@@ -386,6 +439,7 @@ class EnvConfig:
     sampler: SamplerConfig = field(default_factory=SamplerConfig)
     sensors: SensorsConfig = field(default_factory=SensorsConfig)
     task: TaskConfig = field(default_factory=TaskConfig)
+    dynamic: DynamicConfig = field(default_factory=DynamicConfig)
     layout_file: str | None = None
     """YAML layout to use for every episode; None draws procedural warehouses."""
     layouts_every: int = 1

@@ -86,7 +86,28 @@ EPISODE_KEYS = ("seed", "initial_distance", "shortest_path", "steps", "reward", 
                 "success", "collision", "spl")
 
 
+def _navigator_episodes() -> list[dict]:
+    import subprocess
+
+    out = subprocess.run([sys.executable, "-m", "bulletnav.cli", "navigate", "--planner", "astar", "--episodes", "10",
+                          "--json"], check=True, capture_output=True, text=True, cwd=ROOT).stdout
+    return [{k: e[k] for k in (*EPISODE_KEYS, "replans")} for e in json.loads(out)["per_episode"]]
+
+
+def rerecord_navigator(reason: str) -> int:
+    """Re-record only the classical navigator's episodes (after a change to the navigator,
+    never to the env: the traces and the shipped policy's episodes stay as recorded)."""
+    golden = json.loads(GOLDEN.read_text())
+    golden["astar_navigate_seed_0"] = _navigator_episodes()
+    golden.setdefault("navigator_rerecorded", []).append(reason)
+    GOLDEN.write_text(json.dumps(golden, indent=1) + "\n")
+    print(f"re-recorded the navigator's episodes in {GOLDEN}")
+    return 0
+
+
 def main() -> int:
+    if sys.argv[1:2] == ["--navigator"]:
+        return rerecord_navigator(" ".join(sys.argv[2:]) or "unspecified")
     traces = {name: {str(s): rollout_hash(kw, s) for s in SEEDS} for name, kw in SETTINGS.items()}
     import subprocess
 

@@ -83,10 +83,22 @@ class _RawLoop:
         return p.getBasePositionAndOrientation(self.body, physicsClientId=self.cid)[0]
 
 
-def bench_env(steps: int = 6000, block: int = 100, seed: int = 0, config: EnvConfig | None = None) -> dict[str, Any]:
-    """Steps per second of ``bulletnav/Warehouse-v0`` (as made by ``gym.make``) and of the raw
-    loop, with their ratio. Random uniform actions, headless, lidar-only observation."""
+STATIC_REFERENCE = {"bulletnav/WarehouseDynamic-v0": "bulletnav/WarehouseAisles-v0"}
+"""Env ids benchmarked against another id rather than the raw loop: the same worlds without movers."""
+
+
+def bench_env(steps: int = 6000, block: int = 100, seed: int = 0, config: EnvConfig | None = None,
+              env_id: str = "bulletnav/Warehouse-v0") -> dict[str, Any]:
+    """Steps per second of ``env_id`` (as made by ``gym.make``) and of the raw loop, with
+    their ratio. Random uniform actions, headless, lidar-only observation. An id with a
+    static reference (:data:`STATIC_REFERENCE`) is timed against that id instead
+    (:func:`bench_env_pair`)."""
     import bulletnav  # noqa: F401  (registers the env)
+
+    if env_id in STATIC_REFERENCE:
+        return bench_env_pair(env_id, STATIC_REFERENCE[env_id], steps=steps, block=block, seed=seed)
+    if env_id != "bulletnav/Warehouse-v0":
+        raise ValueError(f"bench env knows bulletnav/Warehouse-v0 and {sorted(STATIC_REFERENCE)}, got {env_id!r}")
 
     cfg = replace(config or EnvConfig(), layouts_every=10**9)  # one warehouse for the whole run
     env = gym.make("bulletnav/Warehouse-v0", config=cfg)
@@ -156,4 +168,63 @@ def bench_env(steps: int = 6000, block: int = 100, seed: int = 0, config: EnvCon
         "control_hz": cfg.physics.control_hz,
         "solver_iterations": cfg.physics.solver_iterations,
         "lidar_rays": cfg.sensors.lidar.num_rays,
+    }
+
+
+def bench_env_pair(env_id: str, reference_id: str, steps: int = 6000, block: int = 100, seed: int = 0) -> dict[str, Any]:
+    """Step cost of ``env_id`` as a ratio to ``reference_id``'s, timed in the same run.
+
+    Both envs keep one seeded world for the whole run (``layouts_every`` very large), get the
+    same random actions in alternating blocks of ``block`` steps, and are timed per segment
+    between resets (resets are timed apart). ``cost_ratio`` is the median over blocks of
+    (env time / reference time): 1.3 means a step costs 30 % more than the static one.
+    """
+    import bulletnav  # noqa: F401
+
+    envs = {name: gym.make(name, layouts_every=10**9) for name in (env_id, reference_id)}
+    for env in envs.values():
+        env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    space = envs[env_id].action_space
+    actions = rng.uniform(space.low, space.high, size=(steps, 2)).astype(np.float32)
+    times = {name: 0.0 for name in envs}
+    resets = {name: [0, 0.0] for name in envs}
+    ratios = []
+    clock = time.perf_counter
+    for b in range(0, steps, block):
+        chunk = actions[b:b + block]
+        block_time = {}
+        for name, env in envs.items():
+            t_env = 0.0
+            t0 = clock()
+            for a in chunk:
+                _, _, terminated, truncated, _ = env.step(a)
+                if terminated or truncated:
+                    t1 = clock()
+                    t_env += t1 - t0
+                    env.reset()
+                    resets[name][0] += 1
+                    resets[name][1] += clock() - t1
+                    t0 = clock()
+            t_env += clock() - t0
+            block_time[name] = t_env
+            times[name] += t_env
+        ratios.append(block_time[env_id] / block_time[reference_id])
+    movers = len(envs[env_id].unwrapped.scene.movers)
+    for env in envs.values():
+        env.close()
+    return {
+        "benchmark": "env_pair",
+        "env_id": env_id,
+        "reference_id": reference_id,
+        "steps": steps,
+        "block": block,
+        "env_steps_per_s": round(steps / times[env_id], 1),
+        "reference_steps_per_s": round(steps / times[reference_id], 1),
+        "cost_ratio": round(float(np.median(ratios)), 4),
+        "cost_ratio_of_totals": round(times[env_id] / times[reference_id], 4),
+        "movers_at_end": movers,
+        "episodes": resets[env_id][0],
+        "reset_ms_mean": round(resets[env_id][1] / max(resets[env_id][0], 1) * 1e3, 2),
+        "reference_reset_ms_mean": round(resets[reference_id][1] / max(resets[reference_id][0], 1) * 1e3, 2),
     }

@@ -8,6 +8,7 @@ evaluation, videos, plots, dashboard -- reached as ``env.unwrapped.scene``.
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -16,7 +17,10 @@ from bulletnav.config import EnvConfig
 from bulletnav.geometry import RobotGeometry, robot_geometry
 from bulletnav.planning.grid import OccupancyGrid
 from bulletnav.sensors.suite import SensorSuite
+from bulletnav.sim.dynamic import ClearanceMap, draw_movers
+from bulletnav.sim.events import Events
 from bulletnav.sim.layout import Layout
+from bulletnav.sim.movers import Movers, MoverView
 from bulletnav.sim.sampler import FreeSpace
 from bulletnav.sim.simulation import Simulation
 
@@ -45,6 +49,26 @@ class Scene:
         self._free: FreeSpace | None = None
         self._rebuild = False
         self._grids: dict[tuple[float, float], OccupancyGrid] = {}
+        # moving obstacles and events (inactive, and never touching PyBullet, in static worlds)
+        self.movers = Movers(self.sim.cid)
+        self.events = Events(self.sim.cid)
+        self.dynamic = False
+        """True when this episode's world has movers or events (set at :meth:`place_robot`)."""
+        self.goals: tuple[tuple[float, float], ...] = ()
+        self.collision_with: str | None = None
+        """``"static"`` or ``"dynamic"`` after a step in contact, else None (dynamic worlds)."""
+        self.step_events: list[dict] = []
+        """Events that happened in the last step."""
+        self._built_at = -1
+        self._cmap: ClearanceMap | None = None
+        self._mover_set: frozenset[int] = frozenset()
+        self._static_set: frozenset[int] = frozenset()
+        # movers farther than this cannot be seen (lidar range; everywhere when a camera looks)
+        lidar = self.sensors.lidar
+        self._visible = math.inf if self.sensors.camera is not None or lidar is None else lidar.config.max_range + 0.5
+        corners = [(sx * r.half_x + r.cx, sy * r.half_y + r.cy) for r in self.geometry.rectangles
+                   for sx in (-1, 1) for sy in (-1, 1)]
+        self._outline = _convex_hull(corners)
 
     @property
     def cid(self) -> int:
@@ -58,6 +82,7 @@ class Scene:
         if layout is not self.layout:
             self._free = None
             self._grids = {}
+            self._cmap = None
         self.layout = layout
         self._rebuild = rebuild
 
@@ -70,24 +95,101 @@ class Scene:
             self._free = FreeSpace.build(self.layout, self.config.sampler, self.geometry.radius)
         return self._free
 
-    def place_robot(self, start: tuple[float, float, float], rng: np.random.Generator) -> None:
-        """Start the episode: build the world if needed, put the robot at rest at ``start``
-        and give each sensor its noise generator from ``rng``."""
-        if self.layout is None:
+    def place_robot(self, start: tuple[float, float, float], rng: np.random.Generator,
+                    goals: tuple[tuple[float, float], ...] = ()) -> None:
+        """Start the episode: build the world if needed, put the robot at rest at ``start``,
+        give each sensor its noise generator from ``rng``, then start the movers and events
+        (drawn from ``rng``; none start near ``start`` or the ``goals``)."""
+        layout = self.layout
+        if layout is None:
             raise RuntimeError("use_layout() before place_robot()")
-        self.sim.reset(self.layout, start, rebuild=self._rebuild)
+        self.sim.reset(layout, start, rebuild=self._rebuild)
         self._rebuild = False
         self.sensors.reset(rng)
         self.start = (float(start[0]), float(start[1]), float(start[2]))
+        self.goals = tuple((float(g[0]), float(g[1])) for g in goals)
+        dyn = self.config.dynamic
+        self.dynamic = dyn.active or bool(layout.dynamic) or bool(layout.events)
+        if not self.dynamic:
+            return
+        if self._built_at != self.sim.rebuilds:  # a fresh client: make the pools once for this world
+            self._build_pools(layout)
+        specs = layout.dynamic
+        if dyn.forklifts[1] > 0 or dyn.workers[1] > 0:
+            if self._cmap is None:
+                self._cmap = ClearanceMap(layout)
+            avoid = (self.start[:2], *self.goals)
+            specs = specs + draw_movers(layout, rng, dyn, self.geometry.radius, avoid, self._cmap)
+        self.movers.start(specs)
+        inflated = self.occupancy(self.events.resolution, self.geometry.radius).occupied
+        self.events.start(rng if dyn.pallet_events_per_min > 0 else None, dyn.pallet_events_per_min, inflated)
+        self.collision_with = None
+        self.step_events = []
+
+    def _build_pools(self, layout: Layout) -> None:
+        dyn = self.config.dynamic
+        shapes: dict[tuple[str, tuple[float, ...]], int] = {}
+        for spec in layout.dynamic:
+            shapes[spec.shape] = shapes.get(spec.shape, 0) + 1
+        if dyn.forklifts[1]:
+            key = ("box", tuple(dyn.forklift_size))
+            shapes[key] = shapes.get(key, 0) + dyn.forklifts[1]
+        if dyn.workers[1]:
+            key = ("cylinder", (dyn.worker_radius, 1.7))
+            shapes[key] = shapes.get(key, 0) + dyn.workers[1]
+        labels = self.sim.world.labels
+        self.movers.build(shapes, labels)
+        self.events.build(layout, self.sim.world.obstacle_ids,
+                          dyn.event_pallets if dyn.pallet_events_per_min > 0 else 0, labels)
+        self._mover_set = self.movers.body_ids
+        self._static_set = self.sim.world.static_set | self.events.body_ids
+        self._built_at = self.sim.rebuilds
 
     def step(self, v: float, w: float) -> None:
         """Command (v m/s, w rad/s), advance one control period, update the sensors."""
-        self.sim.step(v, w)
+        if not self.dynamic:
+            self.sim.step(v, w)
+            self.sensors.update()
+            return
+        state = self.robot.state
+        robot_xy = (state.x, state.y)
+        near = self.movers.plan_step(self.config.physics.control_dt, robot_xy, self.geometry.radius,
+                                     self.config.dynamic.near, self._visible)
+        if near:
+            movers = self.movers
+            self.sim.step(v, w, before_substep=lambda k, n: movers.place_between(near, (k + 1) / n))
+        else:
+            self.sim.step(v, w)
+        state = self.robot.state
+        self.step_events = self.events.step(self.clock.time, self.config.physics.control_dt, (state.x, state.y),
+                                            self.goals, self.geometry.radius, self.movers.active)
         self.sensors.update()
 
     def in_collision(self) -> bool:
-        """True when the robot touches a wall or an obstacle (the floor does not count)."""
-        return self.robot.touching(self.sim.world.static_set)  # Simulation.in_collision(), one call less per step
+        """True when the robot touches a wall, an obstacle or a mover (the floor does not count).
+        In dynamic worlds :attr:`collision_with` says which kind."""
+        if not self.dynamic:
+            return self.robot.touching(self.sim.world.static_set)  # Simulation.in_collision(), one call less per step
+        self.collision_with = self.robot.contact_kind(self._static_set, self._mover_set)
+        return self.collision_with is not None
+
+    def outline(self) -> list[tuple[float, float]]:
+        """The robot's outline (convex hull of its collision boxes), world frame, counter-clockwise."""
+        state = self.robot.state
+        c, s = math.cos(state.yaw), math.sin(state.yaw)
+        return [(state.x + c * x - s * y, state.y + s * x + c * y) for x, y in self._outline]
+
+    def nearest_mover(self) -> float:
+        """Distance (m) between the robot's outline and the nearest mover; inf without movers."""
+        if not self.movers.active:
+            return math.inf
+        state = self.robot.state
+        return self.movers.nearest_gap(self.outline(), (state.x, state.y), self.geometry.outline_radius)
+
+    def dynamic_info(self) -> dict[str, Any]:
+        """The scene's part of ``info`` in dynamic worlds."""
+        return {"nearest_mover_m": self.nearest_mover(), "collision_with": self.collision_with,
+                "events": self.step_events}
 
     def occupancy(self, resolution: float, inflate: float = 0.0) -> OccupancyGrid:
         """The current layout rasterised at ``resolution`` (m), obstacles grown by ``inflate``
@@ -137,9 +239,19 @@ class SceneView:
         return self._scene.occupancy(resolution, inflate)
 
     @property
-    def movers(self) -> tuple[Any, ...]:
-        """Moving obstacles of the current world (none in static worlds)."""
-        return ()
+    def movers(self) -> tuple[MoverView, ...]:
+        """Moving obstacles now (kind, pose, speed, size, route, yielding); none in static worlds."""
+        return self._scene.movers.views() if self._scene.dynamic else ()
+
+    @property
+    def events(self) -> tuple[dict, ...]:
+        """Events so far this episode (time, add/remove, label, centre, size, scripted/drawn)."""
+        return tuple(self._scene.events.log) if self._scene.dynamic else ()
+
+    @property
+    def dynamic(self) -> bool:
+        """True when this episode has movers or events."""
+        return self._scene.dynamic
 
     @property
     def scene_builds(self) -> int:
@@ -219,3 +331,25 @@ class SceneView:
     def episode(self) -> int:
         """Resets so far; changes at every reset."""
         return self._scene.clock.episode
+
+
+def _convex_hull(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """Counter-clockwise convex hull (Andrew's monotone chain)."""
+    pts = sorted(set(points))
+    if len(pts) <= 2:
+        return pts
+
+    def cross(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    lower: list[tuple[float, float]] = []
+    for q in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], q) <= 0:
+            lower.pop()
+        lower.append(q)
+    upper: list[tuple[float, float]] = []
+    for q in reversed(pts):
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], q) <= 0:
+            upper.pop()
+        upper.append(q)
+    return lower[:-1] + upper[:-1]

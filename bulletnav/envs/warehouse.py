@@ -47,6 +47,12 @@ _KWARGS = {
     "blocked_by": (("sampler",), "blocked_by"),
     "detour_share": (("sampler",), "detour_share"),
     "aisles": (("world",), "aisles"),
+    "forklifts": (("dynamic",), "forklifts"),
+    "workers": (("dynamic",), "workers"),
+    "forklift_speed": (("dynamic",), "forklift_speed"),
+    "worker_speed": (("dynamic",), "worker_speed"),
+    "pallet_events_per_min": (("dynamic",), "pallet_events_per_min"),
+    "yield_to_robot": (("dynamic",), "yield_to_robot"),
 }
 _REWARD_FIELDS = {f.name for f in fields(RewardConfig)}
 
@@ -70,6 +76,10 @@ def make_config(config: EnvConfig | None = None, **kwargs: Any) -> EnvConfig:
             path, name = _KWARGS[key]
             if key in ("world_size", "blocked_by"):
                 value = (value,) if isinstance(value, str) else tuple(value)
+            elif key in ("forklifts", "workers"):
+                value = (int(value), int(value)) if isinstance(value, (int, np.integer)) else tuple(value)
+            elif key in ("forklift_speed", "worker_speed"):
+                value = (float(value), float(value)) if isinstance(value, (int, float)) else tuple(value)
             cfg = _replace_at(cfg, path, name, value)
         else:
             known = sorted([*_KWARGS, "world", "config", "render_mode", *(f"reward_{f}" for f in _REWARD_FIELDS)])
@@ -322,6 +332,8 @@ class WarehouseEnv(gym.Env):
     def _info(self, terms: dict[str, float], reason: str | None) -> dict[str, Any]:
         info: dict[str, Any] = dict(zip(self._term_keys, terms.values()))  # the task's terms are floats
         info.update(self.task.info(self._scene))
+        if self._scene.dynamic:
+            info.update(self._scene.dynamic_info())
         info["end_reason"] = reason
         return info
 

@@ -14,17 +14,23 @@ UNKNOWN, FREE, OCCUPIED = -1, 0, 1
 class LidarMapper:
     """Accumulates lidar evidence on a fixed grid covering ``bounds`` (x0, y0, x1, y1) metres.
 
-    Each ray adds ``l_free`` to the cells it passes through (sampled every half cell up to
-    half a cell short of the hit) and ``l_occ`` to the cell of its end point when it hit
-    something (range < max range). Log-odds are clamped to ``+/- l_max`` so the map can
-    change its mind. A cell is occupied above ``occ_threshold``, free below
-    ``free_threshold``, unknown in between (including never seen). Each cell gets at most
-    one free vote per scan, so long rays do not outweigh their end points.
+    Each ray adds ``l_free`` to the cells it passes through (sampled every half cell) and
+    ``l_occ`` to the cell of its end point, and to the cell half a cell beyond it, when it hit
+    something (range < max range). A ray that hit gives free evidence only up to
+    ``free_margin`` m short of its hit: a ray grazing a long wall meets it at a shallow angle,
+    and without the margin its free samples just in front of the hit fall in the wall's own
+    cells and erase them scan after scan (a rack face seen along an aisle would dissolve).
+    A ray that hit nothing clears up to half a cell short of its maximum range. Cells that a
+    moving obstacle left are cleared by later rays passing through them. Log-odds are clamped
+    to ``+/- l_max`` so the map can change its mind. A cell is occupied above
+    ``occ_threshold``, free below ``free_threshold``, unknown in between (including never
+    seen). Each cell gets at most one free vote per scan, so long rays do not outweigh their
+    end points.
     """
 
     def __init__(self, bounds: tuple[float, float, float, float], resolution: float = 0.2,
                  l_free: float = -0.4, l_occ: float = 0.85, l_max: float = 3.5,
-                 occ_threshold: float = 0.6, free_threshold: float = -0.3) -> None:
+                 occ_threshold: float = 0.6, free_threshold: float = -0.3, free_margin: float = 0.4) -> None:
         if resolution <= 0:
             raise ValueError(f"resolution must be > 0, got {resolution}")
         x0, y0, x1, y1 = bounds
@@ -35,6 +41,7 @@ class LidarMapper:
         self.log_odds = np.zeros((self.nx, self.ny), dtype=np.float32)
         self.l_free, self.l_occ, self.l_max = l_free, l_occ, l_max
         self.occ_threshold, self.free_threshold = occ_threshold, free_threshold
+        self.free_margin = free_margin
 
     @property
     def origin(self) -> tuple[float, float]:
@@ -60,19 +67,22 @@ class LidarMapper:
         a = np.asarray(angles, dtype=np.float64) + yaw
         c, s = np.cos(a), np.sin(a)
         was_occ = self.log_odds > self.occ_threshold
-        # free space: samples every half cell along each ray, stopping half a cell short
+        # free space: samples every half cell along each ray, stopping free_margin short of a
+        # hit (half a cell short of the maximum range for a ray that hit nothing)
         step = self.resolution / 2
         t = np.arange(0.0, max_range, step)
-        reach = np.maximum(ranges - step, 0.0)
+        hit = ranges < max_range - 1e-6
+        reach = np.maximum(np.where(hit, ranges - max(self.free_margin, step), ranges - step), 0.0)
         along = t[None, :] <= reach[:, None]
         px = sx + c[:, None] * t[None, :]
         py = sy + s[:, None] * t[None, :]
         ix, iy, ok = self._cells(px[along], py[along])
         flat = np.unique(ix[ok] * self.ny + iy[ok])
         self.log_odds.reshape(-1)[flat] += self.l_free
-        # hits
-        hit = ranges < max_range - 1e-6
-        hx, hy, ok = self._cells(sx + c[hit] * ranges[hit], sy + s[hit] * ranges[hit])
+        # hits: the end point's cell and the cell half a cell beyond it (the obstacle's inside)
+        depth = np.concatenate([ranges[hit], ranges[hit] + step])
+        ch, sh = np.tile(c[hit], 2), np.tile(s[hit], 2)
+        hx, hy, ok = self._cells(sx + ch * depth, sy + sh * depth)
         flat = np.unique(hx[ok] * self.ny + hy[ok])
         self.log_odds.reshape(-1)[flat] += self.l_occ
         np.clip(self.log_odds, -self.l_max, self.l_max, out=self.log_odds)

@@ -15,6 +15,12 @@ YAML format (stable; see README)::
       - {type: cylinder, center: [0.0, 0.0], radius: 0.2, height: 3.0}
     start: [-5.0, -4.0, 0.0]         # optional x, y, yaw
     goal: [5.0, 4.0]                 # optional x, y
+    dynamic:                         # optional moving obstacles (bulletnav.sim.movers)
+      - {type: forklift, route: [[-4, 0], [4, 0]], speed: 0.5}   # size [1.1, 0.8, 2.0], accel, yield_to_robot
+      - {type: worker, waypoints: [[0, -3], [0, 3]], speed: 1.0, pause: 2.0}   # radius 0.25, height 1.7
+    events:                          # optional obstacles appearing / vanishing (bulletnav.sim.events)
+      - {at: 5.0, add: {type: box, center: [2, -2], size: [1.2, 0.8, 1.0], label: pallet_a}}
+      - {at: 20.0, remove: pallet_a}
 """
 
 from __future__ import annotations
@@ -22,13 +28,17 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import yaml
 
 from bulletnav.config import WorldConfig
 from bulletnav.errors import LayoutError
+
+if TYPE_CHECKING:
+    from bulletnav.sim.events import EventSpec
+    from bulletnav.sim.movers import MoverSpec
 
 WALL_THICKNESS = 0.2
 """Thickness of the enclosing walls (m); they stand just outside the floor extent."""
@@ -87,6 +97,10 @@ class Layout:
     goal: tuple[float, float] | None = None
     source: str = field(default="", compare=False)
     """Where it came from (file path or ``procedural seed=...``), for messages only."""
+    dynamic: tuple[MoverSpec, ...] = ()
+    """Moving obstacles (forklifts, workers) animated in every episode on this layout."""
+    events: tuple[EventSpec, ...] = ()
+    """Obstacles that appear or vanish at given times in every episode on this layout."""
 
     @property
     def half_extents(self) -> tuple[float, float]:
@@ -141,8 +155,8 @@ def _positive(value: float, where: str, field_name: str) -> float:
     return value
 
 
-def _parse_obstacle(raw: Any, where: str, index: int) -> Obstacle:
-    tag = f"obstacles[{index}]"
+def _parse_obstacle(raw: Any, where: str, index: int, tag: str = "") -> Obstacle:
+    tag = tag or f"obstacles[{index}]"
     if not isinstance(raw, dict):
         raise LayoutError(f"{where}: {tag} must be a mapping, got {raw!r}")
     kind = raw.get("type")
@@ -176,7 +190,7 @@ def parse_layout(data: Any, where: str = "<layout>") -> Layout:
     """
     if not isinstance(data, dict):
         raise LayoutError(f"{where}: top level must be a mapping with 'size' and 'obstacles', got {type(data).__name__}")
-    unknown = sorted(set(data) - {"name", "size", "wall_height", "obstacles", "start", "goal"})
+    unknown = sorted(set(data) - {"name", "size", "wall_height", "obstacles", "start", "goal", "dynamic", "events"})
     if unknown:
         raise LayoutError(f"{where}: unknown top-level field(s) {unknown}")
     if "size" not in data:
@@ -215,7 +229,107 @@ def parse_layout(data: Any, where: str = "<layout>") -> Layout:
     if data.get("goal") is not None:
         goal = _vec(data["goal"], 2, where, "goal")
         _check_free(layout, goal, where, "goal")
-    return Layout(size, obstacles, wall_height, layout.name, start, goal, where)  # type: ignore[arg-type]
+    dynamic = _parse_dynamic(data.get("dynamic"), layout, where)
+    events = _parse_events(data.get("events"), layout, where)
+    return Layout(size, obstacles, wall_height, layout.name, start, goal, where, dynamic, events)  # type: ignore[arg-type]
+
+
+def _points(value: Any, where: str, field_name: str, layout: Layout) -> tuple[tuple[float, float], ...]:
+    if not isinstance(value, list) or len(value) < 2:
+        raise LayoutError(f"{where}: field '{field_name}' must be a list of at least 2 [x, y] points, got {value!r}")
+    pts = tuple(_vec(v, 2, where, f"{field_name}[{i}]") for i, v in enumerate(value))
+    for i, xy in enumerate(pts):
+        _check_free(layout, xy, where, f"{field_name}[{i}]")
+    for i, (a, b) in enumerate(zip(pts, pts[1:])):
+        if a == b:
+            raise LayoutError(f"{where}: field '{field_name}' repeats point {i} ({list(a)}): segments need length")
+    return pts  # type: ignore[return-value]
+
+
+def _parse_dynamic(raw: Any, layout: Layout, where: str) -> tuple[MoverSpec, ...]:
+    from bulletnav.sim.movers import ForkliftSpec, WorkerSpec
+
+    if raw is None:
+        return ()
+    if not isinstance(raw, list):
+        raise LayoutError(f"{where}: field 'dynamic' must be a list, got {type(raw).__name__}")
+    out: list[MoverSpec] = []
+    for i, entry in enumerate(raw):
+        tag = f"dynamic[{i}]"
+        if not isinstance(entry, dict):
+            raise LayoutError(f"{where}: {tag} must be a mapping, got {entry!r}")
+        kind = entry.get("type")
+        allowed = {"forklift": {"type", "route", "speed", "size", "accel", "yield_to_robot"},
+                   "worker": {"type", "waypoints", "speed", "radius", "height", "pause", "yield_to_robot"}}
+        if kind not in allowed:
+            raise LayoutError(f"{where}: field '{tag}.type' must be 'forklift' or 'worker', got {kind!r}")
+        unknown = sorted(set(entry) - allowed[kind])
+        if unknown:
+            raise LayoutError(f"{where}: {tag} ({kind}) has unknown field(s) {unknown}; allowed: {sorted(allowed[kind])}")
+        path_key = "route" if kind == "forklift" else "waypoints"
+        if path_key not in entry:
+            raise LayoutError(f"{where}: field '{tag}.{path_key}' is missing")
+        path = _points(entry[path_key], where, f"{tag}.{path_key}", layout)
+        yield_ = entry.get("yield_to_robot", True)
+        if not isinstance(yield_, bool):
+            raise LayoutError(f"{where}: field '{tag}.yield_to_robot' must be true or false, got {yield_!r}")
+        speed = _positive(_num(entry.get("speed", 0.5 if kind == "forklift" else 1.0), where, f"{tag}.speed"),
+                          where, f"{tag}.speed")
+        if kind == "forklift":
+            size = _vec(entry.get("size", [1.1, 0.8, 2.0]), 3, where, f"{tag}.size")
+            for k, v in enumerate(size):
+                _positive(v, where, f"{tag}.size[{k}]")
+            accel = entry.get("accel")
+            if accel is not None:
+                accel = _positive(_num(accel, where, f"{tag}.accel"), where, f"{tag}.accel")
+            out.append(ForkliftSpec(path, speed, size, accel, yield_))  # type: ignore[arg-type]
+        else:
+            radius = _positive(_num(entry.get("radius", 0.25), where, f"{tag}.radius"), where, f"{tag}.radius")
+            height = _positive(_num(entry.get("height", 1.7), where, f"{tag}.height"), where, f"{tag}.height")
+            pause = _num(entry.get("pause", 1.0), where, f"{tag}.pause")
+            if pause < 0:
+                raise LayoutError(f"{where}: field '{tag}.pause' must be >= 0, got {pause}")
+            out.append(WorkerSpec(path, speed, radius, height, pause, yield_))
+    return tuple(out)
+
+
+def _parse_events(raw: Any, layout: Layout, where: str) -> tuple[EventSpec, ...]:
+    from bulletnav.sim.events import EventSpec
+
+    if raw is None:
+        return ()
+    if not isinstance(raw, list):
+        raise LayoutError(f"{where}: field 'events' must be a list, got {type(raw).__name__}")
+    labels = {o.label for o in layout.obstacles}
+    out = []
+    for i, entry in enumerate(raw):
+        tag = f"events[{i}]"
+        if not isinstance(entry, dict):
+            raise LayoutError(f"{where}: {tag} must be a mapping, got {entry!r}")
+        unknown = sorted(set(entry) - {"at", "add", "remove"})
+        if unknown:
+            raise LayoutError(f"{where}: {tag} has unknown field(s) {unknown}; allowed: ['add', 'at', 'remove']")
+        if "at" not in entry:
+            raise LayoutError(f"{where}: field '{tag}.at' is missing")
+        at = _num(entry["at"], where, f"{tag}.at")
+        if at < 0:
+            raise LayoutError(f"{where}: field '{tag}.at' must be >= 0 s, got {at}")
+        if ("add" in entry) == ("remove" in entry):
+            raise LayoutError(f"{where}: {tag} needs exactly one of 'add' (an obstacle entry) or 'remove' (a label)")
+        if "add" in entry:
+            o = _parse_obstacle(entry["add"], where, i, tag=f"{tag}.add")
+            hx, hy = layout.half_extents
+            if not (abs(o.center[0]) < hx and abs(o.center[1]) < hy):
+                raise LayoutError(f"{where}: field '{tag}.add.center' {list(o.center)} lies outside the floor")
+            labels.add(o.label)
+            out.append(EventSpec(at, add=o))
+        else:
+            label = entry["remove"]
+            if not isinstance(label, str) or label not in labels:
+                raise LayoutError(f"{where}: field '{tag}.remove' must name the label of an obstacle or of an earlier "
+                                  f"'add', got {label!r}; labels: {sorted(labels)}")
+            out.append(EventSpec(at, remove=label))
+    return tuple(sorted(out, key=lambda e: e.at))
 
 
 def _check_free(layout: Layout, xy: tuple[float, ...], where: str, field_name: str) -> None:

@@ -230,6 +230,17 @@ class Robot:
                 return True
         return False
 
+    def contact_kind(self, static: Collection[int], moving: Collection[int]) -> str | None:
+        """``"dynamic"`` when the robot touches one of ``moving``, else ``"static"`` when it
+        touches one of ``static``, else None."""
+        kind = None
+        for c in p.getContactPoints(bodyA=self.body, physicsClientId=self.cid):
+            if c[2] in moving:
+                return "dynamic"
+            if c[2] in static:
+                kind = "static"
+        return kind
+
 
 def _yaw(orn: tuple[float, ...]) -> float:
     """Heading (rad) of an orientation quaternion (x, y, z, w)."""

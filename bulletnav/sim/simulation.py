@@ -9,6 +9,7 @@ the command, advance ``substeps`` physics steps, take the robot's ground-truth s
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 
 import pybullet as p
 
@@ -63,12 +64,19 @@ class Simulation:
         self.clock.tick = 0
         self.clock.episode += 1
 
-    def step(self, v: float, w: float) -> None:
-        """Command (v m/s, w rad/s) and advance one control period."""
+    def step(self, v: float, w: float, before_substep: Callable[[int, int], None] | None = None) -> None:
+        """Command (v m/s, w rad/s) and advance one control period; ``before_substep(k, n)``
+        runs before physics step ``k`` of ``n`` (to move kinematic bodies)."""
         self.robot.set_velocity(v, w)
         cid = self.cid
-        for _ in range(self.physics.substeps):
-            p.stepSimulation(physicsClientId=cid)
+        if before_substep is None:
+            for _ in range(self.physics.substeps):
+                p.stepSimulation(physicsClientId=cid)
+        else:
+            n = self.physics.substeps
+            for k in range(n):
+                before_substep(k, n)
+                p.stepSimulation(physicsClientId=cid)
         self.clock.tick += self.physics.substeps
         self.robot.sample()  # the ground truth of this step, shared by sensors and task
 

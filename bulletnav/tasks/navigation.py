@@ -90,8 +90,8 @@ class NavigationTask(Task):
             start = pose_option(options["start"], 3, "start")  # type: ignore[assignment]
         if "goal" in options:
             goal = pose_option(options["goal"], 2, "goal")  # type: ignore[assignment]
-        scene.place_robot(start, rng)
         self.goals = ((float(goal[0]), float(goal[1])),)
+        scene.place_robot(start, rng, self.goals)
         self._measure(scene)
         self.collision = self._success = False
         self.initial_distance = self._prev_distance = self.distance
