@@ -12,11 +12,77 @@ import numpy as np
 
 from bulletnav.errors import BulletnavError
 
+DEFAULT_ENV_ID = "bulletnav/Warehouse-v0"
+"""The env every subcommand uses unless ``--env`` names another."""
+
+EVALUATE_OBSTACLES = 31
+"""``num_obstacles`` that evaluate and demo use on ``bulletnav/Warehouse-v0`` without
+``--obstacles``, whatever the model was trained with (the benchmark's warehouses)."""
+
+
+def _add_env_arg(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--env", dest="env_id", default=DEFAULT_ENV_ID, metavar="ID",
+                        help=f"registered bulletnav env id, e.g. bulletnav/WarehouseAisles-v0 (default {DEFAULT_ENV_ID})")
+
+
+def _add_obstacles_arg(parser: argparse.ArgumentParser, default: str = "the env's; 31 on Warehouse-v0") -> None:
+    parser.add_argument("--obstacles", type=int, default=None, metavar="K",
+                        help=f"obstacles in a procedural warehouse (default: {default})")
+
 
 def _add_world_args(parser: argparse.ArgumentParser) -> None:
+    _add_env_arg(parser)
     parser.add_argument("--world", metavar="FILE", help="YAML layout (default: procedural warehouse)")
-    parser.add_argument("--obstacles", type=int, default=31, metavar="K", help="obstacles in a procedural warehouse (default 31)")
+    _add_obstacles_arg(parser)
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+
+
+def bulletnav_env_ids() -> list[str]:
+    """The Gymnasium ids that bulletnav registers (``bulletnav/...``)."""
+    import gymnasium as gym
+
+    import bulletnav  # noqa: F401  (registers the envs)
+
+    return sorted(env_id for env_id in gym.registry if env_id.startswith("bulletnav/"))
+
+
+def check_env_id(env_id: str) -> None:
+    """Raise :class:`BulletnavError` naming ``env_id`` and the known ids unless bulletnav registers it."""
+    ids = bulletnav_env_ids()
+    if env_id not in ids:
+        raise BulletnavError(f"unknown env id {env_id!r}; bulletnav env ids: {', '.join(ids)}")
+
+
+def _world_kwargs(args: argparse.Namespace, obstacles: int | None = None) -> dict:
+    """``num_obstacles`` (``--obstacles``, else ``obstacles`` when given) and ``world`` (``--world``) for gym.make."""
+    kwargs = {}
+    if args.obstacles is not None:
+        obstacles = args.obstacles
+    if obstacles is not None:
+        kwargs["num_obstacles"] = obstacles
+    if args.world:
+        kwargs["world"] = args.world
+    return kwargs
+
+
+def _world_label(args: argparse.Namespace, obstacles: int | None = None) -> str:
+    """The report's name of the warehouses: the layout file, or the procedural obstacle count."""
+    if args.world:
+        return args.world
+    if args.obstacles is not None:
+        obstacles = args.obstacles
+    if obstacles is None and args.env_id == DEFAULT_ENV_ID:
+        from bulletnav.config import WorldConfig
+
+        obstacles = WorldConfig().num_obstacles
+    return f"procedural ({obstacles} obstacles)" if obstacles is not None else "procedural"
+
+
+def _safety_line(s: dict) -> str:
+    """One report line of the safety metrics of :func:`bulletnav.evaluation.summarize`."""
+    return (f"collisions static {s['collision_static_rate'] * 100:.1f} %  dynamic {s['collision_dynamic_rate'] * 100:.1f} %   "
+            f"timeouts {s['timeout_rate'] * 100:.1f} %   min separation {_fmt(s['min_separation_m'])} m   "
+            f"near misses {s['near_miss_rate'] * 100:.1f} % of steps   episode time {s['episode_time_s']:.1f} s")
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
@@ -24,15 +90,24 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if args.what == "env":
         from bulletnav.bench.env_bench import bench_env
 
-        result = bench_env(steps=args.steps or 6000, seed=args.seed)
-        lines = [
-            f"env  {result['env_steps_per_s']:8.1f} steps/s   (gym.make, random actions, headless, lidar obs)",
-            f"raw  {result['raw_steps_per_s']:8.1f} steps/s   (same physics, rays and state queries, plain PyBullet)",
-            f"lean {result['physics_and_rays_steps_per_s']:8.1f} steps/s   (physics and rays only; "
-            f"ratio {result['ratio_physics_and_rays']:.3f})",
-            f"ratio env/raw {result['ratio']:.3f} (median over {result['steps'] // result['block']} blocks), "
-            f"overhead {result['env_overhead_us_per_step']:.1f} us/step, reset {result['reset_ms_mean']:.2f} ms",
-        ]
+        result = bench_env(steps=args.steps or 6000, seed=args.seed, env_id=args.env_id)
+        if result["benchmark"] == "env_pair":
+            lines = [
+                f"{result['env_id']:32s} {result['env_steps_per_s']:8.1f} steps/s  (reset {result['reset_ms_mean']:.1f} ms)",
+                f"{result['reference_id']:32s} {result['reference_steps_per_s']:8.1f} steps/s  "
+                f"(reset {result['reference_reset_ms_mean']:.1f} ms)",
+                f"step cost ratio {result['cost_ratio']:.3f} (median over {result['steps'] // result['block']} blocks; "
+                f"target <= 1.3)",
+            ]
+        else:
+            lines = [
+                f"env  {result['env_steps_per_s']:8.1f} steps/s   (gym.make, random actions, headless, lidar obs)",
+                f"raw  {result['raw_steps_per_s']:8.1f} steps/s   (same physics, rays and state queries, plain PyBullet)",
+                f"lean {result['physics_and_rays_steps_per_s']:8.1f} steps/s   (physics and rays only; "
+                f"ratio {result['ratio_physics_and_rays']:.3f})",
+                f"ratio env/raw {result['ratio']:.3f} (median over {result['steps'] // result['block']} blocks), "
+                f"overhead {result['env_overhead_us_per_step']:.1f} us/step, reset {result['reset_ms_mean']:.2f} ms",
+            ]
     elif args.what == "physics":
         from bulletnav.bench.physics_bench import bench_physics
 
@@ -78,12 +153,10 @@ def _make_env(args: argparse.Namespace, **extra):
 
     import bulletnav  # noqa: F401  (registers the env)
 
-    kwargs = dict(num_obstacles=args.obstacles, **extra)
+    kwargs = dict(_world_kwargs(args), **extra)
     if getattr(args, "layout_style", None):
         kwargs["layout_style"] = args.layout_style
-    if args.world:
-        kwargs["world"] = args.world
-    return gym.make("bulletnav/Warehouse-v0", render_mode="human" if getattr(args, "gui", False) else None, **kwargs)
+    return gym.make(args.env_id, render_mode="human" if getattr(args, "gui", False) else None, **kwargs)
 
 
 def _json(obj) -> str:
@@ -155,6 +228,12 @@ def _run_with_visuals(args, env, policy, line, title: str):
     from bulletnav.evaluation import run_episodes
 
     visuals = _Visuals(env, policy, getattr(args, "video", None), getattr(args, "plot", None), getattr(args, "gui", False))
+    sizes: list[list[float]] = []
+
+    def on_reset(env, info) -> None:
+        if not sizes:
+            sizes.append([float(x) for x in env.unwrapped.scene.layout.size])
+        visuals.on_reset(env, info)
 
     def on_episode(r) -> None:
         visuals.on_episode(r)
@@ -162,11 +241,11 @@ def _run_with_visuals(args, env, policy, line, title: str):
 
     try:
         results = run_episodes(env, policy, args.episodes, args.seed, on_episode=on_episode,
-                               on_step=visuals.on_step, on_reset=visuals.on_reset)
+                               on_step=visuals.on_step, on_reset=on_reset)
     finally:
         written = visuals.close(title)
         env.close()
-    return results, written
+    return results, written, (sizes[0] if sizes else None)
 
 
 def _outcome(r) -> str:
@@ -192,14 +271,15 @@ def cmd_navigate(args: argparse.Namespace) -> int:
                   f"sim {r.sim_time:5.1f} s  driven {r.path_length:5.2f} m  shortest {r.shortest_path:5.2f} m  "
                   f"SPL {r.spl:.2f}  {plans}  replans {r.replans}")
 
-    results, written = _run_with_visuals(args, env, nav, line, f"PID + {args.planner} (seed {args.seed})")
+    results, written, layout_size = _run_with_visuals(args, env, nav, line, f"PID + {args.planner} (seed {args.seed})")
     summary = summarize(results)
-    summary.update(planner=args.planner, seed=args.seed, pose_source=args.pose,
-                   world=args.world or f"procedural ({args.obstacles} obstacles)")
+    summary.update(planner=args.planner, seed=args.seed, pose_source=args.pose, env_id=args.env_id,
+                   world=_world_label(args), world_size=layout_size)
     if args.json:
         print(_json(summary))
         return 0
-    print(f"\nplanner {args.planner} | {summary['world']} | episodes {summary['episodes']} | seed {args.seed}")
+    env_name = "" if args.env_id == DEFAULT_ENV_ID else f"{args.env_id} | "
+    print(f"\nplanner {args.planner} | {env_name}{summary['world']} | episodes {summary['episodes']} | seed {args.seed}")
     print(f"success rate   {summary['success_rate'] * 100:5.1f} %   collisions {summary['collision_rate'] * 100:5.1f} %   "
           f"SPL {summary['spl']:.3f}")
     print(f"steps          {summary['mean_length']:.1f} +/- {summary['std_length']:.1f}   "
@@ -207,22 +287,30 @@ def cmd_navigate(args: argparse.Namespace) -> int:
           f"path length {_fmt(summary['mean_path_length_success'])} m (successes)")
     print(f"planning       median {_fmt(summary['plan_ms_median'], '.3f')} ms  p95 {_fmt(summary['plan_ms_p95'], '.3f')} ms  "
           f"calls {summary['plan_calls']}  replans/episode {summary['replans_mean']:.1f}")
+    print(f"safety         {_safety_line(summary)}")
     for w in written:
         print(w)
     return 0
 
 
 def cmd_train(args: argparse.Namespace) -> int:
+    from dataclasses import fields
     from pathlib import Path
 
     from bulletnav.provenance import command_line
     from bulletnav.rl.train import TrainConfig, train
 
+    extra = {}
+    if "env_id" in {f.name for f in fields(TrainConfig)}:
+        extra["env_id"] = args.env_id
+    elif args.env_id != DEFAULT_ENV_ID:
+        raise BulletnavError(f"--env {args.env_id}: training supports only {DEFAULT_ENV_ID} for now "
+                             f"(the training configuration has no env id)")
     cfg = TrainConfig(
         algo=args.algo, timesteps=args.timesteps, out=Path(args.out), seed=args.seed, n_envs=args.n_envs,
         resume=args.resume, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
         checkpoint_freq=args.checkpoint_freq, progress_bar=not args.no_progress, vec_env=args.vec_env,
-        hyperparams=Path(args.hyperparams) if args.hyperparams else None, command=command_line(),
+        hyperparams=Path(args.hyperparams) if args.hyperparams else None, command=command_line(), **extra,
     )
     record = train(cfg)
     final = record.get("final_eval") or {}
@@ -243,21 +331,22 @@ def _evaluate_report(args: argparse.Namespace, model_path: str) -> dict:
     import gymnasium as gym
 
     import bulletnav  # noqa: F401
-    from bulletnav.evaluation import summarize
+    from bulletnav.evaluation import SAFETY_KEYS, summarize
     from bulletnav.rl.envs import evaluation_env_kwargs
     from bulletnav.rl.io import load_model
     from bulletnav.rl.policy import SB3Policy
 
     model, meta, vecnorm = load_model(model_path, algo=getattr(args, "algo", None))
+    # the model's env settings on top of the chosen env; on Warehouse-v0 the benchmark's obstacle count
+    default_obstacles = EVALUATE_OBSTACLES if args.env_id == DEFAULT_ENV_ID else None
     env_kwargs = evaluation_env_kwargs(meta.get("env_kwargs", {}))
-    env_kwargs["num_obstacles"] = args.obstacles
-    if args.world:
-        env_kwargs["world"] = args.world
-    env = gym.make("bulletnav/Warehouse-v0", render_mode="human" if args.gui else None, **env_kwargs)
+    env_kwargs.update(_world_kwargs(args, default_obstacles))
+    env = gym.make(args.env_id, render_mode="human" if args.gui else None, **env_kwargs)
     algo = str(meta.get("algo", getattr(args, "algo", None) or "?")).upper()
     bar = "=" * 60
     if not args.json:
-        print(f"{bar}\nRunning {args.episodes} evaluation episodes ({algo} {model_path}, seed {args.seed})\n{bar}")
+        env_name = "" if args.env_id == DEFAULT_ENV_ID else f", {args.env_id}"
+        print(f"{bar}\nRunning {args.episodes} evaluation episodes ({algo} {model_path}, seed {args.seed}{env_name})\n{bar}")
 
     def line(r) -> None:
         if args.json:
@@ -268,12 +357,13 @@ def _evaluate_report(args: argparse.Namespace, model_path: str) -> dict:
         print(f"{mark} | Steps: {r.steps} | Reward: {r.reward:.1f} | Final distance: {r.final_distance:.2f}m | "
               f"Distance traveled: {r.path_length:.2f}m")
 
-    results, written = _run_with_visuals(args, env, SB3Policy(model, vecnorm), line, f"{algo} (seed {args.seed})")
+    results, written, layout_size = _run_with_visuals(args, env, SB3Policy(model, vecnorm), line, f"{algo} (seed {args.seed})")
     s = summarize(results)
     keys = ("episodes", "success_rate", "mean_reward", "std_reward", "mean_length", "std_length", "mean_distance",
-            "std_distance", "collision_rate", "spl", "per_episode")
+            "std_distance", "collision_rate", "spl", *SAFETY_KEYS, "per_episode")
     out = {k: s[k] for k in keys}
-    out.update(model=str(model_path), seed=args.seed, world=args.world or f"procedural ({args.obstacles} obstacles)")
+    out.update(model=str(model_path), seed=args.seed, env_id=args.env_id,
+               world=_world_label(args, default_obstacles), world_size=layout_size)
     if args.json:
         print(_json(out))
         return out
@@ -283,7 +373,8 @@ def _evaluate_report(args: argparse.Namespace, model_path: str) -> dict:
           f"Average reward:         {s['mean_reward']:.2f} \u00b1 {s['std_reward']:.2f}\n"
           f"Average episode length: {s['mean_length']:.1f} \u00b1 {s['std_length']:.1f} steps\n"
           f"Average distance:        {s['mean_distance']:.2f}m \u00b1 {s['std_distance']:.2f}m\n"
-          f"Collision rate: {s['collision_rate'] * 100:.1f}%   SPL: {s['spl']:.3f}\n{bar}")
+          f"Collision rate: {s['collision_rate'] * 100:.1f}%   SPL: {s['spl']:.3f}\n"
+          f"Safety: {_safety_line(s)}\n{bar}")
     for w in written:
         print(w)
     return out
@@ -363,10 +454,7 @@ def cmd_view(args: argparse.Namespace) -> int:
     import bulletnav  # noqa: F401
     from bulletnav.viz import Dashboard
 
-    kwargs = {"num_obstacles": args.obstacles}
-    if args.world:
-        kwargs["world"] = args.world
-    env = gym.make("bulletnav/Warehouse-v0", render_mode="human", **kwargs)
+    env = gym.make(args.env_id, render_mode="human", **_world_kwargs(args))
     try:
         env.reset(seed=args.seed)
         dashboard = Dashboard(env)
@@ -378,7 +466,7 @@ def cmd_view(args: argparse.Namespace) -> int:
             _, _, terminated, truncated, _ = env.step(turn)
             dashboard.on_step()
             steps += 1
-            if terminated or truncated:  # the time limit, after 1000 steps
+            if terminated or truncated:  # the time limit (1000 steps on Warehouse-v0)
                 env.reset()
                 dashboard.on_reset()
         print(f"viewed {env.unwrapped.scene.layout.name or 'procedural'} warehouse for {args.seconds:g} s "
@@ -416,6 +504,7 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--timesteps", type=int, default=500_000, help="total environment steps (default 500000)")
     tr.add_argument("--n-envs", type=int, default=None, help="parallel envs (default: the hyperparameter file's, 4)")
     tr.add_argument("--seed", type=int, default=0, help="random seed of the run (default 0)")
+    _add_env_arg(tr)
     tr.add_argument("--out", required=True, metavar="DIR", help="run directory, e.g. runs/ppo")
     tr.add_argument("--resume", action="store_true", help="continue from DIR/checkpoints/last.zip")
     tr.add_argument("--eval-freq", type=int, default=25_000, help="evaluate every N timesteps (default 25000)")
@@ -433,8 +522,9 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--algo", choices=["ppo", "sac", "td3", "a2c"], default=None,
                     help="only needed when the .json beside the model is missing")
     ev.add_argument("--episodes", type=int, default=10, help="episodes to run (default 10)")
+    _add_env_arg(ev)
     ev.add_argument("--world", metavar="FILE", help="YAML layout (default: procedural warehouse)")
-    ev.add_argument("--obstacles", type=int, default=31, help="obstacles in a procedural warehouse (default 31)")
+    _add_obstacles_arg(ev, "31 on Warehouse-v0, else the model's or the env's")
     ev.add_argument("--seed", type=int, default=1000, help="episode k uses env seed S + k (default 1000)")
     ev.add_argument("--gui", action="store_true", help="watch in the PyBullet GUI (needs a display)")
     ev.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
@@ -453,8 +543,9 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--model", default=DEFAULT_MODEL, help=f"model zip (default {DEFAULT_MODEL})")
     demo.add_argument("--episodes", type=int, default=5, help="episodes to run (default 5)")
     demo.add_argument("--seed", type=int, default=2024, help="episode k uses env seed S + k (default 2024)")
+    _add_env_arg(demo)
     demo.add_argument("--world", metavar="FILE", help="YAML layout (default: procedural warehouse)")
-    demo.add_argument("--obstacles", type=int, default=31, help="obstacles in a procedural warehouse (default 31)")
+    _add_obstacles_arg(demo, "31 on Warehouse-v0, else the model's or the env's")
     demo.add_argument("--out", default="runs/demo", metavar="DIR", help="output directory (default runs/demo)")
     demo.add_argument("--video", metavar="PATH", help="video file (default DIR/episodes.mp4)")
     demo.add_argument("--gui", action="store_true", help="watch live in the PyBullet GUI")
@@ -462,8 +553,9 @@ def build_parser() -> argparse.ArgumentParser:
     demo.set_defaults(func=cmd_demo, algo=None)
 
     view = add("view", "look at a warehouse in the PyBullet GUI")
+    _add_env_arg(view)
     view.add_argument("--world", metavar="FILE", help="YAML layout (default: procedural warehouse)")
-    view.add_argument("--obstacles", type=int, default=31, help="obstacles in a procedural warehouse (default 31)")
+    _add_obstacles_arg(view)
     view.add_argument("--seed", type=int, default=0, help="warehouse seed (default 0)")
     view.add_argument("--seconds", type=float, default=30.0, help="how long to show it (default 30)")
     view.set_defaults(func=cmd_view)
@@ -476,6 +568,9 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--json", action="store_true", help="print one JSON object")
     bench.add_argument("--steps", type=int, default=0, help="steps to time (default: the benchmark's own)")
     bench.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    bench.add_argument("--env", dest="env_id", default=DEFAULT_ENV_ID, metavar="ID",
+                       help="env: Warehouse-v0 against raw PyBullet, or WarehouseDynamic-v0 against "
+                            "WarehouseAisles-v0 (default Warehouse-v0)")
     bench.set_defaults(func=cmd_bench)
     return parser
 
@@ -485,6 +580,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     try:
+        if getattr(args, "env_id", None) is not None:
+            check_env_id(args.env_id)
         return int(args.func(args) or 0)
     except BulletnavError as exc:
         print(f"bulletnav {args.command}: error: {exc}", file=sys.stderr)

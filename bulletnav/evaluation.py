@@ -7,6 +7,12 @@ through :func:`run_episodes` as a :class:`~bulletnav.policy.Policy`, and is scor
 (Anderson et al. 2018, as in Habitat): ``S_i * l_i / max(p_i, l_i)`` with ``l_i`` the
 shortest collision-free path on the true map for the robot's disc and ``p_i`` the driven
 length.
+
+Safety metrics read two optional ``info`` keys that envs with moving obstacles report:
+``nearest_mover_m`` (metres from the robot's outline to the nearest mover, ``inf`` when
+there is none) and ``collision_with`` (``"static"``, ``"dynamic"`` or None). Static worlds
+leave both out: a collision there is a static one, and an episode has no separation to
+movers (NaN) and no near misses.
 """
 
 from __future__ import annotations
@@ -14,7 +20,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import InitVar, asdict, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -46,6 +52,65 @@ class EpisodeResult:
     wall_time: float
     plan_ms: list[float] = field(default_factory=list)
     replans: int = 0
+    collision_static: bool = False
+    """The episode ended in a collision with the static world (every collision where the env reports no movers)."""
+    collision_dynamic: bool = False
+    """The episode ended in a collision with a mover (``info["collision_with"] == "dynamic"``)."""
+    timeout: bool = False
+    """Neither success nor collision: the time limit ended the episode."""
+    near_miss_steps: int = 0
+    """Steps with ``info["nearest_mover_m"] < NEAR_MISS_M``."""
+    min_separation: InitVar[float] = math.nan
+    # Not a field: NaN (no movers) has no strict-JSON form, and the per-episode rows
+    # (``asdict``, ``summarize``'s ``per_episode``, the CLI's JSON) stay plain numbers.
+
+    def __post_init__(self, min_separation: float) -> None:
+        self._min_separation_m = float(min_separation)
+
+    @property
+    def min_separation_m(self) -> float:
+        """Smallest ``info["nearest_mover_m"]`` over the episode's steps (m); NaN when it had no movers."""
+        return self._min_separation_m
+
+
+SAFETY_KEYS = ("collision_static_rate", "collision_dynamic_rate", "timeout_rate", "min_separation_m", "near_miss_rate",
+               "episode_time_s")
+"""The safety entries of :func:`summarize`."""
+
+NEAR_MISS_M = 0.2
+"""A step is a near miss when the robot's outline comes closer than this to a mover (m)."""
+
+
+class SafetyTracker:
+    """Per-episode safety figures from the ``info`` dicts of its steps (see the module docstring)."""
+
+    def __init__(self) -> None:
+        self.min_separation_m = math.inf
+        self.near_miss_steps = 0
+
+    def step(self, info: dict) -> None:
+        d = info.get("nearest_mover_m")
+        if d is None:
+            return
+        d = float(d)
+        if d < self.min_separation_m:
+            self.min_separation_m = d
+        if d < NEAR_MISS_M:
+            self.near_miss_steps += 1
+
+    def result(self, final_info: dict) -> dict[str, Any]:
+        """The :class:`EpisodeResult` arguments ``collision_static``, ``collision_dynamic``,
+        ``timeout``, ``near_miss_steps`` and ``min_separation`` of an episode whose last step
+        returned ``final_info``."""
+        collision = bool(final_info["collision"])
+        dynamic = collision and final_info.get("collision_with") == "dynamic"
+        return {
+            "collision_static": collision and not dynamic,
+            "collision_dynamic": dynamic,
+            "timeout": not bool(final_info["is_success"]) and not collision,
+            "near_miss_steps": self.near_miss_steps,
+            "min_separation": self.min_separation_m if math.isfinite(self.min_separation_m) else math.nan,
+        }
 
 
 def shortest_path_length(layout: Layout, start: tuple[float, float], goal: tuple[float, float],
@@ -97,12 +162,14 @@ def run_episodes(env, policy: Policy, episodes: int, seed: int,
         start = scene.start
         shortest = shortest_path_length(scene.layout, (start[0], start[1]), scene.goal, radius=scene.geometry.radius)
         total, steps = 0.0, 0
+        safety = SafetyTracker()
         t0 = time.perf_counter()
         while True:
             action = policy.act(obs, info)
             obs, reward, terminated, truncated, info = env.step(action)
             total += reward
             steps += 1
+            safety.step(info)
             if on_step is not None:
                 on_step(env, info)
             if terminated or truncated:
@@ -116,6 +183,7 @@ def run_episodes(env, policy: Policy, episodes: int, seed: int,
             success=success, collision=bool(info["collision"]), spl=spl,
             sim_time=steps * scene.control_dt, wall_time=time.perf_counter() - t0,
             plan_ms=[t * 1e3 for t in getattr(policy, "plan_times", [])], replans=int(getattr(policy, "replans", 0)),
+            **safety.result(info),
         )
         results.append(result)
         if on_episode is not None:
@@ -124,13 +192,19 @@ def run_episodes(env, policy: Policy, episodes: int, seed: int,
 
 
 def summarize(results: list[EpisodeResult]) -> dict[str, Any]:
-    """The article's summary plus collision rate, SPL and planning statistics."""
+    """The article's summary plus collision rate, SPL, planning statistics and safety:
+    collisions split into static and dynamic (with a mover), the timeout rate, the mean
+    over episodes with movers of each one's smallest separation from a mover (NaN when none
+    had movers), the share of all steps that were near misses, and the mean episode length
+    in simulated seconds."""
     n = len(results)
     rewards = np.array([r.reward for r in results])
     lengths = np.array([r.steps for r in results])
     dists = np.array([r.path_length for r in results])
     success = [r for r in results if r.success]
     plan = np.array([t for r in results for t in r.plan_ms])
+    separations = [r.min_separation_m for r in results if not math.isnan(r.min_separation_m)]
+    total_steps = int(lengths.sum()) if n else 0
     return {
         "episodes": n,
         "success_rate": len(success) / n if n else 0.0,
@@ -148,5 +222,11 @@ def summarize(results: list[EpisodeResult]) -> dict[str, Any]:
         "plan_ms_p95": float(np.percentile(plan, 95)) if plan.size else math.nan,
         "plan_calls": int(plan.size),
         "replans_mean": float(np.mean([r.replans for r in results])) if n else 0.0,
+        "collision_static_rate": sum(r.collision_static for r in results) / n if n else 0.0,
+        "collision_dynamic_rate": sum(r.collision_dynamic for r in results) / n if n else 0.0,
+        "timeout_rate": sum(r.timeout for r in results) / n if n else 0.0,
+        "min_separation_m": float(np.mean(separations)) if separations else math.nan,
+        "near_miss_rate": sum(r.near_miss_steps for r in results) / total_steps if total_steps else 0.0,
+        "episode_time_s": float(np.mean([r.sim_time for r in results])) if n else 0.0,
         "per_episode": [{k: v for k, v in asdict(r).items() if k != "plan_ms"} for r in results],
     }

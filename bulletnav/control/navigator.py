@@ -71,6 +71,13 @@ class NavigatorConfig:
     """RRT's random numbers come from ``(seed, episode start pose, goal)``: the same episode
     gets the same plans whatever ran before it."""
     controller: ControllerConfig = field(default_factory=ControllerConfig)
+    wait_for_movers: bool = True
+    """Among movers (``scene.movers``): stop while a moving one is in the corridor ahead."""
+    wait_distance: float = 1.0
+    """Length (m) of that corridor beyond the robot's disc."""
+    max_wait: float = 4.0
+    """Seconds to wait for a mover before planning around it (a stopped or yielding mover is
+    planned around at once: it is an obstacle in the lidar map)."""
 
     def __post_init__(self) -> None:
         if self.planner not in ("none", "astar", "rrt"):
@@ -147,6 +154,12 @@ class Navigator:
     on the inflated map, replans every ``replan_every`` steps or when new obstacles block
     the path, and follows the path with :class:`GoToGoal`.
 
+    Among movers the lidar map forgets: cells a mover left are cleared by later rays passing
+    through them (log-odds free evidence), and the inflated map is rebuilt when cells empty
+    as well as when they fill. While a moving mover is in the corridor ahead (the scene's
+    mover list, as a fleet manager would broadcast it) the robot waits, up to ``max_wait``
+    seconds; then, or at once for a stopped one, it plans around it like any obstacle.
+
     A :class:`~bulletnav.policy.Policy`: it reads the lidar from ``obs``, the goal and the
     true pose from ``info``, and the map bounds, lidar layout, robot geometry and (with
     ``pose_source="odometry"``) the odometry estimate from the read-only scene view.
@@ -192,6 +205,9 @@ class Navigator:
         self.replans = 0
         self._since_plan = 0
         self._inflated: list[OccupancyGrid] = []
+        self._waited = 0
+        self.waits = 0
+        """Control steps spent waiting for movers this episode."""
 
     def _pose(self, info: dict[str, Any]) -> tuple[float, float, float]:
         if self.config.pose_source == "odometry":
@@ -208,8 +224,20 @@ class Navigator:
         new_cells = self.mapper.integrate(pose, self.angles, ranges, self.max_range, sensor_offset=self.lidar_offset)
         goal_distance = math.hypot(self.goal[0] - pose[0], self.goal[1] - pose[1])
         target = self.goal
+        dynamic = self.scene.dynamic
+        if dynamic and cfg.wait_for_movers:
+            if self._mover_ahead(pose):
+                if self._waited < cfg.max_wait / self.dt:
+                    self._waited += 1
+                    self.waits += 1
+                    return self._action(0.0, 0.0)
+                if self._waited == int(math.ceil(cfg.max_wait / self.dt)) and cfg.planner != "none":
+                    self.path = None  # waited long enough: plan around it
+                self._waited += 1
+            else:
+                self._waited = 0
         if cfg.planner != "none":
-            if new_cells or not self._inflated:
+            if new_cells or not self._inflated or (dynamic and self.mapper.freed):
                 raw = self.mapper.grid()
                 self._inflated = [raw.inflate(self.inflation + cfg.preferred_margin), raw.inflate(self.inflation)]
             self._since_plan += 1
@@ -219,10 +247,29 @@ class Navigator:
             if self.path:
                 target = self._lookahead(pose)
         v, w = self.controller.command(pose, target, ranges, self.dt, goal_distance)
+        return self._action(v, w)
+
+    def _action(self, v: float, w: float) -> np.ndarray:
         if self.scene.normalized_actions:  # the env expects [-1, 1] mapped onto the physical ranges
             (v_lo, v_hi), (w_lo, w_hi) = self.scene.command_limits
             v, w = 2.0 * (v - v_lo) / (v_hi - v_lo) - 1.0, 2.0 * (w - w_lo) / (w_hi - w_lo) - 1.0
         return np.array([v, w], dtype=np.float32)
+
+    def _mover_ahead(self, pose) -> bool:
+        """A moving mover overlaps the corridor ahead: the robot's disc swept ``wait_distance``
+        forward (1.1 disc radii wide each side)."""
+        x, y, yaw = pose
+        c, s = math.cos(yaw), math.sin(yaw)
+        radius = self.scene.geometry.radius
+        for m in self.scene.movers:
+            if m.speed <= 0.0:
+                continue
+            mx, my = m.pose[0] - x, m.pose[1] - y
+            lx, ly = c * mx + s * my, -s * mx + c * my
+            extent = 0.5 * math.hypot(m.size[0], m.size[1])
+            if -radius < lx - extent < radius + self.config.wait_distance and abs(ly) < extent + 1.1 * radius:
+                return True
+        return False
 
     # ------------------------------------------------------------------ planning
     def _plan(self, pose) -> None:

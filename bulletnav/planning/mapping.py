@@ -42,6 +42,8 @@ class LidarMapper:
         self.l_free, self.l_occ, self.l_max = l_free, l_occ, l_max
         self.occ_threshold, self.free_threshold = occ_threshold, free_threshold
         self.free_margin = free_margin
+        self.freed = 0
+        """Cells that stopped being occupied in the last :meth:`integrate` (a mover left them)."""
 
     @property
     def origin(self) -> tuple[float, float]:
@@ -88,6 +90,7 @@ class LidarMapper:
         np.clip(self.log_odds, -self.l_max, self.l_max, out=self.log_odds)
         now_occ = self.log_odds > self.occ_threshold
         new = np.argwhere(now_occ & ~was_occ)
+        self.freed = int(np.count_nonzero(was_occ & ~now_occ))
         return {(int(i), int(j)) for i, j in new}
 
     def state(self) -> np.ndarray:

@@ -52,6 +52,10 @@ class ForkliftSpec:
     """Length (m) of the safety field ahead of the front."""
     field_margin: float = 0.2
     """The field is the forklift's width plus this (m) wide."""
+    turn_rate: float = 1.0
+    """At a route corner it stops and turns in place at this rate (rad/s); while it turns,
+    its field is the circle it sweeps (half its diagonal + ``field_margin``). At a route's
+    end it drives back the way it came (no turn: a box reversed covers the same floor)."""
     kind: ClassVar[str] = "forklift"
 
     @property
@@ -135,9 +139,10 @@ class _Track:
             return self.lengths[self.seg] - self.s + sum(self.lengths[self.seg + 1:])
         return self.s + sum(self.lengths[:self.seg])
 
-    def advance(self, distance: float, stop_at_vertex: bool = False) -> bool:
+    def advance(self, distance: float, stop_at_vertex: bool = False, stop_at_corner: bool = False) -> bool:
         """Move ``distance`` m along the track (reversing at its ends). Returns True when a
-        vertex was reached and ``stop_at_vertex`` cut the move short there."""
+        vertex was reached and cut the move short there: any vertex with ``stop_at_vertex``,
+        an interior one (a corner, not an end) with ``stop_at_corner``."""
         last = len(self.lengths) - 1
         while distance > 0.0:
             if self.dir > 0:
@@ -148,6 +153,8 @@ class _Track:
                 distance -= room
                 if self.seg < last:
                     self.seg, self.s = self.seg + 1, 0.0
+                    if stop_at_corner:
+                        return True
                 else:
                     self.s, self.dir = self.lengths[self.seg], -1
             else:
@@ -158,6 +165,8 @@ class _Track:
                 if self.seg > 0:
                     self.seg -= 1
                     self.s = self.lengths[self.seg]
+                    if stop_at_corner:
+                        return True
                 else:
                     self.s, self.dir = 0.0, 1
             if stop_at_vertex:
@@ -169,7 +178,7 @@ class _Mover:
     """One active mover: its spec, track, speed state and pool body."""
 
     __slots__ = ("spec", "track", "body", "speed", "pause_left", "yielding", "pose", "half_height", "placed", "reach", "radius",
-                 "gap")
+                 "gap", "turn_to")
 
     def __init__(self, spec: MoverSpec, body: int) -> None:
         self.spec = spec
@@ -184,6 +193,8 @@ class _Mover:
         """Where its body was last put (None: parked)."""
         # beyond this centre distance (plus the robot's radius) the robot cannot be in its field
         self.radius = spec.bounding_radius
+        self.turn_to: float | None = None
+        """A forklift turning in place at a route corner: the heading it turns to (rad)."""
         self.gap = math.inf
         """Centre distance to the robot minus :attr:`radius` after the last step (m)."""
         self.reach = spec.bounding_radius + (spec.field_length if isinstance(spec, ForkliftSpec) else spec.stop_distance)
@@ -197,6 +208,15 @@ class _Mover:
         if self.yielding:
             self.speed = 0.0 if isinstance(spec, ForkliftSpec) and spec.accel else self.speed
             return
+        if self.turn_to is not None:  # a forklift turning in place at a corner
+            x, y, yaw = self.pose
+            left = math.remainder(self.turn_to - yaw, 2 * math.pi)
+            turn = spec.turn_rate * dt
+            if abs(left) <= turn:
+                self.pose, self.turn_to = (x, y, self.turn_to), None
+            else:
+                self.pose = (x, y, yaw + math.copysign(turn, left))
+            return
         if isinstance(spec, WorkerSpec):
             if self.pause_left > 0.0:
                 self.pause_left = max(0.0, self.pause_left - dt)
@@ -209,10 +229,18 @@ class _Mover:
             v_next = min(spec.speed, self.speed + spec.accel * dt, max(brake, spec.accel * dt))
             distance = 0.5 * (self.speed + v_next) * dt
             before = self.track.dir
-            self.track.advance(distance)
+            if self.track.advance(distance, stop_at_corner=True):
+                self.speed = 0.0
+                yaw = self.pose[2]
+                x, y, self.turn_to = self.track.position()
+                self.pose = (x, y, yaw)
+                return
             self.speed = 0.0 if self.track.dir != before else v_next
-        else:
-            self.track.advance(spec.speed * dt)
+        elif self.track.advance(spec.speed * dt, stop_at_corner=True):  # at a corner: turn before driving on
+            yaw = self.pose[2]
+            x, y, self.turn_to = self.track.position()
+            self.pose = (x, y, yaw)
+            return
         self.pose = self.track.position()
 
     def moving_speed(self) -> float:
@@ -226,6 +254,8 @@ class _Mover:
         spec = self.spec
         if isinstance(spec, WorkerSpec):
             return math.hypot(dx, dy) - spec.radius - robot_radius < spec.stop_distance
+        if self.turn_to is not None:  # turning in place: the field is the circle it sweeps
+            return math.hypot(dx, dy) < spec.bounding_radius + spec.field_margin + robot_radius
         c, s = math.cos(yaw), math.sin(yaw)
         lx, ly = c * dx + s * dy, -s * dx + c * dy  # robot centre in the forklift's frame
         x0 = spec.size[0] / 2

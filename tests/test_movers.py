@@ -1,0 +1,328 @@
+"""Moving obstacles and events, checked against kinematics, geometry and independent searches."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import re
+import resource
+import subprocess
+import sys
+from collections import deque
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pybullet as p
+import pytest
+import yaml
+
+import bulletnav  # noqa: F401
+from bulletnav.errors import LayoutError
+from bulletnav.planning.mapping import LidarMapper
+from bulletnav.sim.layout import Obstacle, load_layout
+from bulletnav.sim.movers import ForkliftSpec, box_corners, mover_gap, polygon_gap
+
+STOP = np.zeros(2, dtype=np.float32)
+
+
+def _yaml(tmp_path: Path, dynamic=(), events=(), obstacles=(), size=(12.0, 10.0), start=(-3.0, 0.0, 0.0), goal=(4.5, 4.0)):
+    doc = {"name": "t", "size": list(size), "obstacles": list(obstacles), "start": list(start), "goal": list(goal),
+           "dynamic": list(dynamic), "events": list(events)}
+    path = tmp_path / "world.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return str(path)
+
+
+def _body_xy(env, mover) -> tuple[float, float]:
+    pos, _ = p.getBasePositionAndOrientation(mover.body, physicsClientId=env.unwrapped.scene.client)
+    return pos[0], pos[1]
+
+
+def test_forklift_body_follows_constant_speed_kinematics_back_and_forth(tmp_path):
+    world = _yaml(tmp_path, dynamic=[{"type": "forklift", "route": [[-4.0, 3.0], [4.0, 3.0]], "speed": 0.8}],
+                  start=(-3.0, -3.0, 0.0))
+    env = gym.make("bulletnav/Warehouse-v0", world=world)
+    env.reset(seed=0)
+    dt = env.unwrapped.scene.control_dt
+    (mover,) = env.unwrapped.scene.movers
+    assert mover.pose == (-4.0, 3.0, 0.0)  # at the first route point, heading along the first segment
+    for k in range(1, 24 * 14 + 1):
+        env.step(STOP)
+        t = k * dt
+        d = (0.8 * t) % 16.0  # 8 m out, 8 m back
+        x_expected = -4.0 + d if d <= 8.0 else 4.0 - (d - 8.0)
+        if k % 24 == 0:
+            (mover,) = env.unwrapped.scene.movers
+            x, y = _body_xy(env, mover)
+            assert x == pytest.approx(x_expected, abs=1e-6) and y == pytest.approx(3.0, abs=1e-9), t
+            assert mover.pose[0] == pytest.approx(x_expected, abs=1e-6)
+    env.close()
+
+
+def test_forward_lidar_ray_sees_a_crossing_forklift_at_the_analytic_range_and_window(tmp_path):
+    """Robot at rest at (-3, 0) facing +x; a 1.1 x 0.8 m forklift drives x = 0 from y = -4 to 4
+    at 0.5 m/s. Its near face (x = -0.4) is on the forward ray while |y(t)| <= 0.55."""
+    world = _yaml(tmp_path, dynamic=[{"type": "forklift", "route": [[0.0, -4.0], [0.0, 4.0]], "speed": 0.5}])
+    env = gym.make("bulletnav/Warehouse-v0", world=world)
+    obs, _ = env.reset(seed=0)
+    scene = env.unwrapped.scene
+    lidar_x = -3.0 + scene.geometry.lidar_mount[0]
+    expected_range = -0.4 - lidar_x
+    t_in, t_out = (4.0 - 0.55) / 0.5, (4.0 + 0.55) / 0.5
+    dt = scene.control_dt
+    seen = []
+    for k in range(1, int(11.0 / dt)):
+        obs, *_ = env.step(STOP)
+        t = k * dt
+        r = float(obs[0]) * 5.0
+        if t_in + dt < t < t_out - dt:
+            assert r == pytest.approx(expected_range, abs=0.01), t
+            seen.append(t)
+        elif t < t_in - dt or t > t_out + dt:
+            assert r == pytest.approx(5.0), t  # nothing within range before and after
+    assert len(seen) > 40
+    env.close()
+
+
+@pytest.mark.parametrize("inside", [True, False])
+def test_forklift_stops_while_the_robot_is_in_its_safety_field(tmp_path, inside):
+    world = _yaml(tmp_path, dynamic=[{"type": "forklift", "route": [[0.0, -4.0], [0.0, 4.0]], "speed": 0.5}],
+                  start=(0.0, -2.6, 0.0) if inside else (1.2, -2.6, 0.0))
+    env = gym.make("bulletnav/Warehouse-v0", world=world)
+    env.reset(seed=0)
+    for _ in range(48):  # 2 s
+        env.step(STOP)
+    (mover,) = env.unwrapped.scene.movers
+    if inside:  # front at y = -3.45, field to -2.45: the robot's disc (0.2 m) at y = -2.6 is in it
+        assert mover.pose[1] == pytest.approx(-4.0) and mover.yielding and mover.speed == 0.0
+    else:  # 1.2 m to the side: the field is 0.5 m wide each side
+        assert mover.pose[1] == pytest.approx(-3.0, abs=1e-6) and not mover.yielding
+    env.close()
+
+
+def test_worker_stops_near_the_robot_and_yield_off_walks_on(tmp_path):
+    spec = {"type": "worker", "waypoints": [[0.0, -3.0], [0.0, 3.0]], "speed": 1.0, "pause": 0.0}
+    for yield_, moved in ((True, False), (False, True)):
+        world = _yaml(tmp_path, dynamic=[{**spec, "yield_to_robot": yield_}], start=(0.0, -2.2, math.pi / 2))
+        env = gym.make("bulletnav/Warehouse-v0", world=world)
+        env.reset(seed=0)
+        for _ in range(6):
+            env.step(STOP)
+        (mover,) = env.unwrapped.scene.movers
+        assert (mover.pose[1] > -3.0 + 1e-9) == moved, yield_  # gap 0.8 - 0.25 - 0.2 = 0.35 m < 0.6 m
+        env.close()
+
+
+def test_collisions_are_classified_static_or_dynamic(tmp_path):
+    worker = {"type": "worker", "waypoints": [[0.0, -2.0], [0.0, 2.0]], "speed": 0.8, "pause": 0.0, "yield_to_robot": False}
+    world = _yaml(tmp_path, dynamic=[worker], start=(0.0, 1.0, -math.pi / 2), goal=(4.5, 4.0))
+    env = gym.make("bulletnav/Warehouse-v0", world=world, collision_terminates=True)
+    env.reset(seed=0)
+    info = {}
+    for _ in range(100):
+        _, _, terminated, truncated, info = env.step(STOP)  # the worker walks into the robot
+        if terminated or truncated:
+            break
+    assert info["end_reason"] == "collision" and info["collision_with"] == "dynamic"
+    env.close()
+    world = _yaml(tmp_path, dynamic=[worker], start=(-5.3, 0.0, math.pi), goal=(4.5, 4.0))
+    env = gym.make("bulletnav/Warehouse-v0", world=world, collision_terminates=True)
+    env.reset(seed=0)
+    for _ in range(200):
+        _, _, terminated, truncated, info = env.step(np.array([0.5, 0.0], dtype=np.float32))  # into the wall
+        if terminated or truncated:
+            break
+    assert info["end_reason"] == "collision" and info["collision_with"] == "static"
+    env.close()
+
+
+def test_nearest_mover_distance_is_the_outline_gap(tmp_path):
+    # a worker standing 1 m ahead of the robot's centre: the gap is 1 - 0.25 - the outline's front
+    world = _yaml(tmp_path, dynamic=[{"type": "worker", "waypoints": [[-2.0, 0.0], [-2.0, 0.5]], "speed": 0.01,
+                                      "pause": 100.0}], start=(-3.0, 0.0, 0.0))
+    env = gym.make("bulletnav/Warehouse-v0", world=world)
+    _, info = env.reset(seed=0)
+    front = max(r.cx + r.half_x for r in env.unwrapped.scene.geometry.rectangles)
+    assert info["nearest_mover_m"] == pytest.approx(1.0 - 0.25 - front, abs=1e-3)
+    env.close()
+
+
+def test_mover_gap_matches_an_independent_polygon_distance():
+    rng = np.random.default_rng(0)
+    spec = ForkliftSpec(((0.0, 0.0), (1.0, 0.0)))
+    for _ in range(500):
+        outline = box_corners((0.0, 0.0), 0.0, 0.36, 0.3)
+        pose = (float(rng.uniform(-1.5, 1.5)), float(rng.uniform(-1.5, 1.5)), float(rng.uniform(-3, 3)))
+        assert mover_gap(spec, pose, outline) == pytest.approx(
+            polygon_gap(box_corners(pose[:2], pose[2], 1.1, 0.8), outline), abs=1e-12)
+
+
+def _connected(occ: np.ndarray, a: tuple[int, int], b: tuple[int, int]) -> bool:
+    """Plain 4-connected BFS (independent of the env's scipy labelling)."""
+    if occ[a] or occ[b]:
+        return False
+    seen = np.zeros_like(occ)
+    seen[a] = True
+    queue = deque([a])
+    while queue:
+        i, j = queue.popleft()
+        if (i, j) == b:
+            return True
+        for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            n = (i + di, j + dj)
+            if 0 <= n[0] < occ.shape[0] and 0 <= n[1] < occ.shape[1] and not occ[n] and not seen[n]:
+                seen[n] = True
+                queue.append(n)
+    return False
+
+
+def _cell(layout, xy, res: float) -> tuple[int, int]:
+    return int((xy[0] + layout.size[0] / 2) / res), int((xy[1] + layout.size[1] / 2) / res)
+
+
+@pytest.mark.slow
+def test_pallet_events_never_disconnect_the_robot_from_its_goal():
+    env = gym.make("bulletnav/WarehouseDynamic-v0", pallet_events_per_min=60.0, forklifts=0, workers=0)
+    res = 0.1
+    added = 0
+    for seed in range(8):
+        _, info = env.reset(seed=seed)
+        scene = env.unwrapped.scene
+        layout = scene.layout
+        xs, ys = layout.grid_axes(res)
+        gx, gy = np.meshgrid(xs, ys, indexing="ij")
+        radius = scene.geometry.radius
+        present: dict[str, Obstacle] = {}
+        for _ in range(300):
+            _, _, terminated, truncated, info = env.step(STOP)
+            for e in info["events"]:
+                o = Obstacle("box", tuple(e["center"]), size=tuple(e["size"]), label=e["label"])
+                key = json.dumps(e["center"])
+                if e["action"] == "remove":
+                    present.pop(key, None)
+                    continue
+                added += 1
+                present[key] = o
+                robot, goal = info["pose"][:2], info["goal"]
+                assert float(o.distance(np.array(robot[0]), np.array(robot[1]))) >= 1.5
+                assert float(o.distance(np.array(goal[0]), np.array(goal[1]))) >= 1.5
+                occ = layout.clearance(gx, gy) <= radius
+                for q in present.values():
+                    occ |= q.distance(gx, gy) <= radius
+                assert _connected(occ, _cell(layout, robot, res), _cell(layout, goal, res)), (seed, e)
+            if terminated or truncated:
+                break
+    assert added >= 20  # the check above ran on many placements
+    env.close()
+
+
+def test_same_seed_same_mover_trajectories_in_two_processes():
+    code = (
+        "import hashlib, numpy as np, gymnasium as gym, bulletnav\n"
+        "env = gym.make('bulletnav/WarehouseDynamic-v0'); env.reset(seed=11); h = hashlib.sha256()\n"
+        "a = np.array([0.3, 0.2], dtype=np.float32)\n"
+        "for _ in range(120):\n"
+        "    o, r, te, tr, info = env.step(a)\n"
+        "    h.update(repr([m.pose for m in env.unwrapped.scene.movers]).encode()); h.update(o.tobytes())\n"
+        "    if te or tr: break\n"
+        "print(h.hexdigest())\n"
+    )
+    runs = [subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()[-1]
+            for _ in range(2)]
+    assert runs[0] == runs[1]
+
+
+def test_resets_on_one_layout_create_no_bodies():
+    env = gym.make("bulletnav/WarehouseDynamic-v0", layouts_every=10**6)
+    env.reset(seed=3)
+    scene = env.unwrapped._scene
+    bodies = p.getNumBodies(physicsClientId=scene.cid)
+    created = scene.movers.created + scene.events.created
+    for _ in range(20):
+        env.reset()
+        env.step(STOP)
+    assert p.getNumBodies(physicsClientId=scene.cid) == bodies
+    assert scene.movers.created + scene.events.created == created
+    env.close()
+
+
+@pytest.mark.slow
+def test_memory_stays_flat_over_300_resets():
+    env = gym.make("bulletnav/WarehouseDynamic-v0")
+    env.reset(seed=0)
+    for _ in range(20):  # warm up caches and allocators
+        env.reset()
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    for _ in range(300):
+        env.reset()
+        for _ in range(3):
+            env.step(env.action_space.sample())
+    grown_mb = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) / 1024
+    assert grown_mb < 20.0, grown_mb
+    env.close()
+
+
+def test_yaml_dynamic_errors_name_file_entry_and_field(tmp_path):
+    bad = [
+        ({"dynamic": [{"type": "truck", "route": [[0, 0], [1, 0]]}]}, "dynamic[0].type"),
+        ({"dynamic": [{"type": "forklift", "route": [[0, 0]]}]}, "dynamic[0].route"),
+        ({"dynamic": [{"type": "forklift", "route": [[0, 0], [1, 0]], "speed": 0}]}, "dynamic[0].speed"),
+        ({"dynamic": [{"type": "worker", "waypoints": [[0, 0], [9, 0]]}]}, "dynamic[0].waypoints[1]"),
+        ({"dynamic": [{"type": "worker", "waypoints": [[0, 0], [1, 0]], "pause": -1}]}, "dynamic[0].pause"),
+        ({"events": [{"at": 1.0, "remove": "nothing"}]}, "events[0].remove"),
+        ({"events": [{"at": -1.0, "remove": "x"}]}, "events[0].at"),
+        ({"events": [{"at": 1.0, "add": {"type": "box", "center": [0, 0]}}]}, "events[0].add.size"),
+    ]
+    for extra, field_name in bad:
+        path = tmp_path / "bad.yaml"
+        path.write_text(yaml.safe_dump({"size": [12.0, 10.0], "obstacles": [], **extra}))
+        with pytest.raises(LayoutError, match="bad.yaml: .*" + re.escape(field_name)):
+            load_layout(path)
+
+
+def test_scripted_events_add_and_remove_on_time_and_are_reported(tmp_path):
+    world = _yaml(tmp_path, events=[{"at": 1.0, "add": {"type": "box", "center": [2.0, -3.0], "size": [1.2, 0.8, 1.0],
+                                                          "label": "pallet_a"}},
+                                    {"at": 2.0, "remove": "pallet_a"}])
+    env = gym.make("bulletnav/Warehouse-v0", world=world)
+    env.reset(seed=0)
+    dt = env.unwrapped.scene.control_dt
+    times = {}
+    for k in range(1, 80):
+        _, _, _, _, info = env.step(STOP)
+        for e in info["events"]:
+            times[e["action"]] = k * dt
+    assert times["add"] == pytest.approx(1.0, abs=dt) and times["remove"] == pytest.approx(2.0, abs=dt)
+    assert [e["action"] for e in env.unwrapped.scene.events] == ["add", "remove"]
+    env.close()
+
+
+def test_lidar_map_forgets_cells_a_mover_left():
+    mapper = LidarMapper((-5.0, -5.0, 5.0, 5.0), 0.2)
+    angles = np.zeros(1)
+    for _ in range(5):
+        mapper.integrate((0.0, 0.0, 0.0), angles, np.array([2.0]), 5.0)
+    cell = (int((2.05 + 5.0) / 0.2), int(5.0 / 0.2))
+    assert mapper.state()[cell] == 1  # occupied
+    for _ in range(20):  # the mover has gone: the ray now runs to a wall 4 m away
+        mapper.integrate((0.0, 0.0, 0.0), angles, np.array([4.0]), 5.0)
+    assert mapper.state()[cell] == 0  # free again
+
+
+def test_dynamic_env_api_and_hash_of_its_first_steps_differs_by_seed():
+    from gymnasium.utils.env_checker import check_env
+
+    env = gym.make("bulletnav/WarehouseDynamic-v0")
+    check_env(env.unwrapped, skip_render_check=True)
+    digests = []
+    for seed in (1, 2):
+        env.reset(seed=seed)
+        h = hashlib.sha256()
+        for _ in range(30):
+            o, *_ = env.step(np.array([0.2, 0.0], dtype=np.float32))
+            h.update(o.tobytes())
+        digests.append(h.hexdigest())
+    assert digests[0] != digests[1]
+    env.close()
