@@ -294,18 +294,12 @@ def cmd_navigate(args: argparse.Namespace) -> int:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-    from dataclasses import fields
     from pathlib import Path
 
     from bulletnav.provenance import command_line
     from bulletnav.rl.train import TrainConfig, train
 
-    extra = {}
-    if "env_id" in {f.name for f in fields(TrainConfig)}:
-        extra["env_id"] = args.env_id
-    elif args.env_id != DEFAULT_ENV_ID:
-        raise BulletnavError(f"--env {args.env_id}: training supports only {DEFAULT_ENV_ID} for now "
-                             f"(the training configuration has no env id)")
+    extra = {"env_id": args.env_id}
     cfg = TrainConfig(
         algo=args.algo, timesteps=args.timesteps, out=Path(args.out), seed=args.seed, n_envs=args.n_envs,
         resume=args.resume, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,

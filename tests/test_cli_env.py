@@ -151,3 +151,21 @@ def test_summarize_safety_metrics_without_movers_or_episodes():
     assert s["episode_time_s"] == pytest.approx(20 / 24)
     empty = summarize([])
     assert empty["timeout_rate"] == 0.0 and math.isnan(empty["min_separation_m"]) and empty["near_miss_rate"] == 0.0
+
+
+def test_train_reads_the_env_ids_own_hyperparameters_and_records_it(monkeypatch, tmp_path):
+    from bulletnav.rl import train as train_module
+    from bulletnav.rl.hyperparams import load_hyperparams
+
+    for algo in ("ppo", "sac", "td3", "a2c"):  # every packaged file has the three ids
+        assert load_hyperparams(algo, env_id="bulletnav/WarehouseDynamic-v0") == load_hyperparams(algo)
+    seen = {}
+
+    def fake_train(cfg):
+        seen["env_id"] = cfg.env_id
+        raise SystemExit(0)
+
+    monkeypatch.setattr(train_module, "train", fake_train)
+    with pytest.raises(SystemExit):
+        main(["train", "--env", "bulletnav/WarehouseDynamic-v0", "--out", str(tmp_path / "r"), "--timesteps", "1"])
+    assert seen["env_id"] == "bulletnav/WarehouseDynamic-v0"

@@ -52,12 +52,14 @@ class TrainConfig:
     hyperparams: Path | None = None
     """A hyperparameter YAML file to use instead of ``rl/hyperparams/<algo>.yml`` (same format)."""
     command: str = ""
+    env_id: str = ENV_ID
+    """The registered env to train on; its entry in the hyperparameter file is used."""
 
 
 def _make_vec_env(cfg: TrainConfig, env_kwargs: dict[str, Any], n_envs: int):
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
 
-    fns = [make_env_fn(env_kwargs) for _ in range(n_envs)]
+    fns = [make_env_fn(env_kwargs, cfg.env_id) for _ in range(n_envs)]
     venv = SubprocVecEnv(fns, start_method="forkserver") if cfg.vec_env == "subproc" and n_envs > 1 else DummyVecEnv(fns)
     venv.seed(cfg.seed)
     return VecMonitor(venv)
@@ -71,7 +73,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
     from bulletnav.viz.compare import plot_learning_curve
 
     torch.set_num_threads(1)  # 2 cores: more threads slow PPO down and starve the env workers
-    hp = load_hyperparams(cfg.algo, path=cfg.hyperparams)
+    hp = load_hyperparams(cfg.algo, env_id=cfg.env_id, path=cfg.hyperparams)
     env_kwargs = {**hp.get("env_kwargs", {}), **(cfg.env_overrides or {})}
     recorded = cfg.out / "config.json"
     if cfg.resume and recorded.is_file():  # a resumed run keeps the settings it started with
@@ -102,10 +104,10 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
         model = cls(hp["policy"], venv, seed=cfg.seed, device="cpu", verbose=0,
                     tensorboard_log=str(cfg.out / "tb"), **model_kwargs(hp, venv.action_space.shape[0]))
     vecnorm = venv if isinstance(venv, VecNormalize) else None
-    evaluation = EvaluationCallback(cfg.out, cfg.eval_freq, cfg.eval_episodes, env_kwargs, history)
+    evaluation = EvaluationCallback(cfg.out, cfg.eval_freq, cfg.eval_episodes, env_kwargs, history, env_id=cfg.env_id)
     checkpoints = CheckpointCallback(cfg.out, cfg.checkpoint_freq)
     record: dict[str, Any] = {
-        "command": cfg.command, "algo": cfg.algo, "env_id": ENV_ID, "seed": cfg.seed, "timesteps": cfg.timesteps,
+        "command": cfg.command, "algo": cfg.algo, "env_id": cfg.env_id, "seed": cfg.seed, "timesteps": cfg.timesteps,
         "n_envs": n_envs, "vec_env": cfg.vec_env, "hyperparams": hp, "env_kwargs": env_kwargs,
         "git_commit": git_commit(), "machine": machine(), "torch_threads": torch.get_num_threads(),
         "resumed_from": start_steps or None,
@@ -133,7 +135,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
     venv.close()
     record.update(wall_time_s=round(wall, 1), total_timesteps=int(model.num_timesteps),
                   final_eval=history[-1] if history else None, eval_seeds=f"{EVAL_SEED_BASE}..")
-    atomic_write_json(sidecar_path(final_path), {"algo": cfg.algo, "env_id": ENV_ID, "env_kwargs": env_kwargs,
+    atomic_write_json(sidecar_path(final_path), {"algo": cfg.algo, "env_id": cfg.env_id, "env_kwargs": env_kwargs,
                                                  "seed": cfg.seed, "timesteps": int(model.num_timesteps),
                                                  "git_commit": record["git_commit"], "command": cfg.command})
     atomic_write_json(cfg.out / "run.json", record)
