@@ -326,3 +326,14 @@ def test_dynamic_env_api_and_hash_of_its_first_steps_differs_by_seed():
         digests.append(h.hexdigest())
     assert digests[0] != digests[1]
     env.close()
+
+
+def test_dynamic_and_events_round_trip_through_yaml(tmp_path):
+    from bulletnav.sim.layout import layout_to_dict, parse_layout
+
+    world = _yaml(tmp_path, dynamic=[{"type": "forklift", "route": [[-4.0, 3.0], [4.0, 3.0]], "speed": 0.8, "accel": 0.5},
+                                     {"type": "worker", "waypoints": [[0.0, -3.0], [2.0, -3.0]], "pause": 2.0}],
+                  events=[{"at": 1.0, "add": {"type": "box", "center": [2.0, 0.0], "size": [1.2, 0.8, 1.0], "label": "p"}},
+                          {"at": 2.0, "remove": "p"}])
+    layout = load_layout(world)
+    assert parse_layout(layout_to_dict(layout), "again") == layout

@@ -362,18 +362,34 @@ def load_layout(path: str | Path) -> Layout:
 def layout_to_dict(layout: Layout) -> dict[str, Any]:
     """The YAML-ready form of a layout (inverse of :func:`parse_layout`)."""
     out: dict[str, Any] = {"name": layout.name, "size": list(layout.size), "wall_height": layout.wall_height}
-    obstacles = []
-    for o in layout.obstacles:
-        if o.kind == "box":
-            obstacles.append({"type": "box", "center": list(o.center), "size": list(o.size), "yaw": o.yaw, "label": o.label})
-        else:
-            obstacles.append({"type": "cylinder", "center": list(o.center), "radius": o.radius, "height": o.height, "label": o.label})
-    out["obstacles"] = obstacles
+    out["obstacles"] = [_obstacle_to_dict(o) for o in layout.obstacles]
     if layout.start is not None:
         out["start"] = list(layout.start)
     if layout.goal is not None:
         out["goal"] = list(layout.goal)
+    if layout.dynamic:
+        out["dynamic"] = [_mover_to_dict(m) for m in layout.dynamic]
+    if layout.events:
+        out["events"] = [{"at": e.at, **({"add": _obstacle_to_dict(e.add)} if e.add is not None else {"remove": e.remove})}
+                         for e in layout.events]
     return out
+
+
+def _obstacle_to_dict(o: Obstacle) -> dict[str, Any]:
+    if o.kind == "box":
+        return {"type": "box", "center": list(o.center), "size": list(o.size), "yaw": o.yaw, "label": o.label}
+    return {"type": "cylinder", "center": list(o.center), "radius": o.radius, "height": o.height, "label": o.label}
+
+
+def _mover_to_dict(m: MoverSpec) -> dict[str, Any]:
+    if m.kind == "forklift":
+        out = {"type": "forklift", "route": [list(q) for q in m.route], "speed": m.speed, "size": list(m.size),
+               "yield_to_robot": m.yield_to_robot}
+        if m.accel is not None:
+            out["accel"] = m.accel
+        return out
+    return {"type": "worker", "waypoints": [list(q) for q in m.waypoints], "speed": m.speed, "radius": m.radius,
+            "height": m.height, "pause": m.pause, "yield_to_robot": m.yield_to_robot}
 
 
 # --------------------------------------------------------------------------- procedural
