@@ -362,6 +362,9 @@ class TaskConfig:
     """Distance to the goal is divided by this in the observation (m)."""
     pose_source: str = "truth"
     """Where the robot's pose for heading/distance observations comes from: 'truth' or 'odometry'."""
+    lidar_history: int = 1
+    """Scans in the observation: the current one, then the k - 1 before it, newest first
+    (appended after the 7 scalars, each scaled like the current scan); 1 = today's vector."""
     collision_terminates: bool = False
     """A collision ends the episode as terminated (a real end, what learners should see)
     instead of truncated (the article's rule, ``Warehouse-v0``)."""
@@ -370,6 +373,8 @@ class TaskConfig:
     def __post_init__(self) -> None:
         if self.pose_source not in ("truth", "odometry"):
             raise ValueError(f"pose_source must be 'truth' or 'odometry', got {self.pose_source!r}")
+        if not (isinstance(self.lidar_history, int) and self.lidar_history >= 1):
+            raise ValueError(f"lidar_history must be an integer >= 1, got {self.lidar_history!r}")
         if self.goal_radius <= 0:
             raise ValueError(f"goal_radius must be > 0, got {self.goal_radius}")
 

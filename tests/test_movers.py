@@ -337,3 +337,25 @@ def test_dynamic_and_events_round_trip_through_yaml(tmp_path):
                           {"at": 2.0, "remove": "p"}])
     layout = load_layout(world)
     assert parse_layout(layout_to_dict(layout), "again") == layout
+
+
+def test_lidar_history_stacks_the_earlier_scans_newest_first():
+    env = gym.make("bulletnav/Warehouse-v0", lidar_history=3)
+    plain = gym.make("bulletnav/Warehouse-v0")
+    assert env.observation_space.shape == (43 + 2 * 36,)
+    obs, _ = env.reset(seed=4)
+    ref, _ = plain.reset(seed=4)
+    np.testing.assert_array_equal(obs[:43], ref)  # the first 43 entries are today's vector
+    np.testing.assert_array_equal(obs[43:79], obs[:36])  # before any step the earlier scans are the first
+    scans = [obs[:36]]
+    a = np.array([0.4, 0.8], dtype=np.float32)
+    for _ in range(4):
+        obs, *_ = env.step(a)
+        ref, *_ = plain.step(a)
+        np.testing.assert_array_equal(obs[:43], ref)
+        scans.append(obs[:36])
+        np.testing.assert_array_equal(obs[43:79], scans[-2])
+        np.testing.assert_array_equal(obs[79:115], scans[-3] if len(scans) > 2 else scans[0])
+        assert env.observation_space.contains(obs)
+    with pytest.raises(ValueError, match="lidar_history"):
+        gym.make("bulletnav/Warehouse-v0", lidar_history=0)

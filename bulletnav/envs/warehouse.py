@@ -47,6 +47,7 @@ _KWARGS = {
     "blocked_by": (("sampler",), "blocked_by"),
     "detour_share": (("sampler",), "detour_share"),
     "aisles": (("world",), "aisles"),
+    "lidar_history": (("task",), "lidar_history"),
     "forklifts": (("dynamic",), "forklifts"),
     "workers": (("dynamic",), "workers"),
     "forklift_speed": (("dynamic",), "forklift_speed"),
@@ -128,6 +129,7 @@ class WarehouseEnv(gym.Env):
     | 40 | IMU accelerometer y | m/s^2 | / 9.81 | [-3, 3] |
     | 41 | IMU gyroscope z | rad/s | / 1.5 | [-3, 3] |
     | 42 | distance to the goal | m | / 10 | [0, 3] |
+    | 43- | with ``lidar_history=k``: the k - 1 earlier scans, newest first, 36 each | m | / lidar_range | [0, 1] |
 
     The robot's pose for entries 36 and 42 is ground truth (``pose_source="truth"``, as in
     the article) or the odometry estimate (``pose_source="odometry"``). With
@@ -197,12 +199,19 @@ class WarehouseEnv(gym.Env):
     ## Version History
     - v0: initial release. Later additions (``end_reason`` in ``info``, the options
       ``collision_terminates``, ``layout_style``, ``lidar_rate_hz``, ``camera_enabled``,
-      ``task_name``, ``min_detour``, ``blocked_by``, ``detour_share``, ``aisles``) leave every
-      default episode bit-identical.
+      ``task_name``, ``min_detour``, ``blocked_by``, ``detour_share``, ``aisles``,
+      ``lidar_history``, the movers' ``forklifts``, ``workers``, ``forklift_speed``,
+      ``worker_speed``, ``pallet_events_per_min``, ``yield_to_robot``; YAML ``dynamic:`` and
+      ``events:``) leave every default episode bit-identical.
     - ``bulletnav/WarehouseAisles-v0``: the same env with ``layout_style="aisles"`` on a 20 x 16 m
       floor, goals 3-10 m away, 80 % planning episodes (straight line through a rack, detour
       >= 1.5 on the sampler's grid), ``collision_terminates=True``, 2,400 steps
       (``bulletnav.AISLES_KWARGS``).
+    - ``bulletnav/WarehouseDynamic-v0``: the aisle warehouses with 2-4 forklifts (0.3-1.0 m/s),
+      2-6 workers (0.5-1.4 m/s) and pallets appearing and vanishing (2 a minute), all yielding
+      to the robot (``bulletnav.DYNAMIC_KWARGS``). In worlds with movers or events ``info``
+      adds ``nearest_mover_m`` (robot outline to the nearest mover, m; ``inf`` if none),
+      ``collision_with`` (``"static"``, ``"dynamic"`` or None) and ``events`` (this step's).
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 24}

@@ -60,6 +60,11 @@ class NavigationTask(Task):
         self.obs_low = np.array([0.0] * n + [-1.0, -2.0, -2.0, -3.0, -3.0, -3.0, 0.0], dtype=np.float32)
         self.obs_high = np.array([1.0] * n + [1.0, 2.0, 2.0, 3.0, 3.0, 3.0, 3.0], dtype=np.float32)
         self._scalar_bounds = list(zip(self.obs_low[n:].tolist(), self.obs_high[n:].tolist()))
+        self._history_len = t.lidar_history - 1
+        if self._history_len:  # earlier scans, appended after the scalars
+            self.obs_low = np.concatenate([self.obs_low, np.zeros(n * self._history_len, dtype=np.float32)])
+            self.obs_high = np.concatenate([self.obs_high, np.ones(n * self._history_len, dtype=np.float32)])
+        self._history: deque[list[float]] = deque(maxlen=max(self._history_len, 1))
         self._odometry_pose = t.pose_source == "odometry"
         # the per-step code reads these directly: fewer lookups on a path that runs every step
         self._lidar, self._imu_sensor, self._odometry_sensor = scene.sensors.lidar, scene.sensors.imu, scene.sensors.odometry
@@ -99,8 +104,13 @@ class NavigationTask(Task):
         self._prev_xy = (state.x, state.y)
         self.path_length = 0.0
         self._progress.clear()
+        if self._history_len:  # before the first step, the earlier scans are the first one
+            self._history.clear()
+            self._history.extend([self._range_list] * self._history_len)
 
     def after_step(self, scene: Scene) -> None:
+        if self._history_len:
+            self._history.appendleft(self._range_list)  # the scan of the step before, newest first
         self.collision = scene.in_collision()
         self._measure(scene)
 
@@ -136,6 +146,8 @@ class NavigationTask(Task):
         scalars = (self._heading / math.pi, v / self._max_speed, w / max_turn, ax / g, ay / g, gz / max_turn,
                    self.distance / self._distance_scale)
         values += [lo if x < lo else hi if x > hi else x for x, (lo, hi) in zip(scalars, self._scalar_bounds)]
+        for earlier in self._history if self._history_len else ():
+            values += [r / scale for r in earlier]
         return np.array(values, dtype=np.float32)
 
     def reward(self, scene: Scene) -> dict[str, float]:
