@@ -322,3 +322,13 @@ def test_env_is_deterministic_for_a_seed():
     b, layout_b = _rollout(4)
     assert layout_a == layout_b and bit_equal(a, b)
     assert _rollout(5, steps=0)[1] != layout_a
+
+
+def test_aisle_env_on_a_world_without_racks_draws_plain_episodes():
+    """The planning filter needs racks; a YAML world without any gets plain pairs, not an error."""
+    from bulletnav.config import asset_path
+
+    env = gym.make("bulletnav/WarehouseAisles-v0", world=str(asset_path("worlds", "empty.yaml")))
+    _, info = env.reset(seed=0)
+    assert 3.0 <= info["initial_distance"] <= 10.0
+    env.close()

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import logging
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -14,6 +15,8 @@ from scipy.sparse.csgraph import dijkstra
 from bulletnav.config import SamplerConfig
 from bulletnav.errors import SamplingError
 from bulletnav.sim.layout import Layout, Obstacle
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -91,6 +94,10 @@ def sample_start_goal(
 
     Raises:
         SamplingError: the layout has no such pair.
+
+    With the planning options (``min_detour``, ``blocked_by``) a pair must also make a
+    planning episode; a layout where none does (a YAML world without racks) gets a plain
+    pair, with a warning.
     """
     cells = np.argwhere(free.clear & (free.component > 0))
     if len(cells) == 0:
@@ -119,12 +126,15 @@ def sample_start_goal(
         gx, gy = points[j] + rng.uniform(-jitter, jitter, 2) * 0.5
         yaw = float(rng.uniform(-math.pi, math.pi))
         return (float(sx), float(sy), yaw), (float(gx), float(gy))
-    planning_rule = (f", a straight line crossing {list(config.blocked_by)} and a detour of {config.min_detour}"
-                     if planning else "")
+    if planning:  # e.g. a YAML world without racks on the aisle env: plain episodes rather than none
+        log.warning("layout %r: no start/goal pair makes a planning episode (straight line through %s, detour %s); "
+                    "drawing a plain pair", free.layout.source or free.layout.name, list(config.blocked_by),
+                    config.min_detour)
+        return sample_start_goal(free, rng, replace(config, min_detour=1.0, blocked_by=(), detour_share=0.0))
     raise SamplingError(
         f"layout {free.layout.source or free.layout.name!r}: no reachable start/goal pair "
         f"{config.min_goal_distance}-{config.max_goal_distance} m apart with {config.clearance} m clearance"
-        f"{planning_rule} after {config.max_tries} tries"
+        f" after {config.max_tries} tries"
     )
 
 
