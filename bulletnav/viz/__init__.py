@@ -7,12 +7,22 @@ learning curves.
 - :class:`TrajectoryLog` and :func:`plot_trajectories` draw episodes' paths over their maps.
 - :func:`plot_learning_curve` and :func:`compare_runs` draw training runs' evaluations.
 
+In dynamic worlds the dashboard, the videos and the trajectory plots also draw the moving
+obstacles and the events (obstacles added or removed); see :mod:`bulletnav.viz.movers`.
+
 All of them read only ``info`` and the env's read-only ``scene`` view.
 """
 
 from bulletnav.viz.compare import REACH_SUCCESS, compare_runs, plot_learning_curve
 from bulletnav.viz.dashboard import Dashboard, DashboardConfig, simplify_path
-from bulletnav.viz.plots import EpisodeTrajectory, TrajectoryLog, figure_size, plot_trajectories
+from bulletnav.viz.plots import (
+    EpisodeTrajectory,
+    MoverTrack,
+    TrajectoryLog,
+    figure_size,
+    plot_trajectories,
+    trajectory_figure,
+)
 from bulletnav.viz.video import FRAME_SIZE, EpisodeRecorder, colourize_depth
 
 __all__ = [
@@ -22,6 +32,7 @@ __all__ = [
     "DashboardConfig",
     "EpisodeRecorder",
     "EpisodeTrajectory",
+    "MoverTrack",
     "TrajectoryLog",
     "colourize_depth",
     "compare_runs",
@@ -29,4 +40,5 @@ __all__ = [
     "plot_learning_curve",
     "plot_trajectories",
     "simplify_path",
+    "trajectory_figure",
 ]

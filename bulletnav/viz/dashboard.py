@@ -7,6 +7,13 @@ line 80-230 ms (it waits for a GUI frame), replacing one in place 4-15 ms, a 320
 subset of the lidar rays, and never add a debug item per step -- items are created once and
 then moved with ``replaceItemUniqueId``.
 
+Dynamic worlds (``scene.dynamic``): the movers are PyBullet bodies, so the GUI shows them
+already; the dashboard adds each mover's route as debug lines (one shade per mover:
+forklifts yellow-amber, workers blue-violet), drawn once per reset, and a text message at
+each event (``+ label (t s)`` over an added obstacle, ``- label (t s)`` over a removed one),
+read from ``scene.events`` on the step it happens. Events are rare, and their messages
+reuse a ring of :data:`EVENT_TEXTS` text items. Static worlds draw exactly what they did.
+
 Use::
 
     env = gym.make("bulletnav/Warehouse-v0", render_mode="human")
@@ -32,6 +39,8 @@ from typing import Any
 import numpy as np
 import pybullet as p
 
+from bulletnav.viz.movers import mover_colours
+
 log = logging.getLogger(__name__)
 
 GOAL_COLOUR = (0.1, 0.9, 0.3)
@@ -39,6 +48,12 @@ RAY_FREE_COLOUR = (0.1, 0.85, 0.2)
 """Rays that hit nothing within the lidar's range."""
 RAY_HIT_COLOUR = (0.95, 0.15, 0.1)
 PATH_COLOUR = (0.9, 0.3, 0.9)
+EVENT_ADD_COLOUR = (0.0, 0.8, 0.75)
+EVENT_REMOVE_COLOUR = (1.0, 0.4, 0.15)
+EVENT_TEXTS = 4
+"""Event messages shown at once in the GUI (the oldest is overwritten by a new event)."""
+ROUTE_Z = 0.04
+"""Height (m) of the mover route lines, just above the floor."""
 _HIDDEN = ((0.0, 0.0, -5.0), (0.0, 0.0, -5.0))
 """A zero-length line under the floor: how unused path segments are hidden (removing is slow)."""
 _PREVIEW_FLAGS = ("COV_ENABLE_GUI", "COV_ENABLE_RGB_BUFFER_PREVIEW", "COV_ENABLE_DEPTH_BUFFER_PREVIEW",
@@ -90,12 +105,15 @@ class Dashboard:
     Counters (for tests and profiling):
         camera_renders: ``getCameraImage`` calls made (one every ``camera_every`` steps; none at reset).
         debug_draw_calls: ``addUserDebugLine`` calls made, replacements included.
+        debug_text_calls: ``addUserDebugText`` calls made (event messages, replacements included).
         debug_items: debug items this dashboard currently owns.
 
     Per episode of ``n`` steps with a path of ``s`` segments: ``n // camera_every`` renders
     and ``3 + (n // lidar_every) * ceil(rays / lidar_ray_stride) + (n // path_every) * s``
     line calls (3 for the goal marker), plus one call per visible ray or path segment hidden
-    at a reset that keeps the scene.
+    at a reset that keeps the scene. A dynamic world adds, at each reset, one line call per
+    mover route segment (and one per route segment of the last episode left to hide), and
+    one text call per event (plus one per shown message hidden at a reset that keeps the scene).
     """
 
     def __init__(self, env: Any, config: DashboardConfig = DashboardConfig()) -> None:
@@ -108,6 +126,7 @@ class Dashboard:
         self.cid = self.scene.client
         self.camera_renders = 0
         self.debug_draw_calls = 0
+        self.debug_text_calls = 0
         self.steps = 0
         """Control steps since the last reset."""
         self._goal_ids: list[int] = []
@@ -115,6 +134,13 @@ class Dashboard:
         self._path_ids: list[int] = []
         self._path_visible = 0
         self._rays_visible = False
+        self._route_ids: list[int] = []
+        self._routes_visible = 0
+        self._text_ids: list[int] = []
+        self._texts_visible = False
+        self._dynamic = False
+        self._events_seen = 0
+        self._events_shown = 0
         self._rebuilds = -1
         self._episode = -1
         for name in _PREVIEW_FLAGS:
@@ -124,11 +150,13 @@ class Dashboard:
 
     @property
     def debug_items(self) -> int:
-        return len(self._goal_ids) + len(self._ray_ids) + len(self._path_ids)
+        return (len(self._goal_ids) + len(self._ray_ids) + len(self._path_ids) + len(self._route_ids)
+                + len(self._text_ids))
 
     # ------------------------------------------------------------------ hooks
     def on_reset(self) -> None:
-        """Start an episode: (re)draw the goal marker and hide last episode's rays and path."""
+        """Start an episode: (re)draw the goal marker and hide last episode's rays and path;
+        in dynamic worlds draw the movers' routes and hide last episode's event messages."""
         scene = self.scene
         self.steps = 0
         self._episode = scene.episode
@@ -137,6 +165,8 @@ class Dashboard:
             # restarts their ids: forget ours, replacing a stale id would draw nothing
             self._goal_ids, self._ray_ids, self._path_ids = [], [], []
             self._path_visible, self._rays_visible = 0, False
+            self._route_ids, self._routes_visible = [], 0
+            self._text_ids, self._texts_visible = [], False
             self._rebuilds = scene.scene_builds
         else:
             if self._rays_visible:
@@ -144,6 +174,16 @@ class Dashboard:
                     self._line(self._ray_ids, i, *_HIDDEN, RAY_FREE_COLOUR)
                 self._rays_visible = False
             self._hide_path_from(0)
+            if self._texts_visible:
+                for i in range(len(self._text_ids)):
+                    self._text(i, " ", _HIDDEN[0], EVENT_ADD_COLOUR)
+                self._texts_visible = False
+        self._dynamic = scene.dynamic
+        self._events_seen = 0
+        if self._dynamic:
+            self._draw_routes()
+        elif self._routes_visible:
+            self._hide_routes_from(0)
         gx, gy = scene.goal
         r = scene.goal_radius
         marker = [((gx, gy, 0.0), (gx, gy, 1.0)),  # a post, visible from afar
@@ -166,6 +206,12 @@ class Dashboard:
             self._draw_rays()
         if path is not None and self.steps % cfg.path_every == 0:
             self._draw_path(path)
+        if self._dynamic:
+            events = self.scene.events
+            if len(events) > self._events_seen:  # rare: a few per minute at most
+                for e in events[self._events_seen:]:
+                    self._show_event(e)
+                self._events_seen = len(events)
         if not cfg.follow_camera:
             self._overview()
 
@@ -227,6 +273,55 @@ class Dashboard:
         for i in range(first, self._path_visible):
             self._line(self._path_ids, i, *_HIDDEN, PATH_COLOUR)
         self._path_visible = min(self._path_visible, first)
+
+    def _draw_routes(self) -> None:
+        """Every mover's route as debug lines, in its shade (once per reset, replaced in place)."""
+        movers = self.scene.movers
+        i = 0
+        for m, rgb in zip(movers, mover_colours(mv.kind for mv in movers)):
+            colour = tuple(c / 255 for c in rgb)
+            pts = simplify_path(m.path, self.config.max_path_segments)
+            for a, b in zip(pts[:-1], pts[1:]):
+                self._line(self._route_ids, i, (a[0], a[1], ROUTE_Z), (b[0], b[1], ROUTE_Z), colour)
+                i += 1
+        self._routes_visible = max(self._routes_visible, i)
+        self._hide_routes_from(i)
+
+    def _hide_routes_from(self, first: int) -> None:
+        for i in range(first, self._routes_visible):
+            self._line(self._route_ids, i, *_HIDDEN, PATH_COLOUR)
+        self._routes_visible = min(self._routes_visible, first)
+
+    def _show_event(self, event: dict[str, Any]) -> None:
+        """A message over the event's place: ``+ label (t s)`` when added, ``- label (t s)`` when removed."""
+        add = event["action"] == "add"
+        x, y = (float(v) for v in event["center"][:2])
+        size = event.get("size") or (0.0, 0.0, 1.0)
+        text = f"{'+' if add else '-'} {event.get('label') or 'obstacle'} ({float(event['time_s']):.1f} s)"
+        slot = len(self._text_ids) if len(self._text_ids) < EVENT_TEXTS else self._events_shown % EVENT_TEXTS
+        # added above, removed below the centre (in y): an obstacle added and later removed keeps both legible
+        pos = (x, y + (0.3 if add else -0.3), float(size[2]) + 0.4)
+        self._text(slot, text, pos, EVENT_ADD_COLOUR if add else EVENT_REMOVE_COLOUR)
+        self._events_shown += 1
+        self._texts_visible = True
+
+    def _text(self, i: int, text: str, pos: Sequence[float], colour: Sequence[float]) -> None:
+        """Debug text ``i`` of the event ring: replaced in place when it exists, else created."""
+        kwargs = dict(textColorRGB=colour, textSize=1.4, physicsClientId=self.cid)
+        ids = self._text_ids
+        if i < len(ids):
+            self.debug_text_calls += 1
+            new = p.addUserDebugText(text, pos, replaceItemUniqueId=ids[i], **kwargs)
+            if new >= 0:
+                ids[i] = new
+                return
+            log.debug("debug text %d vanished; drawing it anew", ids[i])
+        self.debug_text_calls += 1
+        new = p.addUserDebugText(text, pos, **kwargs)
+        if i < len(ids):
+            ids[i] = new
+        else:
+            ids.append(new)
 
     def _overview(self) -> None:
         hx, hy = self.scene.layout.half_extents

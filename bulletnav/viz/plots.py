@@ -9,6 +9,14 @@ Use with :func:`bulletnav.evaluation.run_episodes`::
 
 Without the reset hook the log still works: it notices each new episode in ``on_step`` and
 starts it at ``env.unwrapped.scene.start``. Poses come from ``info["pose"]``.
+
+In dynamic worlds (``scene.dynamic``) the log also keeps each mover's pose after every step
+(read from ``scene.movers``) and the episode's events (``scene.events``); the plot then
+draws every mover's route (dashed, one shade per mover: forklifts yellow-amber, workers
+blue-violet), its positions over the episode as a faint trail and its final footprint
+(rectangle for a forklift, circle for a worker), and the events: an added obstacle's
+footprint outlined, a removed one crossed out, each with its time. Static worlds log and
+draw exactly what they did before.
 """
 
 from __future__ import annotations
@@ -23,6 +31,7 @@ from typing import Any
 
 from bulletnav.sim.layout import WALL_THICKNESS, Layout
 from bulletnav.sim.world import COLOURS
+from bulletnav.viz.movers import EVENT_HEX, event_corners, forklift_corners, hex_colour, mover_colours
 from bulletnav.viz.video import box_corners
 
 log = logging.getLogger(__name__)
@@ -34,6 +43,26 @@ PANEL_IN = 3.0
 """Side of one small-multiple panel (inches); the single map is 7 x 7 in."""
 LEGEND_IN = 0.5
 """Extra height (inches) for the legend row under the small multiples."""
+DYNAMIC_LEGEND_IN = 0.25
+"""More legend height (inches) when the small multiples show movers or events (a second row)."""
+MOVER_GID = {"path": "mover_path", "trail": "mover_trail", "footprint": "mover_footprint"}
+"""Matplotlib ``gid`` of each mover's artists: one route line, one trail line, one footprint patch."""
+EVENT_GID = {"add": "event_add", "remove": "event_remove"}
+"""Matplotlib ``gid`` of an event's marker: the added footprint's outline, the removed one's x."""
+
+
+@dataclass
+class MoverTrack:
+    """One mover's episode, as ``scene.movers`` showed it."""
+
+    kind: str
+    """``"forklift"`` or ``"worker"``."""
+    size: tuple[float, float, float]
+    """Forklift: length along its heading, width, height (m); worker: (2 radius, 2 radius, height)."""
+    path: tuple[tuple[float, float], ...]
+    """Its route or waypoints (m)."""
+    poses: list[tuple[float, float, float]] = field(default_factory=list)
+    """(x m, y m, yaw rad): at reset (when ``on_reset`` was called), then after every step."""
 
 
 @dataclass
@@ -53,6 +82,14 @@ class EpisodeTrajectory:
     """'success', 'collision', 'timeout' or 'unfinished' (stopped by the caller)."""
     result: Any = None
     """The :class:`~bulletnav.evaluation.EpisodeResult`, when ``on_episode`` was called."""
+    movers: list[MoverTrack] = field(default_factory=list)
+    """The movers of a dynamic world, in ``scene.movers`` order (empty in static worlds)."""
+    events: list[dict[str, Any]] = field(default_factory=list)
+    """The episode's events so far (copies of ``scene.events``' dicts; empty in static worlds)."""
+
+    @property
+    def dynamic(self) -> bool:
+        return bool(self.movers or self.events)
 
 
 class TrajectoryLog:
@@ -62,6 +99,7 @@ class TrajectoryLog:
         self.episodes: list[EpisodeTrajectory] = []
         self._stamp: int | None = None
         self._steps = 0
+        self._dynamic = False
 
     def __len__(self) -> int:
         return len(self.episodes)
@@ -71,6 +109,8 @@ class TrajectoryLog:
         self._begin(env)
         x, y, _ = info["pose"]
         self.episodes[-1].points.append((float(x), float(y)))
+        if self._dynamic:
+            self._record_dynamic(env.unwrapped.scene)
 
     def on_step(self, env: Any, info: dict[str, Any]) -> None:
         """Record the pose after a step; call after every ``env.step`` (``run_episodes``' ``on_step``)."""
@@ -82,6 +122,8 @@ class TrajectoryLog:
         x, y, _ = info["pose"]
         ep = self.episodes[-1]
         ep.points.append((float(x), float(y)))
+        if self._dynamic:
+            self._record_dynamic(scene)
         if info.get("is_success"):
             ep.outcome = "success"
         elif info.get("collision"):
@@ -106,10 +148,23 @@ class TrajectoryLog:
         self._steps = 0
         sx, sy, syaw = (float(v) for v in scene.start)
         gx, gy = scene.goal
-        self.episodes.append(EpisodeTrajectory(
+        ep = EpisodeTrajectory(
             layout=scene.layout, start=(sx, sy, syaw), goal=(float(gx), float(gy)),
             goal_radius=float(scene.goal_radius),
-        ))
+        )
+        self._dynamic = bool(scene.dynamic)
+        if self._dynamic:
+            ep.movers = [MoverTrack(m.kind, tuple(float(v) for v in m.size), tuple((float(x), float(y)) for x, y in m.path))
+                         for m in scene.movers]
+        self.episodes.append(ep)
+
+    def _record_dynamic(self, scene: Any) -> None:
+        ep = self.episodes[-1]
+        for track, m in zip(ep.movers, scene.movers):
+            track.poses.append(tuple(float(v) for v in m.pose))  # type: ignore[arg-type]
+        events = scene.events
+        if len(events) > len(ep.events):
+            ep.events.extend(dict(e) for e in events[len(ep.events):])
 
 
 def figure_size(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory], max_panels: int = 25,
@@ -119,7 +174,8 @@ def figure_size(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory], max_pa
     if _shared_layout(episodes):
         return 7 * dpi, 7 * dpi
     cols, rows = _grid(min(len(episodes), max_panels))
-    return int(round(cols * PANEL_IN * dpi)), int(round((rows * PANEL_IN + LEGEND_IN) * dpi))
+    legend = LEGEND_IN + (DYNAMIC_LEGEND_IN if any(ep.dynamic for ep in episodes[:max_panels]) else 0.0)
+    return int(round(cols * PANEL_IN * dpi)), int(round((rows * PANEL_IN + legend) * dpi))
 
 
 def plot_trajectories(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory], path: str | Path,
@@ -129,7 +185,22 @@ def plot_trajectories(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory], 
     Episodes that all share one layout go on one 7 x 7 in map; otherwise each gets a
     3 x 3 in panel in a grid (the first ``max_panels``). Paths are green (success), red
     (collision), orange (timeout) or grey (unfinished); the start is a white dot with a
-    heading tick, the goal a blue circle of the success radius.
+    heading tick, the goal a blue circle of the success radius. Movers and events of
+    dynamic worlds are drawn as the module docstring says (artists tagged with the gids of
+    :data:`MOVER_GID` and :data:`EVENT_GID`); a mover route shared by several episodes on
+    one map is drawn once.
+
+    Raises:
+        ValueError: nothing was logged.
+    """
+    fig = trajectory_figure(log_or_episodes, title, max_panels, dpi)
+    return _save_atomic(fig, Path(path), dpi)
+
+
+def trajectory_figure(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory], title: str = "",
+                      max_panels: int = 25, dpi: int = 100) -> Any:
+    """The matplotlib ``Figure`` that :func:`plot_trajectories` saves (for inspection or
+    further drawing; it is not attached to pyplot).
 
     Raises:
         ValueError: nothing was logged.
@@ -146,8 +217,9 @@ def plot_trajectories(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory], 
     if _shared_layout(episodes):
         ax = fig.add_subplot()
         _draw_layout(ax, episodes[0].layout)
+        routes: set[tuple[str, tuple[tuple[float, float], ...]]] = set()
         for ep in episodes:
-            _draw_episode(ax, ep, linewidth=1.8)
+            _draw_episode(ax, ep, linewidth=1.8, routes=routes)
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
         shown = episodes
@@ -168,10 +240,12 @@ def plot_trajectories(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory], 
     handles = [Line2D([], [], color=OUTCOME_COLOURS[o], lw=2, label=o) for o in outcomes]
     handles += [Line2D([], [], ls="", marker="o", mfc="white", mec="black", label="start"),
                 Patch(facecolor=GOAL_COLOUR, alpha=0.3, edgecolor=GOAL_COLOUR, label="goal zone")]
-    fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), fontsize=8, frameon=False)
+    extra = _dynamic_handles(shown)
+    ncols = len(handles) if not extra else math.ceil((len(handles) + len(extra)) / 2)
+    fig.legend(handles=handles + extra, loc="outside lower center", ncols=ncols, fontsize=8, frameon=False)
     if title:
         fig.suptitle(title + ("" if len(shown) == len(episodes) else f" (first {len(shown)} of {len(episodes)})"))
-    return _save_atomic(fig, Path(path), dpi)
+    return fig
 
 
 def _episodes(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory]) -> list[EpisodeTrajectory]:
@@ -206,9 +280,14 @@ def _draw_layout(ax: Any, layout: Layout) -> None:
     ax.set_aspect("equal")
 
 
-def _draw_episode(ax: Any, ep: EpisodeTrajectory, linewidth: float) -> None:
+def _draw_episode(ax: Any, ep: EpisodeTrajectory, linewidth: float,
+                  routes: set[tuple[str, tuple[tuple[float, float], ...]]] | None = None) -> None:
     from matplotlib.patches import Circle
 
+    if ep.movers:
+        _draw_movers(ax, ep.movers, set() if routes is None else routes)
+    if ep.events:
+        _draw_events(ax, ep.events)
     ax.add_patch(Circle(ep.goal, ep.goal_radius, facecolor=GOAL_COLOUR, alpha=0.25, edgecolor="none", zorder=2))
     ax.add_patch(Circle(ep.goal, ep.goal_radius, fill=False, edgecolor=GOAL_COLOUR, lw=1.2, zorder=2))
     if ep.points:
@@ -217,6 +296,75 @@ def _draw_episode(ax: Any, ep: EpisodeTrajectory, linewidth: float) -> None:
     sx, sy, syaw = ep.start
     ax.plot([sx, sx + 0.4 * math.cos(syaw)], [sy, sy + 0.4 * math.sin(syaw)], color="black", lw=1.2, zorder=4)
     ax.plot(sx, sy, ls="", marker="o", ms=5, mfc="white", mec="black", zorder=5)
+
+
+def _draw_movers(ax: Any, movers: list[MoverTrack], routes: set[tuple[str, tuple[tuple[float, float], ...]]]) -> None:
+    """Route (dashed), trail (faint) and final footprint of each mover, in its own shade."""
+    from matplotlib.patches import Circle, Polygon
+
+    for i, (track, rgb) in enumerate(zip(movers, mover_colours(m.kind for m in movers))):
+        colour = hex_colour(rgb)
+        name = f"{track.kind} {i + 1}"
+        key = (track.kind, track.path)
+        if key not in routes and len(track.path) >= 2:
+            routes.add(key)
+            xs, ys = zip(*track.path)
+            ax.plot(xs, ys, color=colour, lw=1.1, ls=(0, (4, 2)), alpha=0.9, zorder=2.2, gid=MOVER_GID["path"],
+                    label=f"_{name} route")
+        if not track.poses:
+            continue
+        if len(track.poses) >= 2:
+            xs, ys = [q[0] for q in track.poses], [q[1] for q in track.poses]
+            ax.plot(xs, ys, color=colour, lw=2.5, alpha=0.25, solid_capstyle="round", zorder=2.1,
+                    gid=MOVER_GID["trail"], label=f"_{name} trail")
+        pose = track.poses[-1]
+        edge = tuple(0.55 * c / 255 for c in rgb)
+        if track.kind == "forklift":
+            patch = Polygon(forklift_corners(pose, track.size), closed=True, facecolor=colour, edgecolor=edge,
+                            lw=0.8, alpha=0.85, zorder=2.4)
+        else:
+            patch = Circle(pose[:2], track.size[0] / 2, facecolor=colour, edgecolor=edge, lw=0.8, alpha=0.85,
+                           zorder=2.4)
+        patch.set_gid(MOVER_GID["footprint"])
+        patch.set_label(f"_{name} final footprint")
+        ax.add_patch(patch)
+
+
+def _draw_events(ax: Any, events: list[dict[str, Any]]) -> None:
+    """An added obstacle's footprint outlined, a removed one's crossed out; each with its time (s)."""
+    from matplotlib.patches import Polygon
+
+    for e in events:
+        cx, cy = (float(v) for v in e["center"][:2])
+        if e["action"] == "add":
+            ax.add_patch(Polygon(event_corners(e), closed=True, fill=False, edgecolor=EVENT_HEX, lw=1.4, ls="--",
+                                 zorder=3.5, gid=EVENT_GID["add"], label=f"_added {e.get('label', '')}"))
+        else:
+            ax.plot(cx, cy, ls="", marker="X", ms=8, mfc=EVENT_HEX, mec="white", mew=0.6, zorder=3.6,
+                    gid=EVENT_GID["remove"], label=f"_removed {e.get('label', '')}")
+        # added above, removed below the centre: an obstacle added and removed later keeps both times legible
+        ax.annotate(f"{float(e['time_s']):.1f} s", (cx, cy), xytext=(5, 4 if e["action"] == "add" else -9),
+                    textcoords="offset points", fontsize=6, color=EVENT_HEX, zorder=3.7, gid="event_time")
+
+
+def _dynamic_handles(episodes: list[EpisodeTrajectory]) -> list[Any]:
+    """Legend entries for what the dynamic episodes show (none for static ones)."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    kinds = {m.kind for ep in episodes for m in ep.movers}
+    actions = {e["action"] for ep in episodes for e in ep.events}
+    handles: list[Any] = []
+    for kind in ("forklift", "worker"):
+        if kind in kinds:
+            (rgb,) = mover_colours([kind])
+            handles.append(Line2D([], [], color=hex_colour(rgb), lw=1.1, ls=(0, (4, 2)), label=f"{kind} route"))
+    if "add" in actions:
+        handles.append(Patch(fill=False, edgecolor=EVENT_HEX, lw=1.4, ls="--", label="obstacle added"))
+    if "remove" in actions:
+        handles.append(Line2D([], [], ls="", marker="X", ms=8, mfc=EVENT_HEX, mec="white", mew=0.6,
+                              label="obstacle removed"))
+    return handles
 
 
 def _save_atomic(fig: Any, path: Path, dpi: int) -> Path:

@@ -15,6 +15,14 @@ Frame layout (960 x 528 px, both divisible by 16 so H.264 needs no resizing)::
 Frames are drawn with PIL and NumPy only (matplotlib is used once, for the depth colour
 table). Recording only reads the robot's pose and its cached sensor readings, so an episode
 with a recorder attached is bit-identical to one without.
+
+Dynamic worlds (``scene.dynamic``): the camera panels show the movers already (they are
+PyBullet bodies); the map adds each mover's route (thin, in its own shade: forklifts
+yellow-amber, workers blue-violet), its footprint now (a rectangle with a heading tick
+for a forklift, a disc for a worker; outlined white while it yields to the robot) and the
+events so far (an added obstacle filled and outlined, a removed one crossed out). The
+legend lists forklift, worker and event, and the strip's second line ends with the movers'
+count and the latest event. Static worlds' frames are drawn exactly as before.
 """
 
 from __future__ import annotations
@@ -31,6 +39,15 @@ from PIL import Image, ImageDraw, ImageFont
 
 from bulletnav.sim.layout import WALL_THICKNESS, Layout, Obstacle
 from bulletnav.sim.world import COLOURS
+from bulletnav.viz.movers import (
+    EVENT_RGB,
+    event_corners,
+    event_text,
+    forklift_corners,
+    mover_colour,
+    mover_colours,
+    movers_summary,
+)
 
 log = logging.getLogger(__name__)
 
@@ -231,6 +248,11 @@ class EpisodeRecorder:
         self._maps: OrderedDict[Layout, tuple[MapView, Image.Image]] = OrderedDict()
         self._labels: dict[tuple[str, tuple[int, int, int], bool], Image.Image] = {}
         self._base = self._render_base()
+        self._base_dynamic: Image.Image | None = None  # drawn at the first dynamic episode
+        self._dynamic = False
+        self._mover_rgb: list[tuple[int, int, int]] = []
+        self._events_drawn = 0
+        self._dynamic_text = ""
         self._episode_stamp: int | None = None
         self._episode_map: Image.Image | None = None
         self._view: MapView | None = None
@@ -292,7 +314,13 @@ class EpisodeRecorder:
             self._begin(env)
         view = self._view
         self._step = scene.steps
-        frame = self._base.copy()
+        if self._dynamic:
+            self._draw_new_events(scene, view)
+            if self._base_dynamic is None:
+                self._base_dynamic = self._render_base(dynamic=True)
+            frame = self._base_dynamic.copy()
+        else:
+            frame = self._base.copy()
         frame.paste(self._map_frame(scene, view, path), (0, 0))
         camera = scene.sensors.camera
         if camera is not None:
@@ -333,6 +361,16 @@ class EpisodeRecorder:
         (tx, ty), = view.to_px((sx + 0.3 * math.cos(syaw), sy + 0.3 * math.sin(syaw)))
         draw.line((px, py, tx, ty), fill=START, width=2)
         self._episode_map = img
+        self._dynamic = bool(scene.dynamic)
+        self._events_drawn = 0
+        if self._dynamic:
+            movers = scene.movers
+            self._mover_rgb = mover_colours(m.kind for m in movers)
+            floor = _rgb("floor")
+            for m, rgb in zip(movers, self._mover_rgb):
+                if len(m.path) >= 2:  # routes are fixed for the episode: drawn once into its layer
+                    draw.line(view.to_px(m.path), fill=_mix(rgb, floor, 0.7), width=1)
+            self._dynamic_text = f"movers: {movers_summary(m.kind for m in movers)}   last event: none"
         x, y, _ = scene.pose
         self._trajectory = [(x, y)]
         self._step = scene.steps
@@ -367,6 +405,8 @@ class EpisodeRecorder:
             if np.any(hit):
                 for px, py in view.to_px(lidar.hit_points(ranges)[hit]):
                     draw.ellipse((px - 2, py - 2, px + 2, py + 2), fill=LIDAR)
+        if self._dynamic:
+            self._draw_movers(draw, scene, view)
         x, y, yaw = scene.pose
         (cx, cy), = view.to_px((x, y))
         r = view.metres(scene.geometry.radius)
@@ -386,10 +426,56 @@ class EpisodeRecorder:
         sx, sy, _ = scene.start
         gx, gy = scene.goal
         line2 = f"{name}   start ({sx:+.2f}, {sy:+.2f})   goal ({gx:+.2f}, {gy:+.2f})"
-        frame.paste(self._label(line2, DIM_TEXT), (7, STRIP_Y + 24))
+        label2 = self._label(line2, DIM_TEXT)
+        frame.paste(label2, (7, STRIP_Y + 24))
         outcome = self._outcome or "running"
         label = self._label(outcome.upper(), OUTCOME_COLOURS.get(outcome, DIM_TEXT), small=False)
         frame.paste(label, (FRAME_SIZE[0] - 12 - label.width, STRIP_Y + 12))
+        if self._dynamic:  # movers and the latest event, cut short before the outcome label
+            x = 7 + label2.width + 12
+            dyn = self._label(self._dynamic_text, EVENT_RGB)
+            room = FRAME_SIZE[0] - 12 - label.width - 10 - x
+            if dyn.width > room > 0:
+                dyn = dyn.crop((0, 0, room, dyn.height))
+            if room > 0:
+                frame.paste(dyn, (x, STRIP_Y + 24))
+
+    def _draw_movers(self, draw: ImageDraw.ImageDraw, scene: Any, view: MapView) -> None:
+        """Each mover's footprint now, in its shade; outlined white while it yields."""
+        rgbs = self._mover_rgb
+        for i, m in enumerate(scene.movers):
+            rgb = rgbs[i] if i < len(rgbs) else mover_colour(m.kind, i)
+            edge = ROBOT if m.yielding else BACKGROUND
+            x, y, yaw = m.pose
+            if m.kind == "forklift":
+                draw.polygon(view.to_px(forklift_corners(m.pose, m.size)), fill=rgb, outline=edge, width=1)
+                half = 0.5 * m.size[0]
+                tip = (x + (half + 0.25) * math.cos(yaw), y + (half + 0.25) * math.sin(yaw))
+                draw.line(view.to_px([(x, y), tip]), fill=edge, width=2)
+            else:
+                (cx, cy), = view.to_px((x, y))
+                r = max(view.metres(0.5 * m.size[0]), 2.0)
+                draw.ellipse((cx - r, cy - r, cx + r, cy + r), fill=rgb, outline=edge, width=1)
+
+    def _draw_new_events(self, scene: Any, view: MapView) -> None:
+        """Draw the events since the last frame into the episode's layer (they stay for the episode)."""
+        events = scene.events
+        if len(events) <= self._events_drawn:
+            return
+        draw = ImageDraw.Draw(self._episode_map)
+        for e in events[self._events_drawn:]:
+            corners = view.to_px(event_corners(e))
+            if e["action"] == "add":
+                label = e.get("label") or ""
+                fill = _rgb(label if label in COLOURS else "pallet")
+                draw.polygon(corners, fill=fill, outline=EVENT_RGB, width=2)
+            else:
+                draw.polygon(corners, outline=EVENT_RGB, width=1)
+                draw.line((corners[0], corners[2]), fill=EVENT_RGB, width=2)
+                draw.line((corners[1], corners[3]), fill=EVENT_RGB, width=2)
+        self._events_drawn = len(events)
+        movers = movers_summary(m.kind for m in scene.movers)
+        self._dynamic_text = f"movers: {movers}   last event: {event_text(events[-1])}"
 
     def _label(self, text: str, colour: tuple[int, int, int] = TEXT, small: bool = True) -> Image.Image:
         """``text`` on a background box, rendered once and cached: FreeType rendering is
@@ -406,8 +492,9 @@ class EpisodeRecorder:
             self._labels[key] = img
         return img
 
-    def _render_base(self) -> Image.Image:
-        """Everything that never changes: background, legend, depth colour bar."""
+    def _render_base(self, dynamic: bool = False) -> Image.Image:
+        """Everything that never changes: background, legend, depth colour bar (with
+        ``dynamic``, the legend also lists forklift, worker and event)."""
         img = Image.new("RGB", FRAME_SIZE, BACKGROUND)
         draw = ImageDraw.Draw(img)
         x = SIDE_X + 12
@@ -415,6 +502,9 @@ class EpisodeRecorder:
         y = 34
         entries = [("goal zone", GOAL), ("start", START), ("robot", ROBOT), ("trajectory", TRAJECTORY),
                    ("planned path", PATH), ("lidar hits", LIDAR)]
+        if dynamic:
+            entries += [("forklift", mover_colour("forklift", 0)), ("worker", mover_colour("worker", 0)),
+                        ("event (add / remove)", EVENT_RGB)]
         entries += [(name, _rgb(name)) for name in ("rack", "pallet", "box", "column", "wall")]
         for name, colour in entries:
             draw.rectangle((x, y + 2, x + 12, y + 12), fill=colour)
