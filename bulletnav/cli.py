@@ -80,8 +80,10 @@ def _world_label(args: argparse.Namespace, obstacles: int | None = None) -> str:
 
 def _safety_line(s: dict) -> str:
     """One report line of the safety metrics of :func:`bulletnav.evaluation.summarize`."""
+    separation = s["min_separation_m"]
+    separation_text = "n/a (no movers)" if separation != separation else f"{separation:.2f} m"
     return (f"collisions static {s['collision_static_rate'] * 100:.1f} %  dynamic {s['collision_dynamic_rate'] * 100:.1f} %   "
-            f"timeouts {s['timeout_rate'] * 100:.1f} %   min separation {_fmt(s['min_separation_m'])} m   "
+            f"timeouts {s['timeout_rate'] * 100:.1f} %   min separation {separation_text}   "
             f"near misses {s['near_miss_rate'] * 100:.1f} % of steps   episode time {s['episode_time_s']:.1f} s")
 
 

@@ -62,7 +62,7 @@ def test_navigate_default_env_report_is_unchanged_but_for_the_safety_line(capsys
     assert main(["navigate", "--planner", "none", "--episodes", "1", "--world", "bulletnav/assets/worlds/empty.yaml"]) == 0
     text = capsys.readouterr().out
     assert "| bulletnav/assets/worlds/empty.yaml |" in text and "Warehouse-v0" not in text
-    assert "safety         collisions static 0.0 %  dynamic 0.0 %" in text and "min separation n/a m" in text
+    assert "safety         collisions static 0.0 %  dynamic 0.0 %" in text and "min separation n/a (no movers)" in text
 
 
 def test_world_file_with_the_aisles_env(capsys):
