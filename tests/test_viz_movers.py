@@ -278,10 +278,15 @@ def test_dashboard_draws_routes_once_and_event_messages(display, monkeypatch, tm
         for _ in range(30):  # 1.25 s: the pallet comes at 0.5 s and goes at 1.0 s
             env.step([0.0, 0.0])
             dash.on_step()
-        assert [text for text, _ in calls["text_new"]] == ["+ pallet_a (0.5 s)", "- pallet_a (1.0 s)"]
-        assert dash.debug_text_calls == 2 and not calls["text_replace"]
+        hud = [text for text, _ in calls["text_new"] + calls["text_replace"] if text.startswith("nearest mover")]
+        events = [(text, item) for text, item in calls["text_new"] if not text.startswith("nearest mover")]
+        assert [text for text, _ in events] == ["+ pallet_a (0.5 s)", "- pallet_a (1.0 s)"]
+        # the safety line, with every lidar redraw: created once, then replaced
+        assert len(hud) == 30 // dash.config.lidar_every and "| min " in hud[-1] and "near misses" in hud[-1]
+        assert dash.debug_text_calls == 2 + len(hud)
+        assert not [text for text, _ in calls["text_replace"] if not text.startswith("nearest mover")]
         rays = len(range(0, 36, dash.config.lidar_ray_stride))
-        assert dash.debug_items == 3 + routes + rays + 2
+        assert dash.debug_items == 3 + routes + rays + 2 + 1
         # routes are not redrawn while stepping: only the lidar rays were added / moved
         assert len(calls["new"]) == 3 + routes + rays
 
@@ -290,8 +295,9 @@ def test_dashboard_draws_routes_once_and_event_messages(display, monkeypatch, tm
         env.reset()
         dash.on_reset()
         assert scene.scene_builds == builds
-        assert len(calls["new"]) == 3 + routes + rays and len(calls["text_new"]) == 2
-        assert len(calls["text_replace"]) == 2 and all(text == " " for text, _ in calls["text_replace"])
+        assert len(calls["new"]) == 3 + routes + rays and len(calls["text_new"]) == 3  # 2 events, 1 safety line
+        hidden = [text for text, _ in calls["text_replace"] if not text.startswith("nearest mover")]
+        assert hidden == [" ", " ", " "]  # both messages and the safety line hidden in place
 
         # a seeded reset rebuilds the scene and deletes every debug item: drawn anew, once
         env.reset(seed=1)

@@ -254,6 +254,11 @@ class SceneView:
         return self._scene.dynamic
 
     @property
+    def nearest_mover_m(self) -> float:
+        """Distance (m) between the robot's outline and the nearest mover now (``inf`` without movers)."""
+        return self._scene.nearest_mover() if self._scene.dynamic else float("inf")
+
+    @property
     def scene_builds(self) -> int:
         """How many times the physics scene was rebuilt; debug items vanish at each rebuild."""
         return self._scene.sim.rebuilds

@@ -11,7 +11,9 @@ Dynamic worlds (``scene.dynamic``): the movers are PyBullet bodies, so the GUI s
 already; the dashboard adds each mover's route as debug lines (one shade per mover:
 forklifts yellow-amber, workers blue-violet), drawn once per reset, and a text message at
 each event (``+ label (t s)`` over an added obstacle, ``- label (t s)`` over a removed one),
-read from ``scene.events`` on the step it happens. Events are rare, and their messages
+read from ``scene.events`` on the step it happens, and one line of the episode's safety
+metrics above the robot (nearest mover, smallest separation so far, near-miss share of
+steps, as evaluation counts them), updated with the lidar rays. Events are rare, and their messages
 reuse a ring of :data:`EVENT_TEXTS` text items. Static worlds draw exactly what they did.
 
 Use::
@@ -50,6 +52,9 @@ RAY_HIT_COLOUR = (0.95, 0.15, 0.1)
 PATH_COLOUR = (0.9, 0.3, 0.9)
 EVENT_ADD_COLOUR = (0.0, 0.8, 0.75)
 EVENT_REMOVE_COLOUR = (1.0, 0.4, 0.15)
+HUD_COLOUR = (0.1, 0.1, 0.1)
+NEAR_MISS_M = 0.2
+"""A mover closer than this (m) to the robot's outline counts as a near miss (as in evaluation)."""
 EVENT_TEXTS = 4
 """Event messages shown at once in the GUI (the oldest is overwritten by a new event)."""
 ROUTE_Z = 0.04
@@ -138,6 +143,7 @@ class Dashboard:
         self._routes_visible = 0
         self._text_ids: list[int] = []
         self._texts_visible = False
+        self._hud_ids: list[int] = []
         self._dynamic = False
         self._events_seen = 0
         self._events_shown = 0
@@ -151,7 +157,7 @@ class Dashboard:
     @property
     def debug_items(self) -> int:
         return (len(self._goal_ids) + len(self._ray_ids) + len(self._path_ids) + len(self._route_ids)
-                + len(self._text_ids))
+                + len(self._text_ids) + len(self._hud_ids))
 
     # ------------------------------------------------------------------ hooks
     def on_reset(self) -> None:
@@ -167,6 +173,7 @@ class Dashboard:
             self._path_visible, self._rays_visible = 0, False
             self._route_ids, self._routes_visible = [], 0
             self._text_ids, self._texts_visible = [], False
+            self._hud_ids = []
             self._rebuilds = scene.scene_builds
         else:
             if self._rays_visible:
@@ -178,8 +185,12 @@ class Dashboard:
                 for i in range(len(self._text_ids)):
                     self._text(i, " ", _HIDDEN[0], EVENT_ADD_COLOUR)
                 self._texts_visible = False
+            if self._hud_ids:
+                self._text(0, " ", _HIDDEN[0], HUD_COLOUR, self._hud_ids)
         self._dynamic = scene.dynamic
         self._events_seen = 0
+        self._min_separation = float("inf")
+        self._near_miss_steps = 0
         if self._dynamic:
             self._draw_routes()
         elif self._routes_visible:
@@ -212,6 +223,11 @@ class Dashboard:
                 for e in events[self._events_seen:]:
                     self._show_event(e)
                 self._events_seen = len(events)
+            gap = self.scene.nearest_mover_m
+            self._min_separation = min(self._min_separation, gap)
+            self._near_miss_steps += gap < NEAR_MISS_M
+            if self.steps % cfg.lidar_every == 0:
+                self._show_metrics(gap)
         if not cfg.follow_camera:
             self._overview()
 
@@ -292,6 +308,13 @@ class Dashboard:
             self._line(self._route_ids, i, *_HIDDEN, PATH_COLOUR)
         self._routes_visible = min(self._routes_visible, first)
 
+    def _show_metrics(self, gap: float) -> None:
+        """The episode's safety metrics so far, in one text item above the robot."""
+        x, y, _ = self.scene.pose
+        text = (f"nearest mover {gap:.2f} m | min {self._min_separation:.2f} m | "
+                f"near misses {100.0 * self._near_miss_steps / max(self.steps, 1):.1f} % of steps")
+        self._text(0, text, (x, y, 1.2), HUD_COLOUR, self._hud_ids)
+
     def _show_event(self, event: dict[str, Any]) -> None:
         """A message over the event's place: ``+ label (t s)`` when added, ``- label (t s)`` when removed."""
         add = event["action"] == "add"
@@ -305,10 +328,12 @@ class Dashboard:
         self._events_shown += 1
         self._texts_visible = True
 
-    def _text(self, i: int, text: str, pos: Sequence[float], colour: Sequence[float]) -> None:
-        """Debug text ``i`` of the event ring: replaced in place when it exists, else created."""
+    def _text(self, i: int, text: str, pos: Sequence[float], colour: Sequence[float],
+              ids: list[int] | None = None) -> None:
+        """Debug text ``i`` of a group (default: the event ring): replaced in place when it
+        exists, else created."""
         kwargs = dict(textColorRGB=colour, textSize=1.4, physicsClientId=self.cid)
-        ids = self._text_ids
+        ids = self._text_ids if ids is None else ids
         if i < len(ids):
             self.debug_text_calls += 1
             new = p.addUserDebugText(text, pos, replaceItemUniqueId=ids[i], **kwargs)
