@@ -43,3 +43,12 @@ DYNAMIC_KWARGS = {
 if DYNAMIC_ENV_ID not in gym.registry:
     gym.register(id=DYNAMIC_ENV_ID, entry_point="bulletnav.envs.warehouse:WarehouseEnv", max_episode_steps=2400,
                  kwargs=DYNAMIC_KWARGS)
+
+MISSION_ENV_ID = "bulletnav/WarehouseMission-v0"
+MISSION_KWARGS = {**AISLES_KWARGS, "task_name": "mission", "goals": 3, "goal_order": "free"}
+"""``WarehouseMission-v0``: aisle warehouses, 3 goals in any order (``bulletnav.tasks.mission``);
+the task truncates after 1,200 steps per goal."""
+
+if MISSION_ENV_ID not in gym.registry:
+    gym.register(id=MISSION_ENV_ID, entry_point="bulletnav.envs.warehouse:WarehouseEnv", max_episode_steps=None,
+                 kwargs=MISSION_KWARGS)

@@ -346,6 +346,9 @@ class RewardConfig:
     """Times (proximity_distance - closest lidar range) while the closest range is under it."""
     proximity_distance: float = 0.3
     """Lidar range (m) under which the proximity penalty applies."""
+    subgoal: float = 10.0
+    """Missions (``task_name="mission"``): once per goal reached before the last (the last one
+    earns ``goal``)."""
 
 
 @dataclass(frozen=True)
@@ -362,6 +365,14 @@ class TaskConfig:
     """Distance to the goal is divided by this in the observation (m)."""
     pose_source: str = "truth"
     """Where the robot's pose for heading/distance observations comes from: 'truth' or 'odometry'."""
+    goals: int = 1
+    """Missions (``task_name="mission"``): goal points per episode, 1-8."""
+    goal_order: str = "free"
+    """Missions: ``"fixed"`` (visit in the given order) or ``"free"`` (any order)."""
+    steps_per_goal: int = 1200
+    """Missions: the episode is truncated after this many control steps per goal."""
+    min_goal_separation: float = 1.5
+    """Missions: sampled goals keep at least this distance (m) from each other and the start."""
     lidar_history: int = 1
     """Scans in the observation: the current one, then the k - 1 before it, newest first
     (appended after the 7 scalars, each scaled like the current scan); 1 = today's vector."""
@@ -373,6 +384,12 @@ class TaskConfig:
     def __post_init__(self) -> None:
         if self.pose_source not in ("truth", "odometry"):
             raise ValueError(f"pose_source must be 'truth' or 'odometry', got {self.pose_source!r}")
+        if not (isinstance(self.goals, int) and 1 <= self.goals <= 8):
+            raise ValueError(f"goals must be an integer from 1 to 8, got {self.goals!r}")
+        if self.goal_order not in ("fixed", "free"):
+            raise ValueError(f"goal_order must be 'fixed' or 'free', got {self.goal_order!r}")
+        if self.steps_per_goal < 1:
+            raise ValueError(f"steps_per_goal must be >= 1, got {self.steps_per_goal}")
         if not (isinstance(self.lidar_history, int) and self.lidar_history >= 1):
             raise ValueError(f"lidar_history must be an integer >= 1, got {self.lidar_history!r}")
         if self.goal_radius <= 0:

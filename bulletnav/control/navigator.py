@@ -15,6 +15,7 @@ from bulletnav.geometry import RobotGeometry
 from bulletnav.planning import OccupancyGrid, astar, rrt, warmup
 from bulletnav.planning.mapping import LidarMapper
 from bulletnav.planning.rrt import DEFAULT_MAX_ITERS
+from bulletnav.planning.tour import tour
 
 
 @dataclass(frozen=True)
@@ -208,6 +209,17 @@ class Navigator:
         self._waited = 0
         self.waits = 0
         """Control steps spent waiting for movers this episode."""
+        # missions: visit the goals in the best order on the true static map (free order), or as given
+        self.order: tuple[int, ...] | None = None
+        """Mission goal indices in the order this navigator visits them (None: one goal)."""
+        goals = info.get("goals")
+        if goals is not None and len(goals) > 1:
+            self._goals = [(float(g[0]), float(g[1])) for g in goals]
+            if info.get("goal_order") == "free":
+                self.order = self._best_order((x, y), self._goals)
+            else:
+                self.order = tuple(range(len(self._goals)))
+            self.goal = self._goals[self.order[0]]
 
     def _pose(self, info: dict[str, Any]) -> tuple[float, float, float]:
         if self.config.pose_source == "odometry":
@@ -216,9 +228,29 @@ class Navigator:
         x, y, yaw = info["pose"]
         return float(x), float(y), float(yaw)
 
+    def _best_order(self, start: tuple[float, float], goals: list[tuple[float, float]]) -> tuple[int, ...]:
+        """The shortest visiting order: A* lengths between all pairs on the scene's static map
+        inflated by the robot's radius, then the exact tour (:func:`bulletnav.planning.tour`)."""
+        grid = self.scene.occupancy(0.1, self.inflation)
+        points = [start, *goals]
+        n = len(points)
+        dist = [[0.0] * n for _ in range(n)]
+        for i in range(n):
+            for j in range(i + 1, n):
+                path = astar(grid, points[i], points[j])
+                length = math.inf if path is None else sum(math.dist(a, b) for a, b in zip(path, path[1:]))
+                dist[i][j] = dist[j][i] = length
+        _, seq = tour(dist, "free")
+        return tuple(i - 1 for i in seq)
+
     def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
         cfg = self.config
         pose = self._pose(info)
+        if self.order is not None and "reached" in info:  # missions: on to the next goal of our order
+            left = [i for i in self.order if not info["reached"][i]]
+            goal = self._goals[left[0]] if left else self.goal
+            if goal != self.goal:
+                self.goal, self.path = goal, None
         state = obs["state"] if isinstance(obs, dict) else obs
         ranges = np.asarray(state[: self.n_rays], dtype=np.float64) * self.max_range
         new_cells = self.mapper.integrate(pose, self.angles, ranges, self.max_range, sensor_offset=self.lidar_offset)

@@ -138,6 +138,53 @@ def sample_start_goal(
     )
 
 
+def sample_mission(free: FreeSpace, rng: np.random.Generator, config: SamplerConfig, k: int, separation: float,
+                   start: tuple[float, float, float] | None = None, tries: int = 200
+                   ) -> tuple[tuple[float, float, float], tuple[tuple[float, float], ...]]:
+    """A start pose and ``k`` goals for a mission, all with ``config.clearance``, mutually
+    reachable, at least ``separation`` m apart, each goal ``min_goal_distance`` to
+    ``max_goal_distance`` from the point before it (the start for the first).
+
+    Raises:
+        SamplingError: the layout has no such mission after ``tries`` attempts.
+    """
+    cells = np.argwhere(free.clear & (free.component > 0))
+    if len(cells) == 0:
+        raise SamplingError(f"layout {free.layout.source or free.layout.name!r}: no free cell for a mission")
+    points = np.stack([free.xs[cells[:, 0]], free.ys[cells[:, 1]]], axis=1)
+    labels = free.component[cells[:, 0], cells[:, 1]]
+    jitter = free.resolution / 4
+    for _ in range(tries):
+        if start is None:
+            i = int(rng.integers(len(points)))
+            s = (float(points[i, 0] + rng.uniform(-jitter, jitter)), float(points[i, 1] + rng.uniform(-jitter, jitter)),
+                 float(rng.uniform(-math.pi, math.pi)))
+        else:
+            s = start
+        label = free.component[free.cell(s[:2])]
+        if label == 0:
+            if start is not None:
+                raise SamplingError(f"mission start {list(s)} is not reachable free space")
+            continue
+        chosen = [np.array(s[:2])]
+        ok_label = labels == label
+        for _ in range(k):
+            prev = chosen[-1]
+            d = np.hypot(points[:, 0] - prev[0], points[:, 1] - prev[1])
+            ok = ok_label & (d >= config.min_goal_distance) & (d <= config.max_goal_distance)
+            for q in chosen:
+                ok &= np.hypot(points[:, 0] - q[0], points[:, 1] - q[1]) >= separation + 2 * jitter
+            candidates = np.flatnonzero(ok)
+            if len(candidates) == 0:
+                break
+            j = int(candidates[rng.integers(len(candidates))])
+            chosen.append(points[j] + rng.uniform(-jitter, jitter, 2))
+        if len(chosen) == k + 1:
+            return s, tuple((float(g[0]), float(g[1])) for g in chosen[1:])
+    raise SamplingError(f"layout {free.layout.source or free.layout.name!r}: no mission of {k} goals "
+                        f"{config.min_goal_distance}-{config.max_goal_distance} m apart after {tries} tries")
+
+
 def _planning_pairs(free: FreeSpace, config: SamplerConfig, blockers: list[Obstacle], cells: np.ndarray,
                     points: np.ndarray, i: int, d: np.ndarray, ok: np.ndarray) -> np.ndarray:
     """Which goal candidates make a planning episode with start cell ``i``: the straight

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 from bulletnav.config import EnvConfig
 from bulletnav.tasks.base import Task
+from bulletnav.tasks.mission import MissionTask
 from bulletnav.tasks.navigation import NavigationTask
 
 if TYPE_CHECKING:
@@ -42,5 +43,6 @@ def make_task(config: EnvConfig, scene: Scene) -> Task:
 
 
 register_task("navigation", NavigationTask)
+register_task("mission", MissionTask)
 
-__all__ = ["TASKS", "NavigationTask", "Task", "make_task", "register_task"]
+__all__ = ["TASKS", "MissionTask", "NavigationTask", "Task", "make_task", "register_task"]

@@ -83,6 +83,12 @@ class NavigationTask(Task):
 
     # ------------------------------------------------------------------ episode
     def initialize_episode(self, scene: Scene, rng: np.random.Generator, options: dict[str, Any]) -> None:
+        start, self.goals = self._choose_episode(scene, rng, options)
+        self._begin(scene, start, rng)
+
+    def _choose_episode(self, scene: Scene, rng: np.random.Generator, options: dict[str, Any]
+                        ) -> tuple[tuple[float, float, float], tuple[tuple[float, float], ...]]:
+        """The episode's start pose and goal(s), from options, the layout or the sampler."""
         layout = scene.layout
         assert layout is not None  # the env chose it before calling this
         start: tuple[float, float, float] | None = layout.start
@@ -95,7 +101,10 @@ class NavigationTask(Task):
             start = pose_option(options["start"], 3, "start")  # type: ignore[assignment]
         if "goal" in options:
             goal = pose_option(options["goal"], 2, "goal")  # type: ignore[assignment]
-        self.goals = ((float(goal[0]), float(goal[1])),)
+        return start, ((float(goal[0]), float(goal[1])),)
+
+    def _begin(self, scene: Scene, start: tuple[float, float, float], rng: np.random.Generator) -> None:
+        """Place the robot at ``start`` and reset the per-episode state (goals already chosen)."""
         scene.place_robot(start, rng, self.goals)
         self._measure(scene)
         self.collision = self._success = False
@@ -121,7 +130,7 @@ class NavigationTask(Task):
         else:
             state = self._robot.state
             x, y, yaw = state.x, state.y, state.yaw
-        goal = self.goals[0]
+        goal = self.goal  # the goal headed for now (the only one here)
         dx, dy = goal[0] - x, goal[1] - y
         self._x, self._y = x, y
         self._heading = math.remainder(math.atan2(dy, dx) - yaw, 2 * math.pi)
@@ -190,6 +199,6 @@ class NavigationTask(Task):
         state = scene.robot.state
         return {
             "distance_to_goal": self.distance, "collision": self.collision, "is_success": self._success,
-            "path_length": self.path_length, "initial_distance": self.initial_distance, "goal": self.goals[0],
+            "path_length": self.path_length, "initial_distance": self.initial_distance, "goal": self.goal,
             "pose": np.array((state.x, state.y, state.yaw)),
         }
