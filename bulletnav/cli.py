@@ -62,7 +62,18 @@ def _world_kwargs(args: argparse.Namespace, obstacles: int | None = None) -> dic
         kwargs["num_obstacles"] = obstacles
     if args.world:
         kwargs["world"] = args.world
+    if getattr(args, "goals", None) is not None:  # a mission of K goals on any env
+        kwargs.update(task_name="mission", goals=args.goals)
+    if getattr(args, "order", None) is not None:
+        kwargs.update(task_name="mission", goal_order=args.order)
     return kwargs
+
+
+def _add_mission_args(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--goals", type=int, default=None, metavar="K",
+                        help="a mission of K goals (1-8) on any env (default: the env's own task)")
+    parser.add_argument("--order", choices=["fixed", "free"], default=None,
+                        help="mission goal order: fixed (as given) or free (any; default free)")
 
 
 def _world_label(args: argparse.Namespace, obstacles: int | None = None) -> str:
@@ -290,6 +301,9 @@ def cmd_navigate(args: argparse.Namespace) -> int:
     print(f"planning       median {_fmt(summary['plan_ms_median'], '.3f')} ms  p95 {_fmt(summary['plan_ms_p95'], '.3f')} ms  "
           f"calls {summary['plan_calls']}  replans/episode {summary['replans_mean']:.1f}")
     print(f"safety         {_safety_line(summary)}")
+    if any(r.goals_total > 1 for r in results):
+        print(f"mission        progress {summary['progress'] * 100:.1f} %   PPL {summary['ppl']:.3f}   "
+              f"goals per minute {summary['goals_per_minute']:.2f}")
     for w in written:
         print(w)
     return 0
@@ -356,7 +370,7 @@ def _evaluate_report(args: argparse.Namespace, model_path: str) -> dict:
     results, written, layout_size = _run_with_visuals(args, env, SB3Policy(model, vecnorm), line, f"{algo} (seed {args.seed})")
     s = summarize(results)
     keys = ("episodes", "success_rate", "mean_reward", "std_reward", "mean_length", "std_length", "mean_distance",
-            "std_distance", "collision_rate", "spl", *SAFETY_KEYS, "per_episode")
+            "std_distance", "collision_rate", "spl", *SAFETY_KEYS, "progress", "ppl", "goals_per_minute", "per_episode")
     out = {k: s[k] for k in keys}
     out.update(model=str(model_path), seed=args.seed, env_id=args.env_id,
                world=_world_label(args, default_obstacles), world_size=layout_size)
@@ -370,7 +384,11 @@ def _evaluate_report(args: argparse.Namespace, model_path: str) -> dict:
           f"Average episode length: {s['mean_length']:.1f} \u00b1 {s['std_length']:.1f} steps\n"
           f"Average distance:        {s['mean_distance']:.2f}m \u00b1 {s['std_distance']:.2f}m\n"
           f"Collision rate: {s['collision_rate'] * 100:.1f}%   SPL: {s['spl']:.3f}\n"
-          f"Safety: {_safety_line(s)}\n{bar}")
+          f"Safety: {_safety_line(s)}")
+    if any(r.goals_total > 1 for r in results):
+        print(f"Mission: progress {s['progress'] * 100:.1f} %   PPL {s['ppl']:.3f}   "
+              f"goals per minute {s['goals_per_minute']:.2f}")
+    print(bar)
     for w in written:
         print(w)
     return out
@@ -487,6 +505,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="planner on the lidar map: none (PID at the goal), astar or rrt (default astar)")
     nav.add_argument("--episodes", type=int, default=10, help="episodes to run (default 10)")
     _add_world_args(nav)
+    _add_mission_args(nav)
     nav.add_argument("--pose", choices=["truth", "odometry"], default="truth",
                      help="pose for mapping and steering (default truth)")
     nav.add_argument("--gui", action="store_true", help="watch in the PyBullet GUI (needs a display)")
@@ -520,6 +539,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--episodes", type=int, default=10, help="episodes to run (default 10)")
     _add_env_arg(ev)
     ev.add_argument("--world", metavar="FILE", help="YAML layout (default: procedural warehouse)")
+    _add_mission_args(ev)
     _add_obstacles_arg(ev, "31 on Warehouse-v0, else the model's or the env's")
     ev.add_argument("--seed", type=int, default=1000, help="episode k uses env seed S + k (default 1000)")
     ev.add_argument("--gui", action="store_true", help="watch in the PyBullet GUI (needs a display)")
@@ -541,6 +561,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--seed", type=int, default=2024, help="episode k uses env seed S + k (default 2024)")
     _add_env_arg(demo)
     demo.add_argument("--world", metavar="FILE", help="YAML layout (default: procedural warehouse)")
+    _add_mission_args(demo)
     _add_obstacles_arg(demo, "31 on Warehouse-v0, else the model's or the env's")
     demo.add_argument("--out", default="runs/demo", metavar="DIR", help="output directory (default runs/demo)")
     demo.add_argument("--video", metavar="PATH", help="video file (default DIR/episodes.mp4)")

@@ -60,6 +60,12 @@ class EpisodeResult:
     """Neither success nor collision: the time limit ended the episode."""
     near_miss_steps: int = 0
     """Steps with ``info["nearest_mover_m"] < NEAR_MISS_M``."""
+    goals_total: int = 1
+    """Goals of the episode (missions: K)."""
+    goals_reached: int = 0
+    """Goals reached (1 on a successful single-goal episode)."""
+    ppl: float = 0.0
+    """Progress (goals reached / goals) x optimal tour / max(driven, optimal tour); SPL for one goal."""
     min_separation: InitVar[float] = math.nan
     # Not a field: NaN (no movers) has no strict-JSON form, and the per-episode rows
     # (``asdict``, ``summarize``'s ``per_episode``, the CLI's JSON) stay plain numbers.
@@ -142,6 +148,23 @@ def shortest_path_length(layout: Layout, start: tuple[float, float], goal: tuple
     return float(sum(math.dist(a, b) for a, b in zip(pts[:-1], pts[1:])))
 
 
+def optimal_tour_length(layout: Layout, start: tuple[float, float], goals, order: str = "free",
+                        radius: float = 0.2) -> float:
+    """Length (m) of the shortest tour from ``start`` through ``goals``: the shortest path
+    between every pair (:func:`shortest_path_length`), then the best order by dynamic
+    programming over subsets (``free``) or the given order (``fixed``), exact for up to 8 goals."""
+    from bulletnav.planning.tour import tour
+
+    points = [tuple(start), *(tuple(g) for g in goals)]
+    n = len(points)
+    dist = [[0.0] * n for _ in range(n)]
+    for i in range(n):
+        for j in range(i + 1, n):
+            dist[i][j] = dist[j][i] = shortest_path_length(layout, points[i], points[j], radius=radius)
+    length, _ = tour(dist, order)
+    return length
+
+
 def run_episodes(env, policy: Policy, episodes: int, seed: int,
                  on_episode: Callable[[EpisodeResult], None] | None = None,
                  on_step: Callable[[Any, dict], None] | None = None,
@@ -160,7 +183,12 @@ def run_episodes(env, policy: Policy, episodes: int, seed: int,
         if on_reset is not None:
             on_reset(env, info)
         start = scene.start
-        shortest = shortest_path_length(scene.layout, (start[0], start[1]), scene.goal, radius=scene.geometry.radius)
+        goals = info.get("goals") or (scene.goal,)
+        if len(goals) > 1:  # a mission: the optimal tour through its goals
+            shortest = optimal_tour_length(scene.layout, (start[0], start[1]), goals, info.get("goal_order", "free"),
+                                           radius=scene.geometry.radius)
+        else:
+            shortest = shortest_path_length(scene.layout, (start[0], start[1]), scene.goal, radius=scene.geometry.radius)
         total, steps = 0.0, 0
         safety = SafetyTracker()
         t0 = time.perf_counter()
@@ -177,13 +205,16 @@ def run_episodes(env, policy: Policy, episodes: int, seed: int,
         success = bool(info["is_success"])
         driven = float(info["path_length"])
         spl = (shortest / max(driven, shortest)) if success and shortest > 0 else 0.0
+        reached = int(info.get("goals_reached", int(success)))
+        progress = reached / len(goals)
+        ppl = progress * shortest / max(driven, shortest) if shortest > 0 else 0.0
         result = EpisodeResult(
             episode=k + 1, seed=seed + k, initial_distance=float(info["initial_distance"]), shortest_path=shortest,
             steps=steps, reward=total, final_distance=float(info["distance_to_goal"]), path_length=driven,
             success=success, collision=bool(info["collision"]), spl=spl,
             sim_time=steps * scene.control_dt, wall_time=time.perf_counter() - t0,
             plan_ms=[t * 1e3 for t in getattr(policy, "plan_times", [])], replans=int(getattr(policy, "replans", 0)),
-            **safety.result(info),
+            goals_total=len(goals), goals_reached=reached, ppl=ppl, **safety.result(info),
         )
         results.append(result)
         if on_episode is not None:
@@ -196,7 +227,9 @@ def summarize(results: list[EpisodeResult]) -> dict[str, Any]:
     collisions split into static and dynamic (with a mover), the timeout rate, the mean
     over episodes with movers of each one's smallest separation from a mover (NaN when none
     had movers), the share of all steps that were near misses, and the mean episode length
-    in simulated seconds."""
+    in simulated seconds. Missions add ``progress`` (mean share of goals reached), ``ppl``
+    (progress weighted by the optimal tour over the path driven) and ``goals_per_minute``
+    (goals reached per simulated minute, all episodes); for single goals ``ppl`` is SPL."""
     n = len(results)
     rewards = np.array([r.reward for r in results])
     lengths = np.array([r.steps for r in results])
@@ -228,5 +261,9 @@ def summarize(results: list[EpisodeResult]) -> dict[str, Any]:
         "min_separation_m": float(np.mean(separations)) if separations else math.nan,
         "near_miss_rate": sum(r.near_miss_steps for r in results) / total_steps if total_steps else 0.0,
         "episode_time_s": float(np.mean([r.sim_time for r in results])) if n else 0.0,
+        "progress": float(np.mean([r.goals_reached / r.goals_total for r in results])) if n else 0.0,
+        "ppl": float(np.mean([r.ppl for r in results])) if n else 0.0,
+        "goals_per_minute": (60.0 * sum(r.goals_reached for r in results) / sum(r.sim_time for r in results)
+                             if n and sum(r.sim_time for r in results) > 0 else 0.0),
         "per_episode": [{k: v for k, v in asdict(r).items() if k != "plan_ms"} for r in results],
     }
