@@ -131,3 +131,21 @@ def test_mission_env_passes_the_checkers():
     env = gym.make("bulletnav/WarehouseMission-v0")
     check_env(env.unwrapped, skip_render_check=True)
     env.close()
+
+
+def test_yaml_goals_are_the_missions_goals_and_bad_ones_are_refused(tmp_path):
+    import yaml
+
+    from bulletnav.errors import LayoutError
+    from bulletnav.sim.layout import load_layout
+
+    path = tmp_path / "m.yaml"
+    path.write_text(yaml.safe_dump({"size": [10.0, 10.0], "obstacles": [], "start": [0.0, 0.0, 0.0],
+                                    "goals": [[3.0, 0.0], [0.0, 3.0]]}))
+    env = gym.make("bulletnav/Warehouse-v0", world=str(path), task_name="mission", goals=2, goal_order="fixed")
+    _, info = env.reset(seed=0)
+    assert info["goals"] == ((3.0, 0.0), (0.0, 3.0)) and info["goal"] == (3.0, 0.0)
+    env.close()
+    path.write_text(yaml.safe_dump({"size": [10.0, 10.0], "obstacles": [], "goals": [[3.0, 0.0], [7.0, 0.0]]}))
+    with pytest.raises(LayoutError, match=r"m.yaml: field 'goals\[1\]' \[7.0, 0.0\] lies outside the floor"):
+        load_layout(path)

@@ -133,6 +133,14 @@ class WarehouseEnv(gym.Env):
     | 41 | IMU gyroscope z | rad/s | / 1.5 | [-3, 3] |
     | 42 | distance to the goal | m | / 10 | [0, 3] |
     | 43- | with ``lidar_history=k``: the k - 1 earlier scans, newest first, 36 each | m | / lidar_range | [0, 1] |
+    | then | missions (``task_name="mission"``): distance to the target goal | m | / 10 | [0, 3] |
+    | +1, +2 | sin, cos of the target's bearing from the heading | - | - | [-1, 1] |
+    | +3 | goals left / K | - | - | [0, 1] |
+    | +4 ... | ``goal_order="free"``: K slots of (distance / 10, sin, cos of bearing, 1 if still to visit); zeros once reached | | | |
+
+    Missions (``bulletnav/WarehouseMission-v0``; :mod:`bulletnav.tasks.mission`): in free order
+    the target, and the progress term, is the nearest goal not yet reached; entries 36 and 42
+    refer to the target.
 
     The robot's pose for entries 36 and 42 is ground truth (``pose_source="truth"``, as in
     the article) or the odometry estimate (``pose_source="odometry"``). With
@@ -215,6 +223,10 @@ class WarehouseEnv(gym.Env):
       to the robot (``bulletnav.DYNAMIC_KWARGS``). In worlds with movers or events ``info``
       adds ``nearest_mover_m`` (robot outline to the nearest mover, m; ``inf`` if none),
       ``collision_with`` (``"static"``, ``"dynamic"`` or None) and ``events`` (this step's).
+    - ``bulletnav/WarehouseMission-v0``: the aisle warehouses with ``task_name="mission"``, 3 goals in
+      free order (``goals``, ``goal_order``, ``steps_per_goal`` kwargs; ``reward_subgoal``), truncated
+      after 1,200 steps per goal; ``info`` adds ``goals``, ``goals_reached``, ``goals_total``,
+      ``reached``, ``reached_at`` and ``goal_order``.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 24}

@@ -101,6 +101,8 @@ class Layout:
     """Moving obstacles (forklifts, workers) animated in every episode on this layout."""
     events: tuple[EventSpec, ...] = ()
     """Obstacles that appear or vanish at given times in every episode on this layout."""
+    goals: tuple[tuple[float, float], ...] = ()
+    """Mission goals (``goals:`` list), used by the mission task instead of sampled ones."""
 
     @property
     def half_extents(self) -> tuple[float, float]:
@@ -190,7 +192,8 @@ def parse_layout(data: Any, where: str = "<layout>") -> Layout:
     """
     if not isinstance(data, dict):
         raise LayoutError(f"{where}: top level must be a mapping with 'size' and 'obstacles', got {type(data).__name__}")
-    unknown = sorted(set(data) - {"name", "size", "wall_height", "obstacles", "start", "goal", "dynamic", "events"})
+    unknown = sorted(set(data) - {"name", "size", "wall_height", "obstacles", "start", "goal", "goals", "dynamic",
+                                  "events"})
     if unknown:
         raise LayoutError(f"{where}: unknown top-level field(s) {unknown}")
     if "size" not in data:
@@ -231,7 +234,16 @@ def parse_layout(data: Any, where: str = "<layout>") -> Layout:
         _check_free(layout, goal, where, "goal")
     dynamic = _parse_dynamic(data.get("dynamic"), layout, where)
     events = _parse_events(data.get("events"), layout, where)
-    return Layout(size, obstacles, wall_height, layout.name, start, goal, where, dynamic, events)  # type: ignore[arg-type]
+    goals: tuple[tuple[float, ...], ...] = ()
+    if data.get("goals") is not None:
+        raw = data["goals"]
+        if not isinstance(raw, list) or not 1 <= len(raw) <= 8:
+            raise LayoutError(f"{where}: field 'goals' must be a list of 1 to 8 [x, y] points, got {raw!r}")
+        goals = tuple(_vec(g, 2, where, f"goals[{i}]") for i, g in enumerate(raw))
+        for i, g in enumerate(goals):
+            _check_free(layout, g, where, f"goals[{i}]")
+    return Layout(size, obstacles, wall_height, layout.name, start, goal, where, dynamic, events,  # type: ignore[arg-type]
+                  goals)  # type: ignore[arg-type]
 
 
 def _points(value: Any, where: str, field_name: str, layout: Layout) -> tuple[tuple[float, float], ...]:
@@ -367,6 +379,8 @@ def layout_to_dict(layout: Layout) -> dict[str, Any]:
         out["start"] = list(layout.start)
     if layout.goal is not None:
         out["goal"] = list(layout.goal)
+    if layout.goals:
+        out["goals"] = [list(g) for g in layout.goals]
     if layout.dynamic:
         out["dynamic"] = [_mover_to_dict(m) for m in layout.dynamic]
     if layout.events:

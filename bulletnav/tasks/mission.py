@@ -15,7 +15,8 @@ The navigation task's observation, reward and rules, applied to the current targ
   episode's goal order, each ``(distance / distance_scale, sin, cos, 1)`` for a goal still to
   visit and ``(0, 0, 0, 0)`` for one reached (the last entry is the mask).
 - **Episode length.** Truncated after ``steps_per_goal * K`` control steps (1,200 per goal).
-- **Goals** come from ``reset(options={"goals": [[x, y], ...]})`` (any K from 1 to 8), or are
+- **Goals** come from ``reset(options={"goals": [[x, y], ...]})`` or a YAML layout's ``goals:``
+  list (as many as the env's ``goals``, 1 to 8), or are
   sampled connected, at least ``min_goal_separation`` (1.5 m) from each other and the start,
   each leg ``min_goal_distance``-``max_goal_distance`` long (:func:`~bulletnav.sim.sampler.sample_mission`).
 """
@@ -75,8 +76,8 @@ class MissionTask(NavigationTask):
         layout = scene.layout
         assert layout is not None
         start = pose_option(options["start"], 3, "start") if "start" in options else layout.start
-        if "goals" in options:
-            goals = self._goal_option(options["goals"], scene)
+        if "goals" in options or layout.goals:
+            goals = self._goal_option(options.get("goals", layout.goals), scene)
             if start is None:
                 start, _ = sample_mission(scene.free_space, rng, self.config.sampler, 0, self._separation)
             return start, goals
