@@ -218,7 +218,7 @@ class _Visuals:
         if self.log is not None:
             self.log.on_step(env, info)
         if self.dashboard is not None:
-            self.dashboard.on_step(self._path())
+            self.dashboard.on_step(self._path(), info)
 
     def on_episode(self, result) -> None:
         if self.log is not None:

@@ -8,7 +8,9 @@ learning curves.
 - :func:`plot_learning_curve` and :func:`compare_runs` draw training runs' evaluations.
 
 In dynamic worlds the dashboard, the videos and the trajectory plots also draw the moving
-obstacles and the events (obstacles added or removed); see :mod:`bulletnav.viz.movers`.
+obstacles and the events (obstacles added or removed); see :mod:`bulletnav.viz.movers`. In
+multi-goal missions they number every goal and show which were reached (plots: in what order
+and when; videos and dashboard: ``goals 1/3``); see :mod:`bulletnav.viz.mission`.
 
 All of them read only ``info`` and the env's read-only ``scene`` view.
 """

@@ -16,6 +16,15 @@ metrics above the robot (nearest mover, smallest separation so far, near-miss sh
 steps, as evaluation counts them), updated with the lidar rays. Events are rare, and their messages
 reuse a ring of :data:`EVENT_TEXTS` text items. Static worlds draw exactly what they did.
 
+Multi-goal missions (``scene.goals`` holds two or more goals): a marker (post and cross) for
+every goal, with its number (1..K in the episode's goal order) above it, coloured by state
+(current target bright green, reached blue and ``n done``, the others pale), and one progress
+text over the current target, ``goals 1/3``. All are created at reset and replaced in place
+when a goal is reached (at once) or the target changes (checked every ``lidar_every`` steps).
+What was reached comes from ``on_step``'s ``info`` (``info["reached"]``); without it, a goal
+counts as reached when the robot's true pose is inside its radius while it is the target.
+Single-goal episodes draw exactly what they did.
+
 Use::
 
     env = gym.make("bulletnav/Warehouse-v0", render_mode="human")
@@ -41,11 +50,16 @@ from typing import Any
 import numpy as np
 import pybullet as p
 
+from bulletnav.viz.mission import mission_goals, progress_text
 from bulletnav.viz.movers import mover_colours
 
 log = logging.getLogger(__name__)
 
 GOAL_COLOUR = (0.1, 0.9, 0.3)
+GOAL_REACHED_COLOUR = (0.2, 0.45, 0.95)
+"""A mission goal already reached."""
+GOAL_PENDING_COLOUR = (0.55, 0.75, 0.6)
+"""A mission goal still to visit that is not the current target."""
 RAY_FREE_COLOUR = (0.1, 0.85, 0.2)
 """Rays that hit nothing within the lidar's range."""
 RAY_HIT_COLOUR = (0.95, 0.15, 0.1)
@@ -101,7 +115,7 @@ class DashboardConfig:
 
 
 class Dashboard:
-    """Camera preview, lidar rays, planned path and goal marker in the PyBullet GUI.
+    """Camera preview, lidar rays, planned path and goal marker(s) in the PyBullet GUI.
 
     Construction turns on the GUI panels and the RGB, depth and segmentation preview tabs
     and, when the env has been reset, calls :meth:`on_reset`. Call :meth:`on_reset` after
@@ -119,6 +133,10 @@ class Dashboard:
     at a reset that keeps the scene. A dynamic world adds, at each reset, one line call per
     mover route segment (and one per route segment of the last episode left to hide), and
     one text call per event (plus one per shown message hidden at a reset that keeps the scene).
+    A mission of ``K`` goals draws ``3 K`` goal lines and ``K + 1`` texts (numbers, progress) at
+    reset instead of the 3 lines, then 3 line calls and 1 text call per goal whose look changes
+    (reached, or becoming or ceasing to be the target) and 1 text call when the progress or
+    the target changes.
     """
 
     def __init__(self, env: Any, config: DashboardConfig = DashboardConfig()) -> None:
@@ -144,6 +162,17 @@ class Dashboard:
         self._text_ids: list[int] = []
         self._texts_visible = False
         self._hud_ids: list[int] = []
+        self._goal_text_ids: list[int] = []
+        self._goals_visible = 0
+        self._progress_ids: list[int] = []
+        self._goals: tuple[tuple[float, float], ...] = ()
+        self._reached: list[bool] = []
+        self._target: tuple[float, float] | None = None
+        self._shown: tuple[tuple[bool, ...], tuple[float, float] | None, tuple[bool, ...]] | None = None
+        """(reached, target, is target) per goal as last drawn; None: nothing drawn this episode."""
+        self._last_reached = 0
+        self.goals_shown = 0
+        """Mission goals the progress text shows reached (0 for single-goal episodes)."""
         self._dynamic = False
         self._events_seen = 0
         self._events_shown = 0
@@ -157,7 +186,7 @@ class Dashboard:
     @property
     def debug_items(self) -> int:
         return (len(self._goal_ids) + len(self._ray_ids) + len(self._path_ids) + len(self._route_ids)
-                + len(self._text_ids) + len(self._hud_ids))
+                + len(self._text_ids) + len(self._hud_ids) + len(self._goal_text_ids) + len(self._progress_ids))
 
     # ------------------------------------------------------------------ hooks
     def on_reset(self) -> None:
@@ -174,6 +203,7 @@ class Dashboard:
             self._route_ids, self._routes_visible = [], 0
             self._text_ids, self._texts_visible = [], False
             self._hud_ids = []
+            self._goal_text_ids, self._goals_visible, self._progress_ids = [], 0, []
             self._rebuilds = scene.scene_builds
         else:
             if self._rays_visible:
@@ -195,22 +225,35 @@ class Dashboard:
             self._draw_routes()
         elif self._routes_visible:
             self._hide_routes_from(0)
-        gx, gy = scene.goal
-        r = scene.goal_radius
-        marker = [((gx, gy, 0.0), (gx, gy, 1.0)),  # a post, visible from afar
-                  ((gx - r, gy, 0.02), (gx + r, gy, 0.02)), ((gx, gy - r, 0.02), (gx, gy + r, 0.02))]  # the success zone
-        for i, (a, b) in enumerate(marker):
-            self._line(self._goal_ids, i, a, b, GOAL_COLOUR, width=3.0)
+        self._goals = mission_goals(None, scene)
+        self._reached = [False] * len(self._goals)
+        self._target = scene.goal
+        self._shown = None
+        self._last_reached = 0
+        if self._goals:
+            self._draw_goals()
+        else:
+            self._hide_goals_from(3, 0)  # after a mission: its other markers, numbers and progress
+            self.goals_shown = 0
+            gx, gy = scene.goal
+            r = scene.goal_radius
+            marker = [((gx, gy, 0.0), (gx, gy, 1.0)),  # a post, visible from afar
+                      ((gx - r, gy, 0.02), (gx + r, gy, 0.02)), ((gx, gy - r, 0.02), (gx, gy + r, 0.02))]  # the zone
+            for i, (a, b) in enumerate(marker):
+                self._line(self._goal_ids, i, a, b, GOAL_COLOUR, width=3.0)
         if not self.config.follow_camera:
             self._overview()
 
-    def on_step(self, path: Sequence[tuple[float, float]] | None = None) -> None:
-        """Account for one ``env.step`` and draw whatever is due; ``path`` is the current plan (x, y) list."""
+    def on_step(self, path: Sequence[tuple[float, float]] | None = None, info: dict[str, Any] | None = None) -> None:
+        """Account for one ``env.step`` and draw whatever is due; ``path`` is the current plan (x, y) list,
+        ``info`` the step's (missions: which goals are reached; optional)."""
         if self.scene.episode != self._episode:
             log.debug("new episode without Dashboard.on_reset(): resetting now")
             self.on_reset()
         self.steps += 1
         cfg = self.config
+        if self._goals:
+            self._update_goals(info)
         if self.steps % cfg.camera_every == 0:
             self._render_camera()
         if self.steps % cfg.lidar_every == 0:
@@ -307,6 +350,71 @@ class Dashboard:
         for i in range(first, self._routes_visible):
             self._line(self._route_ids, i, *_HIDDEN, PATH_COLOUR)
         self._routes_visible = min(self._routes_visible, first)
+
+    def _update_goals(self, info: dict[str, Any] | None) -> None:
+        """Follow a mission's progress; redraw its markers when a goal is reached (at once) or
+        the target moved (checked with the lidar rays)."""
+        scene = self.scene
+        reached = info.get("reached") if info is not None else None
+        if reached is not None and len(reached) == len(self._goals):
+            self._reached = [bool(v) for v in reached]
+        elif self._target is not None:  # no info: the target of the step counts when the robot is in its zone
+            x, y, _ = scene.pose
+            for i, (gx, gy) in enumerate(self._goals):
+                if (not self._reached[i] and (gx, gy) == tuple(self._target)
+                        and math.hypot(gx - x, gy - y) < scene.goal_radius):
+                    self._reached[i] = True
+        if self._shown is not None:
+            for i, (was, now) in enumerate(zip(self._shown[0], self._reached)):
+                if now and not was:
+                    self._last_reached = i
+        self._target = scene.goal
+        assert self._shown is not None
+        if tuple(self._reached) != self._shown[0] or (
+                self.steps % self.config.lidar_every == 0 and self._target != self._shown[1]):
+            self._draw_goals()
+
+    def _draw_goals(self) -> None:
+        """Every mission goal's marker and number whose look changed (all of them after a reset),
+        and the progress text over the current target when the count or the target changed."""
+        scene = self.scene
+        r = scene.goal_radius
+        target = None if all(self._reached) else scene.goal
+        current = [target is not None and (gx, gy) == tuple(target) and not done
+                   for (gx, gy), done in zip(self._goals, self._reached)]
+        shown = self._shown
+        for k, ((gx, gy), done) in enumerate(zip(self._goals, self._reached)):
+            if shown is not None and shown[0][k] == done and shown[2][k] == current[k]:
+                continue  # looks as drawn: no GUI round trip
+            colour = GOAL_REACHED_COLOUR if done else GOAL_COLOUR if current[k] else GOAL_PENDING_COLOUR
+            height = 1.0 if current[k] else 0.7
+            marker = [((gx, gy, 0.0), (gx, gy, height)),
+                      ((gx - r, gy, 0.02), (gx + r, gy, 0.02)), ((gx, gy - r, 0.02), (gx, gy + r, 0.02))]
+            for i, (a, b) in enumerate(marker):
+                self._line(self._goal_ids, 3 * k + i, a, b, colour, width=3.0 if current[k] else 2.0)
+            self._text(k, f"{k + 1} done" if done else str(k + 1), (gx, gy, height + 0.1), colour,
+                       self._goal_text_ids)
+        if shown is None:
+            self._hide_goals_from(3 * len(self._goals), len(self._goals))
+            self._goals_visible = len(self._goals)
+        n = sum(self._reached)
+        here = tuple(target) if target is not None else None
+        if shown is None or n != sum(shown[0]) or here != shown[1]:
+            px, py = here if here is not None else self._goals[self._last_reached]
+            self._text(0, progress_text(n, len(self._goals)), (px, py, 1.35), HUD_COLOUR, self._progress_ids)
+        self.goals_shown = n
+        self._shown = (tuple(self._reached), here, tuple(current))
+
+    def _hide_goals_from(self, first_line: int, first_text: int) -> None:
+        """Hide goal marker lines ``first_line``.. and goal numbers ``first_text``.. (a reset that
+        keeps the scene with fewer goals than before); with no mission, the progress text too."""
+        for i in range(first_line, len(self._goal_ids)):
+            self._line(self._goal_ids, i, *_HIDDEN, GOAL_COLOUR)
+        for i in range(first_text, min(self._goals_visible, len(self._goal_text_ids))):
+            self._text(i, " ", _HIDDEN[0], GOAL_COLOUR, self._goal_text_ids)
+        if not self._goals and self._goals_visible and self._progress_ids:
+            self._text(0, " ", _HIDDEN[0], HUD_COLOUR, self._progress_ids)
+        self._goals_visible = min(self._goals_visible, first_text)
 
     def _show_metrics(self, gap: float) -> None:
         """The episode's safety metrics so far, in one text item above the robot."""

@@ -17,6 +17,13 @@ blue-violet), its positions over the episode as a faint trail and its final foot
 (rectangle for a forklift, circle for a worker), and the events: an added obstacle's
 footprint outlined, a removed one crossed out, each with its time. Static worlds log and
 draw exactly what they did before.
+
+In multi-goal missions (``info["goals"]`` with two or more goals) the log also keeps the
+goals, ``info["reached_at"]`` (the last seen) and the control period; the plot then draws
+every goal zone with its number (1..K in the episode's goal order) and, next to it, when it
+was visited (``#2 @ 31.5 s``: second goal reached, 31.5 s into the episode); a goal never
+reached has a dashed outline, a hollow number and ``not visited``. Single-goal episodes are
+drawn exactly as before.
 """
 
 from __future__ import annotations
@@ -31,6 +38,7 @@ from typing import Any
 
 from bulletnav.sim.layout import WALL_THICKNESS, Layout
 from bulletnav.sim.world import COLOURS
+from bulletnav.viz.mission import mission_goals, visit_order, visit_text
 from bulletnav.viz.movers import EVENT_HEX, event_corners, forklift_corners, hex_colour, mover_colours
 from bulletnav.viz.video import box_corners
 
@@ -49,6 +57,11 @@ MOVER_GID = {"path": "mover_path", "trail": "mover_trail", "footprint": "mover_f
 """Matplotlib ``gid`` of each mover's artists: one route line, one trail line, one footprint patch."""
 EVENT_GID = {"add": "event_add", "remove": "event_remove"}
 """Matplotlib ``gid`` of an event's marker: the added footprint's outline, the removed one's x."""
+GOAL_GID = {"zone": "goal_zone", "number": "goal_number", "visit": "goal_visit", "unvisited": "goal_unvisited"}
+"""Matplotlib ``gid`` of a mission goal's artists: its zone (two patches), its number (1..K), its
+visit label (``#rank @ t s``) or, when never reached, its ``not visited`` label."""
+UNVISITED_COLOUR = "#7f7f7f"
+"""Mission goals never reached: outline, number and label."""
 
 
 @dataclass
@@ -86,10 +99,28 @@ class EpisodeTrajectory:
     """The movers of a dynamic world, in ``scene.movers`` order (empty in static worlds)."""
     events: list[dict[str, Any]] = field(default_factory=list)
     """The episode's events so far (copies of ``scene.events``' dicts; empty in static worlds)."""
+    goals: tuple[tuple[float, float], ...] = ()
+    """A mission's goals (x, y) in the episode's goal order; empty for a single goal."""
+    reached_at: tuple[int | None, ...] = ()
+    """A mission's control step at which each goal was reached (None: not reached), from ``info``."""
+    control_dt: float = 0.0
+    """Control period (s), to turn ``reached_at`` into times (missions only)."""
+    goal_order: str = ""
+    """A mission's ``"fixed"`` or ``"free"`` order (from ``info``)."""
 
     @property
     def dynamic(self) -> bool:
         return bool(self.movers or self.events)
+
+    @property
+    def mission(self) -> bool:
+        """Two or more goals: drawn numbered, with their visit order."""
+        return len(self.goals) >= 2
+
+    @property
+    def visits(self) -> list[int | None]:
+        """1-based rank in which each goal was reached (None: not reached)."""
+        return visit_order(self.reached_at)
 
 
 class TrajectoryLog:
@@ -106,17 +137,18 @@ class TrajectoryLog:
 
     def on_reset(self, env: Any, info: dict[str, Any]) -> None:
         """Start an episode; call right after ``env.reset`` with its ``info``."""
-        self._begin(env)
+        self._begin(env, info)
         x, y, _ = info["pose"]
         self.episodes[-1].points.append((float(x), float(y)))
         if self._dynamic:
             self._record_dynamic(env.unwrapped.scene)
+        self._record_mission(info)
 
     def on_step(self, env: Any, info: dict[str, Any]) -> None:
         """Record the pose after a step; call after every ``env.step`` (``run_episodes``' ``on_step``)."""
         scene = env.unwrapped.scene
         if scene.episode != self._stamp:  # no on_reset: the robot was placed exactly at start
-            self._begin(env)
+            self._begin(env, info)
             self.episodes[-1].points.append((float(scene.start[0]), float(scene.start[1])))
         self._steps += 1
         x, y, _ = info["pose"]
@@ -124,6 +156,7 @@ class TrajectoryLog:
         ep.points.append((float(x), float(y)))
         if self._dynamic:
             self._record_dynamic(scene)
+        self._record_mission(info)
         if info.get("is_success"):
             ep.outcome = "success"
         elif info.get("collision"):
@@ -142,7 +175,7 @@ class TrajectoryLog:
         ep.result = result
         ep.outcome = "success" if result.success else "collision" if result.collision else "timeout"
 
-    def _begin(self, env: Any) -> None:
+    def _begin(self, env: Any, info: dict[str, Any] | None = None) -> None:
         scene = env.unwrapped.scene
         self._stamp = scene.episode
         self._steps = 0
@@ -152,11 +185,26 @@ class TrajectoryLog:
             layout=scene.layout, start=(sx, sy, syaw), goal=(float(gx), float(gy)),
             goal_radius=float(scene.goal_radius),
         )
+        goals = mission_goals(info, scene)
+        if goals:
+            ep.goals = goals
+            ep.reached_at = (None,) * len(goals)
+            ep.control_dt = float(scene.control_dt)
         self._dynamic = bool(scene.dynamic)
         if self._dynamic:
             ep.movers = [MoverTrack(m.kind, tuple(float(v) for v in m.size), tuple((float(x), float(y)) for x, y in m.path))
                          for m in scene.movers]
         self.episodes.append(ep)
+
+    def _record_mission(self, info: dict[str, Any]) -> None:
+        ep = self.episodes[-1]
+        if not ep.mission:
+            return
+        reached_at = info.get("reached_at")
+        if reached_at is not None and len(reached_at) == len(ep.goals):
+            ep.reached_at = tuple(None if s is None else int(s) for s in reached_at)
+        if info.get("goal_order"):
+            ep.goal_order = str(info["goal_order"])
 
     def _record_dynamic(self, scene: Any) -> None:
         ep = self.episodes[-1]
@@ -174,7 +222,8 @@ def figure_size(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory], max_pa
     if _shared_layout(episodes):
         return 7 * dpi, 7 * dpi
     cols, rows = _grid(min(len(episodes), max_panels))
-    legend = LEGEND_IN + (DYNAMIC_LEGEND_IN if any(ep.dynamic for ep in episodes[:max_panels]) else 0.0)
+    legend = LEGEND_IN + (DYNAMIC_LEGEND_IN if any(ep.dynamic or ep.mission for ep in episodes[:max_panels])
+                          else 0.0)
     return int(round(cols * PANEL_IN * dpi)), int(round((rows * PANEL_IN + legend) * dpi))
 
 
@@ -218,8 +267,9 @@ def trajectory_figure(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory], 
         ax = fig.add_subplot()
         _draw_layout(ax, episodes[0].layout)
         routes: set[tuple[str, tuple[tuple[float, float], ...]]] = set()
+        labels: dict[tuple[float, float], int] = {}
         for ep in episodes:
-            _draw_episode(ax, ep, linewidth=1.8, routes=routes)
+            _draw_episode(ax, ep, linewidth=1.8, routes=routes, labels=labels)
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
         shown = episodes
@@ -240,7 +290,7 @@ def trajectory_figure(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory], 
     handles = [Line2D([], [], color=OUTCOME_COLOURS[o], lw=2, label=o) for o in outcomes]
     handles += [Line2D([], [], ls="", marker="o", mfc="white", mec="black", label="start"),
                 Patch(facecolor=GOAL_COLOUR, alpha=0.3, edgecolor=GOAL_COLOUR, label="goal zone")]
-    extra = _dynamic_handles(shown)
+    extra = _dynamic_handles(shown) + _mission_handles(shown)
     ncols = len(handles) if not extra else math.ceil((len(handles) + len(extra)) / 2)
     fig.legend(handles=handles + extra, loc="outside lower center", ncols=ncols, fontsize=8, frameon=False)
     if title:
@@ -281,21 +331,77 @@ def _draw_layout(ax: Any, layout: Layout) -> None:
 
 
 def _draw_episode(ax: Any, ep: EpisodeTrajectory, linewidth: float,
-                  routes: set[tuple[str, tuple[tuple[float, float], ...]]] | None = None) -> None:
+                  routes: set[tuple[str, tuple[tuple[float, float], ...]]] | None = None,
+                  labels: dict[tuple[float, float], int] | None = None) -> None:
     from matplotlib.patches import Circle
 
     if ep.movers:
         _draw_movers(ax, ep.movers, set() if routes is None else routes)
     if ep.events:
         _draw_events(ax, ep.events)
-    ax.add_patch(Circle(ep.goal, ep.goal_radius, facecolor=GOAL_COLOUR, alpha=0.25, edgecolor="none", zorder=2))
-    ax.add_patch(Circle(ep.goal, ep.goal_radius, fill=False, edgecolor=GOAL_COLOUR, lw=1.2, zorder=2))
+    if ep.mission:
+        _draw_mission(ax, ep, {} if labels is None else labels)
+    else:
+        ax.add_patch(Circle(ep.goal, ep.goal_radius, facecolor=GOAL_COLOUR, alpha=0.25, edgecolor="none", zorder=2))
+        ax.add_patch(Circle(ep.goal, ep.goal_radius, fill=False, edgecolor=GOAL_COLOUR, lw=1.2, zorder=2))
     if ep.points:
         xs, ys = zip(*ep.points)
         ax.plot(xs, ys, color=OUTCOME_COLOURS.get(ep.outcome, "0.5"), lw=linewidth, zorder=3)
     sx, sy, syaw = ep.start
     ax.plot([sx, sx + 0.4 * math.cos(syaw)], [sy, sy + 0.4 * math.sin(syaw)], color="black", lw=1.2, zorder=4)
     ax.plot(sx, sy, ls="", marker="o", ms=5, mfc="white", mec="black", zorder=5)
+
+
+def _draw_mission(ax: Any, ep: EpisodeTrajectory, labels: dict[tuple[float, float], int]) -> None:
+    """Every goal's zone and number; its visit label (``#rank @ t s``) or ``not visited`` beside it.
+
+    ``labels`` counts the visit labels already put at each goal on this map: episodes sharing a
+    map stack theirs below one another instead of on top."""
+    from matplotlib.patches import Circle
+
+    visits = ep.visits
+    for i, (goal, rank) in enumerate(zip(ep.goals, visits)):
+        step = ep.reached_at[i] if i < len(ep.reached_at) else None
+        reached = rank is not None and step is not None
+        edge = GOAL_COLOUR if reached else UNVISITED_COLOUR
+        ax.add_patch(Circle(goal, ep.goal_radius, facecolor=GOAL_COLOUR, alpha=0.25 if reached else 0.07,
+                            edgecolor="none", zorder=2, gid=GOAL_GID["zone"], label=f"_goal {i + 1} zone"))
+        ax.add_patch(Circle(goal, ep.goal_radius, fill=False, edgecolor=edge, lw=1.2, ls="-" if reached else "--",
+                            zorder=2, gid=GOAL_GID["zone"], label=f"_goal {i + 1} outline"))
+        n = labels.get(goal, 0)
+        labels[goal] = n + 1
+        if n == 0:  # one number per goal position and map
+            box = dict(boxstyle="circle,pad=0.2", facecolor=GOAL_COLOUR if reached else "white", edgecolor=edge, lw=0.8)
+            ax.text(goal[0], goal[1], str(i + 1), ha="center", va="center", fontsize=7, fontweight="bold",
+                    color="white" if reached else UNVISITED_COLOUR, bbox=box, zorder=4.5, gid=GOAL_GID["number"])
+        if reached:
+            text, colour, gid = visit_text(rank, step, ep.control_dt), GOAL_COLOUR, GOAL_GID["visit"]
+        else:
+            text, colour, gid = "not visited", UNVISITED_COLOUR, GOAL_GID["unvisited"]
+        ax.annotate(text, goal, xytext=(9, 4 - 9 * n), textcoords="offset points", fontsize=6.5, color=colour,
+                    fontstyle="normal" if reached else "italic", zorder=4.6, gid=gid,
+                    bbox=dict(boxstyle="round,pad=0.15", facecolor="white", edgecolor="none", alpha=0.7))
+
+
+def _mission_handles(episodes: list[EpisodeTrajectory]) -> list[Any]:
+    """Legend entries for mission goals (none when no episode is a mission)."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    missions = [ep for ep in episodes if ep.mission]
+    if not missions:
+        return []
+    orders = sorted({ep.goal_order for ep in missions if ep.goal_order})
+    order = f" ({'/'.join(orders)} order)" if orders else ""
+    handles: list[Any] = [
+        Line2D([], [], ls="", marker="o", ms=8, mfc=GOAL_COLOUR, mec=GOAL_COLOUR,
+               label=f"goals numbered{order}"),
+        Line2D([], [], ls="", marker="$\\#$", ms=7, color=GOAL_COLOUR, label="visit order @ time"),
+    ]
+    if any(r is None for ep in missions for r in ep.visits):
+        handles.append(Patch(facecolor=GOAL_COLOUR, alpha=0.3, edgecolor=UNVISITED_COLOUR, ls="--",
+                             label="goal not visited"))
+    return handles
 
 
 def _draw_movers(ax: Any, movers: list[MoverTrack], routes: set[tuple[str, tuple[tuple[float, float], ...]]]) -> None:

@@ -23,6 +23,13 @@ for a forklift, a disc for a worker; outlined white while it yields to the robot
 events so far (an added obstacle filled and outlined, a removed one crossed out). The
 legend lists forklift, worker and event, and the strip's second line ends with the movers'
 count and the latest event. Static worlds' frames are drawn exactly as before.
+
+Multi-goal missions (``scene.goals`` holds two or more goals): the map draws every goal zone
+with its number (1..K in the episode's goal order) beside it; a reached goal is filled and
+ticked, the current target (``scene.goal``) ringed in :data:`TARGET`, the others hollow. What
+was reached comes from ``info["reached"]`` at each step. The strip's second line reads
+``goals 1/3`` and the current target, and the legend adds ``goal reached`` and ``current
+target``. Single-goal episodes are drawn exactly as before.
 """
 
 from __future__ import annotations
@@ -39,6 +46,7 @@ from PIL import Image, ImageDraw, ImageFont
 
 from bulletnav.sim.layout import WALL_THICKNESS, Layout, Obstacle
 from bulletnav.sim.world import COLOURS
+from bulletnav.viz.mission import mission_goals, progress_text
 from bulletnav.viz.movers import (
     EVENT_RGB,
     event_corners,
@@ -78,6 +86,8 @@ LIDAR = (255, 70, 60)
 ROBOT = (255, 255, 255)
 START = (255, 225, 70)
 OUTCOME_COLOURS = {"success": GOAL, "collision": LIDAR, "timeout": (255, 160, 40)}
+TARGET = (255, 245, 120)
+"""Ring around a mission's current target."""
 
 
 def _rgb(category: str) -> tuple[int, int, int]:
@@ -249,6 +259,11 @@ class EpisodeRecorder:
         self._labels: dict[tuple[str, tuple[int, int, int], bool], Image.Image] = {}
         self._base = self._render_base()
         self._base_dynamic: Image.Image | None = None  # drawn at the first dynamic episode
+        self._bases_mission: dict[bool, Image.Image] = {}  # by dynamic, drawn at the first mission
+        self._goals: tuple[tuple[float, float], ...] = ()
+        self._reached: tuple[bool, ...] = ()
+        self.mission_text = ""
+        """A mission's progress in the strip, ``goals 1/3   target 2 (+2.00, +2.50)`` (empty otherwise)."""
         self._dynamic = False
         self._mover_rgb: list[tuple[int, int, int]] = []
         self._events_drawn = 0
@@ -269,6 +284,7 @@ class EpisodeRecorder:
         """Start an episode (call right after ``env.reset``; fits ``run_episodes``' ``on_reset``)
         and write its first frame, with ``path`` (a plan to draw) if given."""
         self._begin(env)
+        self._mission_info(info)
         self._write(self.compose(env, path=path))
 
     def on_step(self, env: Any, info: dict[str, Any], path: Sequence[tuple[float, float]] | None = None) -> None:
@@ -287,6 +303,8 @@ class EpisodeRecorder:
         self._return += _reward(info)
         self._distance = float(info.get("distance_to_goal", self._distance))
         self._outcome = _outcome(env, info, self._step)
+        if self._goals:
+            self._mission_info(info)
         due = self._step % self.stride == 0
         final = self._outcome is not None and self.final_frame and not self._done_written
         if due or final:
@@ -316,6 +334,12 @@ class EpisodeRecorder:
         self._step = scene.steps
         if self._dynamic:
             self._draw_new_events(scene, view)
+        if self._goals:
+            base = self._bases_mission.get(self._dynamic)
+            if base is None:
+                base = self._bases_mission[self._dynamic] = self._render_base(self._dynamic, mission=True)
+            frame = base.copy()
+        elif self._dynamic:
             if self._base_dynamic is None:
                 self._base_dynamic = self._render_base(dynamic=True)
             frame = self._base_dynamic.copy()
@@ -350,10 +374,13 @@ class EpisodeRecorder:
         img = static.copy()
         draw = ImageDraw.Draw(img)
         view = self._view
-        (gx, gy), = view.to_px(scene.goal)
-        r = view.metres(scene.goal_radius)
-        draw.ellipse((gx - r, gy - r, gx + r, gy + r), fill=_mix(GOAL, _rgb("floor"), 0.35), outline=GOAL, width=3)
-        draw.ellipse((gx - 3, gy - 3, gx + 3, gy + 3), fill=GOAL)
+        self._goals = mission_goals(None, scene)
+        self._reached = (False,) * len(self._goals)
+        if not self._goals:  # a mission's goals change look as they are reached: drawn per frame
+            (gx, gy), = view.to_px(scene.goal)
+            r = view.metres(scene.goal_radius)
+            draw.ellipse((gx - r, gy - r, gx + r, gy + r), fill=_mix(GOAL, _rgb("floor"), 0.35), outline=GOAL, width=3)
+            draw.ellipse((gx - 3, gy - 3, gx + 3, gy + 3), fill=GOAL)
         sx, sy, syaw = scene.start
         (px, py), = view.to_px((sx, sy))
         h = view.metres(0.15)
@@ -378,6 +405,57 @@ class EpisodeRecorder:
         self._distance = math.hypot(scene.goal[0] - x, scene.goal[1] - y)
         self._outcome = None
         self._done_written = False
+        self.mission_text = self._progress(scene) if self._goals else ""
+
+    def _mission_info(self, info: dict[str, Any] | None) -> None:
+        """Take which goals are reached from ``info["reached"]`` (a mission's)."""
+        if not self._goals or info is None:
+            return
+        reached = info.get("reached")
+        if reached is not None and len(reached) == len(self._goals):
+            self._reached = tuple(bool(r) for r in reached)
+
+    def _progress(self, scene: Any) -> str:
+        text = progress_text(sum(self._reached), len(self._goals))
+        target = scene.goal
+        if target is not None and not all(self._reached):
+            gx, gy = target
+            number = self._target_index(target)
+            text += f"   target {number + 1 if number is not None else '?'} ({gx:+.2f}, {gy:+.2f})"
+        return text
+
+    def _target_index(self, target: Any) -> int | None:
+        if target is None:
+            return None
+        tx, ty = float(target[0]), float(target[1])
+        for i, (gx, gy) in enumerate(self._goals):
+            if gx == tx and gy == ty and not self._reached[i]:
+                return i
+        return None
+
+    def _draw_goals(self, img: Image.Image, scene: Any, view: MapView) -> None:
+        """A mission's goal zones, numbered: reached filled and ticked, the target ringed, the rest hollow."""
+        draw = ImageDraw.Draw(img)
+        floor = _rgb("floor")
+        r = view.metres(scene.goal_radius)
+        target = self._target_index(scene.goal)
+        for i, ((gx, gy), reached) in enumerate(zip(view.to_px(self._goals), self._reached)):
+            box = (gx - r, gy - r, gx + r, gy + r)
+            if reached:
+                draw.ellipse(box, fill=_mix(GOAL, floor, 0.8), outline=GOAL, width=2)
+                k = max(r * 0.5, 4.0)  # a tick across the zone
+                draw.line([(gx - k, gy), (gx - k * 0.3, gy + k * 0.7), (gx + k, gy - k * 0.8)], fill=BACKGROUND,
+                          width=3, joint="curve")
+            elif i == target:
+                draw.ellipse(box, fill=_mix(GOAL, floor, 0.35), outline=GOAL, width=3)
+                draw.ellipse((gx - r - 4, gy - r - 4, gx + r + 4, gy + r + 4), outline=TARGET, width=2)
+                draw.ellipse((gx - 3, gy - 3, gx + 3, gy + 3), fill=GOAL)
+            else:
+                draw.ellipse(box, fill=_mix(GOAL, floor, 0.12), outline=_mix(GOAL, floor, 0.6), width=2)
+                draw.ellipse((gx - 2, gy - 2, gx + 2, gy + 2), fill=_mix(GOAL, floor, 0.6))
+            colour = TARGET if i == target else GOAL if reached else TEXT
+            number = self._label(str(i + 1), colour, small=False)
+            img.paste(number, (int(gx + r * 0.7 + 2), int(gy - r * 0.7 - number.height)))
 
     def _static_map(self, layout: Layout) -> tuple[MapView, Image.Image]:
         # procedural envs draw a new layout every reset: keep a few, not all of them
@@ -393,6 +471,8 @@ class EpisodeRecorder:
 
     def _map_frame(self, scene: Any, view: MapView, path: Sequence[tuple[float, float]] | None) -> Image.Image:
         img = self._episode_map.copy()
+        if self._goals:
+            self._draw_goals(img, scene, view)
         draw = ImageDraw.Draw(img)
         if path is not None and len(path) >= 2:
             draw.line(view.to_px(path), fill=PATH, width=2)
@@ -424,8 +504,12 @@ class EpisodeRecorder:
         ImageDraw.Draw(frame).text((10, STRIP_Y + 6), line1, fill=TEXT, font=self._font)  # changes every frame
         name = scene.layout.name or "layout"
         sx, sy, _ = scene.start
-        gx, gy = scene.goal
-        line2 = f"{name}   start ({sx:+.2f}, {sy:+.2f})   goal ({gx:+.2f}, {gy:+.2f})"
+        if self._goals:
+            self.mission_text = self._progress(scene)
+            line2 = f"{name}   start ({sx:+.2f}, {sy:+.2f})   {self.mission_text}"
+        else:
+            gx, gy = scene.goal
+            line2 = f"{name}   start ({sx:+.2f}, {sy:+.2f})   goal ({gx:+.2f}, {gy:+.2f})"
         label2 = self._label(line2, DIM_TEXT)
         frame.paste(label2, (7, STRIP_Y + 24))
         outcome = self._outcome or "running"
@@ -492,15 +576,19 @@ class EpisodeRecorder:
             self._labels[key] = img
         return img
 
-    def _render_base(self, dynamic: bool = False) -> Image.Image:
+    def _render_base(self, dynamic: bool = False, mission: bool = False) -> Image.Image:
         """Everything that never changes: background, legend, depth colour bar (with
-        ``dynamic``, the legend also lists forklift, worker and event)."""
+        ``dynamic``, the legend also lists forklift, worker and event; with ``mission``, goal
+        reached and current target)."""
         img = Image.new("RGB", FRAME_SIZE, BACKGROUND)
         draw = ImageDraw.Draw(img)
         x = SIDE_X + 12
         draw.text((x, 10), "legend", fill=TEXT, font=self._font)
         y = 34
-        entries = [("goal zone", GOAL), ("start", START), ("robot", ROBOT), ("trajectory", TRAJECTORY),
+        entries = [("goal zone", GOAL)]
+        if mission:
+            entries += [("goal reached (ticked)", _mix(GOAL, _rgb("floor"), 0.8)), ("current target", TARGET)]
+        entries += [("start", START), ("robot", ROBOT), ("trajectory", TRAJECTORY),
                    ("planned path", PATH), ("lidar hits", LIDAR)]
         if dynamic:
             entries += [("forklift", mover_colour("forklift", 0)), ("worker", mover_colour("worker", 0)),
