@@ -169,7 +169,7 @@ class Scene:
         """True when the robot touches a wall, an obstacle or a mover (the floor does not count).
         In dynamic worlds :attr:`collision_with` says which kind."""
         if not self.dynamic:
-            return self.robot.touching(self.sim.world.static_set)  # Simulation.in_collision(), one call less per step
+            return self.sim.in_collision()
         self.collision_with = self.robot.contact_kind(self._static_set, self._mover_set)
         return self.collision_with is not None
 

@@ -61,8 +61,7 @@ class Sensor(ABC):
     def current(self) -> Any:
         """The current measurement itself, not a copy (for the env's per-step code, which
         only reads it; callers must not modify it). Measures when a new period has begun."""
-        clock = self.clock
-        stamp = clock.episode, clock.tick // self.period  # period_stamp(), inline: this runs every step
+        stamp = self.period_stamp()
         if stamp != self._stamp:
             self._value = self.measure()
             self._stamp = stamp
@@ -103,8 +102,7 @@ class VectorSensor(Sensor):
     def floats(self) -> list[float]:
         """The current reading as a list of Python floats (float32 values, exactly); the
         caller must not modify it. Measures when a new period has begun."""
-        clock = self.clock
-        stamp = clock.episode, clock.tick // self.period  # period_stamp(), inline: this runs every step
+        stamp = self.period_stamp()
         if stamp != self._float_stamp:
             self._floats = self.measure_floats()
             self._float_stamp = stamp

@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-from array import array
-
 import numpy as np
 from gymnasium import spaces
 
 from bulletnav.config import ImuConfig
-from bulletnav.sensors.base import VectorSensor
+from bulletnav.sensors.base import VectorSensor, float32_list
 from bulletnav.sim.client import Clock
 from bulletnav.sim.robot import Robot
 
@@ -70,11 +68,11 @@ class Imu(VectorSensor):
             self._offsets = block.tolist()[::-1]
         e = self._offsets.pop()
         # body frame = R^T @ world vector (m is row-major R)
-        return array("f", (  # float32_list(), inline: this runs every step
+        return float32_list((
             m[0] * fx + m[3] * fy + m[6] * fz + e[0], m[1] * fx + m[4] * fy + m[7] * fz + e[1],
             m[2] * fx + m[5] * fy + m[8] * fz + e[2], m[0] * wx + m[3] * wy + m[6] * wz + e[3],
             m[1] * wx + m[4] * wy + m[7] * wz + e[4], m[2] * wx + m[5] * wy + m[8] * wz + e[5],
-        )).tolist()
+        ))
 
     def measure_floats(self) -> list[float]:
         return self._latest

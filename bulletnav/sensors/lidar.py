@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from array import array
 
 import numpy as np
 import pybullet as p
@@ -45,7 +44,6 @@ class Lidar(VectorSensor):
         directions = np.stack([np.cos(self.angles), np.sin(self.angles), np.zeros_like(self.angles)], axis=1)
         self._ray_from = np.zeros((config.num_rays, 3)).tolist()
         self._ray_to = (directions * config.max_range).tolist()
-        self._max_range = config.max_range
 
     def space(self) -> spaces.Box:
         cfg = self.config
@@ -70,8 +68,8 @@ class Lidar(VectorSensor):
             np.clip(ranges, cfg.min_range, cfg.max_range, out=ranges)
             return float32_list(ranges.tolist())
         # Noise-free (the default, once per step): the double products rounded to float32.
-        max_range = self._max_range
-        ranges = array("f", [r[2] * max_range for r in self._rays()]).tolist()  # float32_list(), inline
+        max_range = cfg.max_range
+        ranges = float32_list([r[2] * max_range for r in self._rays()])
         if cfg.min_range > 0:
             floor = float32_list([cfg.min_range])[0]
             ranges = [r if r > floor else floor for r in ranges]

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import math
-from array import array
 
 import numpy as np
 from gymnasium import spaces
 
 from bulletnav.config import OdometryConfig
-from bulletnav.sensors.base import VectorSensor
+from bulletnav.sensors.base import VectorSensor, float32_list
 from bulletnav.sim.client import Clock
 from bulletnav.sim.robot import Robot
 
@@ -73,4 +72,4 @@ class Odometry(VectorSensor):
         v = r * (rates[0] + rates[1]) / 2
         w = r * (rates[1] - rates[0]) / base
         x, y, yaw = self.state
-        return array("f", (x, y, yaw, v, w)).tolist()  # float32_list(), inline: this runs every step
+        return float32_list((x, y, yaw, v, w))

@@ -130,7 +130,7 @@ class Robot:
     # ------------------------------------------------------------------ commands
     def set_velocity(self, v: float, w: float) -> None:
         """Command forward speed ``v`` (m/s) and yaw rate ``w`` (rad/s) through the wheel motors."""
-        if (v - v) or (w - w):  # NaN (truthy) unless both are finite: isfinite(), cheaper on every step
+        if not (math.isfinite(v) and math.isfinite(w)):
             raise ValueError(f"set_velocity needs finite values, got v={v}, w={w}")
         # inverse kinematics: wheel rates (left, right) = (v -+ w L / 2) / r
         half, r = self.wheelbase / 2, self.wheel_radius
