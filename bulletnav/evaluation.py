@@ -153,15 +153,10 @@ def optimal_tour_length(layout: Layout, start: tuple[float, float], goals, order
     """Length (m) of the shortest tour from ``start`` through ``goals``: the shortest path
     between every pair (:func:`shortest_path_length`), then the best order by dynamic
     programming over subsets (``free``) or the given order (``fixed``), exact for up to 8 goals."""
-    from bulletnav.planning.tour import tour
+    from bulletnav.planning.tour import tour_through
 
     points = [tuple(start), *(tuple(g) for g in goals)]
-    n = len(points)
-    dist = [[0.0] * n for _ in range(n)]
-    for i in range(n):
-        for j in range(i + 1, n):
-            dist[i][j] = dist[j][i] = shortest_path_length(layout, points[i], points[j], radius=radius)
-    length, _ = tour(dist, order)
+    length, _ = tour_through(points, lambda a, b: shortest_path_length(layout, a, b, radius=radius), order)
     return length
 
 

@@ -15,7 +15,7 @@ from bulletnav.geometry import RobotGeometry
 from bulletnav.planning import OccupancyGrid, astar, rrt, warmup
 from bulletnav.planning.mapping import LidarMapper
 from bulletnav.planning.rrt import DEFAULT_MAX_ITERS
-from bulletnav.planning.tour import tour
+from bulletnav.planning.tour import tour_through
 
 
 @dataclass(frozen=True)
@@ -232,15 +232,12 @@ class Navigator:
         """The shortest visiting order: A* lengths between all pairs on the scene's static map
         inflated by the robot's radius, then the exact tour (:func:`bulletnav.planning.tour`)."""
         grid = self.scene.occupancy(0.1, self.inflation)
-        points = [start, *goals]
-        n = len(points)
-        dist = [[0.0] * n for _ in range(n)]
-        for i in range(n):
-            for j in range(i + 1, n):
-                path = astar(grid, points[i], points[j])
-                length = math.inf if path is None else sum(math.dist(a, b) for a, b in zip(path, path[1:]))
-                dist[i][j] = dist[j][i] = length
-        _, seq = tour(dist, "free")
+
+        def length(a: tuple[float, float], b: tuple[float, float]) -> float:
+            path = astar(grid, a, b)
+            return math.inf if path is None else sum(math.dist(p, q) for p, q in zip(path, path[1:]))
+
+        _, seq = tour_through([start, *goals], length, "free")
         return tuple(i - 1 for i in seq)
 
     def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:

@@ -11,7 +11,7 @@ order visits the goals as given; ``free`` order finds the cheapest open path tha
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 MAX_GOALS = 8
 """Largest K the exact tour accepts."""
@@ -64,3 +64,15 @@ def tour(dist: Sequence[Sequence[float]], order: str = "free") -> tuple[float, t
         seq.append(j)
         subset, j = subset & ~(1 << (j - 1)), back[subset][j]
     return best, tuple(reversed(seq))
+
+
+def tour_through(points: Sequence[tuple[float, float]], length: Callable[[tuple[float, float], tuple[float, float]], float],
+                 order: str = "free") -> tuple[float, tuple[int, ...]]:
+    """:func:`tour` over ``points`` (the start first, then the goals), with the path length
+    between each pair from ``length(a, b)`` (assumed symmetric: computed once per pair)."""
+    n = len(points)
+    dist = [[0.0] * n for _ in range(n)]
+    for i in range(n):
+        for j in range(i + 1, n):
+            dist[i][j] = dist[j][i] = length(points[i], points[j])
+    return tour(dist, order)
