@@ -22,7 +22,7 @@ from scipy import ndimage
 
 from bulletnav.sim.layout import Layout, Obstacle
 from bulletnav.sim.movers import PARK_Z, ForkliftSpec, MoverSpec
-from bulletnav.sim.world import COLOURS, STATIC_GROUP, STATIC_MASK
+from bulletnav.sim.world import COLOURS, STATIC_GROUP, STATIC_MASK, static_body
 
 PALLET = Obstacle("box", (0.0, 0.0), size=(1.2, 0.8, 1.0), label="pallet")
 """What a drawn event adds: a loaded pallet, 1.2 x 0.8 x 1.0 m."""
@@ -74,16 +74,8 @@ class Events:
 
     def _body(self, o: Obstacle, labels: dict[int, str]) -> int:
         cid = self.cid
-        if o.kind == "box":
-            half = [o.size[0] / 2, o.size[1] / 2, o.size[2] / 2]
-            col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
-            vis = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=COLOURS.get(o.label, COLOURS["box"]),
-                                      physicsClientId=cid)
-        else:
-            col = p.createCollisionShape(p.GEOM_CYLINDER, radius=o.radius, height=o.height, physicsClientId=cid)
-            vis = p.createVisualShape(p.GEOM_CYLINDER, radius=o.radius, length=o.height,
-                                      rgbaColor=COLOURS.get(o.label, COLOURS["box"]), physicsClientId=cid)
-        body = p.createMultiBody(0.0, col, vis, [0.0, 0.0, PARK_Z], physicsClientId=cid)
+        dims = (o.size[0] / 2, o.size[1] / 2, o.size[2] / 2) if o.kind == "box" else (o.radius, o.height)
+        body = static_body(cid, o.kind, dims, COLOURS.get(o.label, COLOURS["box"]), (0.0, 0.0, PARK_Z))
         p.setCollisionFilterGroupMask(body, -1, STATIC_GROUP, STATIC_MASK, physicsClientId=cid)
         labels[body] = o.label or "event"
         self.created += 1

@@ -28,7 +28,7 @@ from typing import ClassVar
 
 import pybullet as p
 
-from bulletnav.sim.world import STATIC_GROUP, STATIC_MASK
+from bulletnav.sim.world import STATIC_GROUP, STATIC_MASK, static_body
 
 PARK_Z = -20.0
 """Height (m) at which unused pool bodies wait, below the floor: no ray, camera or robot reaches them."""
@@ -302,16 +302,11 @@ class Movers:
             bodies = []
             for _ in range(count):
                 if kind == "box":
-                    half = [dims[0] / 2, dims[1] / 2, dims[2] / 2]
-                    col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
-                    vis = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=FORKLIFT_COLOUR, physicsClientId=cid)
+                    body = static_body(cid, "box", (dims[0] / 2, dims[1] / 2, dims[2] / 2), FORKLIFT_COLOUR, (0.0, 0.0, PARK_Z))
                     label = "forklift"
                 else:
-                    col = p.createCollisionShape(p.GEOM_CYLINDER, radius=dims[0], height=dims[1], physicsClientId=cid)
-                    vis = p.createVisualShape(p.GEOM_CYLINDER, radius=dims[0], length=dims[1], rgbaColor=WORKER_COLOUR,
-                                              physicsClientId=cid)
+                    body = static_body(cid, "cylinder", dims, WORKER_COLOUR, (0.0, 0.0, PARK_Z))
                     label = "worker"
-                body = p.createMultiBody(0.0, col, vis, [0.0, 0.0, PARK_Z], physicsClientId=cid)
                 p.setCollisionFilterGroupMask(body, -1, STATIC_GROUP, STATIC_MASK, physicsClientId=cid)
                 labels[body] = label
                 bodies.append(body)

@@ -97,20 +97,29 @@ class World:
         colour = COLOURS.get(o.label, COLOURS["box"])
         if o.kind == "box":
             return self._box(o.center, (o.size[0] / 2, o.size[1] / 2, o.size[2] / 2), o.yaw, colour, o.label)
-        cid = self.cid
-        col = p.createCollisionShape(p.GEOM_CYLINDER, radius=o.radius, height=o.height, physicsClientId=cid)
-        vis = p.createVisualShape(p.GEOM_CYLINDER, radius=o.radius, length=o.height, rgbaColor=colour, physicsClientId=cid)
-        body = p.createMultiBody(0.0, col, vis, [o.center[0], o.center[1], o.height / 2], physicsClientId=cid)
+        body = static_body(self.cid, "cylinder", (o.radius, o.height), colour, (o.center[0], o.center[1], o.height / 2))
         self.labels[body] = o.label or "column"
         return body
 
     def _box(self, center: tuple[float, float], half: tuple[float, float, float], yaw: float,
              colour: tuple[float, ...], label: str) -> int:
-        cid = self.cid
-        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
-        vis = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=colour, physicsClientId=cid)
         orn = p.getQuaternionFromEuler([0.0, 0.0, yaw])
-        body = p.createMultiBody(0.0, col, vis, [center[0], center[1], half[2]], orn, physicsClientId=cid)
+        body = static_body(self.cid, "box", half, colour, (center[0], center[1], half[2]), orn)
         self.labels[body] = label
         return body
+
+
+def static_body(cid: int, kind: str, dims: tuple[float, ...], colour: tuple[float, ...],
+                position: tuple[float, float, float], orientation: tuple[float, ...] | None = None) -> int:
+    """A mass-0 body with one collision and one visual shape: ``kind`` ``"box"`` with ``dims``
+    its half extents (m), or ``"cylinder"`` with ``dims`` = (radius, height) (m)."""
+    if kind == "box":
+        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=dims, physicsClientId=cid)
+        vis = p.createVisualShape(p.GEOM_BOX, halfExtents=dims, rgbaColor=colour, physicsClientId=cid)
+    else:
+        col = p.createCollisionShape(p.GEOM_CYLINDER, radius=dims[0], height=dims[1], physicsClientId=cid)
+        vis = p.createVisualShape(p.GEOM_CYLINDER, radius=dims[0], length=dims[1], rgbaColor=colour, physicsClientId=cid)
+    if orientation is None:
+        return p.createMultiBody(0.0, col, vis, list(position), physicsClientId=cid)
+    return p.createMultiBody(0.0, col, vis, list(position), orientation, physicsClientId=cid)
 
