@@ -376,6 +376,10 @@ class TaskConfig:
     lidar_history: int = 1
     """Scans in the observation: the current one, then the k - 1 before it, newest first
     (appended after the 7 scalars, each scaled like the current scan); 1 = today's vector."""
+    guidance: str = "none"
+    """``"floorplan"``: the observation adds the path cost to the target and the bearing of a
+    point 0.8 m along the shortest clear path on the static floor plan, and the progress term is
+    measured along that path (:mod:`bulletnav.tasks.guidance`); ``"none"``: neither."""
     collision_terminates: bool = False
     """A collision ends the episode as terminated (a real end, what learners should see)
     instead of truncated (the article's rule, ``Warehouse-v0``)."""
@@ -392,6 +396,8 @@ class TaskConfig:
             raise ValueError(f"steps_per_goal must be >= 1, got {self.steps_per_goal}")
         if not (isinstance(self.lidar_history, int) and self.lidar_history >= 1):
             raise ValueError(f"lidar_history must be an integer >= 1, got {self.lidar_history!r}")
+        if self.guidance not in ("none", "floorplan"):
+            raise ValueError(f"guidance must be 'none' or 'floorplan', got {self.guidance!r}")
         if self.goal_radius <= 0:
             raise ValueError(f"goal_radius must be > 0, got {self.goal_radius}")
 

@@ -48,6 +48,7 @@ _KWARGS = {
     "detour_share": (("sampler",), "detour_share"),
     "aisles": (("world",), "aisles"),
     "lidar_history": (("task",), "lidar_history"),
+    "guidance": (("task",), "guidance"),
     "goals": (("task",), "goals"),
     "goal_order": (("task",), "goal_order"),
     "steps_per_goal": (("task",), "steps_per_goal"),

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from bulletnav.config import EnvConfig
+from bulletnav.planning.tour import tour
 from bulletnav.sim.sampler import sample_mission
 from bulletnav.tasks.base import pose_option
 from bulletnav.tasks.navigation import NavigationTask
@@ -108,9 +109,34 @@ class MissionTask(NavigationTask):
         self.reached_at = [None] * len(self.goals)
         self._steps = 0
         self._target = 0
-        if self.order == "free":
-            self._target = self._nearest(start[0], start[1])
+        self.plan = tuple(range(len(self.goals)))
         super()._begin(scene, start, rng)
+
+    def _choose_target(self, start: tuple[float, float, float]) -> None:
+        if self.order != "free":
+            return
+        if self.guide is None:
+            self._target = self._nearest(start[0], start[1])
+            return
+        # guided: the shortest tour on the path-cost fields, followed goal by goal
+        points = [(start[0], start[1]), *self.goals]
+        dist = [[0.0 if i == j else self._leg(points[i], j - 1) for j in range(len(points))]
+                for i in range(len(points))]
+        _, seq = tour(dist, "free")
+        self.plan = tuple(j - 1 for j in seq)
+        self._target = self.plan[0]
+
+    def _leg(self, point: tuple[float, float], goal: int) -> float:
+        cost = self.guide.query(goal, point[0], point[1])[0] if goal >= 0 else 0.0
+        if cost == math.inf:
+            gx, gy = self.goals[goal]
+            cost = math.hypot(gx - point[0], gy - point[1])
+        return cost
+
+    def _next_target(self) -> int:
+        if self.order == "free" and self.guide is None:
+            return self._nearest(self._x, self._y)
+        return next(i for i in self.plan if not self.reached[i])
 
     def _nearest(self, x: float, y: float) -> int:
         left = [i for i, done in enumerate(self.reached) if not done]
@@ -119,12 +145,12 @@ class MissionTask(NavigationTask):
     # ------------------------------------------------------------------ step
     def after_step(self, scene: Scene) -> None:
         self._steps += 1
-        if self.order == "free":
+        if self.order == "free" and self.guide is None:
             target = self._nearest(self._x, self._y)
             if target != self._target:  # a nearer goal now: measure progress toward it from here
                 self._target = target
                 super().after_step(scene)
-                self._prev_distance = self.distance
+                self._prev_distance = self._potential()
                 return
         super().after_step(scene)
 
@@ -138,10 +164,9 @@ class MissionTask(NavigationTask):
                 terms["goal"] = 0.0
                 terms["subgoal"] = self._w_subgoal
                 self._success = False
-                self._target = (self._nearest(self._x, self._y) if self.order == "free"
-                                else self.reached.index(False))
+                self._target = self._next_target()
                 self._measure(scene)
-                self._prev_distance = self.distance
+                self._prev_distance = self._potential()
                 self._progress.clear()
         return terms
 

@@ -18,6 +18,7 @@ from gymnasium import spaces
 from bulletnav.config import EnvConfig
 from bulletnav.sim.sampler import sample_start_goal
 from bulletnav.tasks.base import Task, pose_option
+from bulletnav.tasks.guidance import PathGuide
 
 if TYPE_CHECKING:
     from bulletnav.envs.scene import Scene
@@ -65,6 +66,18 @@ class NavigationTask(Task):
             self.obs_low = np.concatenate([self.obs_low, np.zeros(n * self._history_len, dtype=np.float32)])
             self.obs_high = np.concatenate([self.obs_high, np.ones(n * self._history_len, dtype=np.float32)])
         self._history: deque[list[float]] = deque(maxlen=max(self._history_len, 1))
+        self._guided = t.guidance == "floorplan"
+        if self._guided:  # path cost / distance_scale, sin and cos of the lookahead point's bearing
+            self.obs_low = np.concatenate([self.obs_low, np.array([0.0, -1.0, -1.0], dtype=np.float32)])
+            self.obs_high = np.concatenate([self.obs_high, np.array([3.0, 1.0, 1.0], dtype=np.float32)])
+        self.guide: PathGuide | None = None
+        """The floor-plan path guide (``guidance="floorplan"``; :mod:`bulletnav.tasks.guidance`)."""
+        self.path_cost = 0.0
+        """Guided tasks: the path cost (m) from the robot to the target after the last step."""
+        self.lookahead = (0.0, 0.0)
+        """Guided tasks: the lookahead point on the path (world x, y; m)."""
+        self._guide_heading = 0.0
+        self._target = 0
         self._odometry_pose = t.pose_source == "odometry"
         # the per-step code reads these directly: fewer lookups on a path that runs every step
         self._lidar, self._imu_sensor, self._odometry_sensor = scene.sensors.lidar, scene.sensors.imu, scene.sensors.odometry
@@ -106,9 +119,15 @@ class NavigationTask(Task):
     def _begin(self, scene: Scene, start: tuple[float, float, float], rng: np.random.Generator) -> None:
         """Place the robot at ``start`` and reset the per-episode state (goals already chosen)."""
         scene.place_robot(start, rng, self.goals)
+        if self._guided:
+            if self.guide is None or self.guide.free is not scene.free_space:  # once per layout
+                self.guide = PathGuide(scene.free_space, scene.geometry.radius)
+            self.guide.set_goals(self.goals)
+        self._choose_target(start)
         self._measure(scene)
         self.collision = self._success = False
-        self.initial_distance = self._prev_distance = self.distance
+        self.initial_distance = self.distance
+        self._prev_distance = self._potential()
         state = scene.robot.state
         self._prev_xy = (state.x, state.y)
         self.path_length = 0.0
@@ -116,6 +135,13 @@ class NavigationTask(Task):
         if self._history_len:  # before the first step, the earlier scans are the first one
             self._history.clear()
             self._history.extend([self._range_list] * self._history_len)
+
+    def _choose_target(self, start: tuple[float, float, float]) -> None:
+        """Which goal the episode heads for first (the only one here)."""
+
+    def _potential(self) -> float:
+        """What the progress term measures: the path cost with guidance, else the straight distance."""
+        return self.path_cost if self._guided else self.distance
 
     def after_step(self, scene: Scene) -> None:
         if self._history_len:
@@ -137,6 +163,12 @@ class NavigationTask(Task):
         self._range_list = self._lidar.floats()  # float32 values, exactly, as Python floats
         self._imu = self._imu_sensor.floats()
         self.distance = math.hypot(dx, dy)
+        if self._guided:
+            cost, lx, ly = self.guide.query(self._target, x, y)
+            if cost == math.inf:  # nothing passable near: the straight line
+                cost, lx, ly = self.distance, goal[0], goal[1]
+            self.path_cost, self.lookahead = cost, (lx, ly)
+            self._guide_heading = math.atan2(ly - y, lx - x) - yaw
 
     # ------------------------------------------------------------------ step
     def observe(self, scene: Scene) -> np.ndarray:
@@ -157,6 +189,9 @@ class NavigationTask(Task):
         values += [lo if x < lo else hi if x > hi else x for x, (lo, hi) in zip(scalars, self._scalar_bounds)]
         for earlier in self._history if self._history_len else ():
             values += [r / scale for r in earlier]
+        if self._guided:
+            values += [min(self.path_cost / self._distance_scale, 3.0), math.sin(self._guide_heading),
+                       math.cos(self._guide_heading)]
         return np.array(values, dtype=np.float32)
 
     def reward(self, scene: Scene) -> dict[str, float]:
@@ -170,20 +205,22 @@ class NavigationTask(Task):
         self.path_length += math.hypot(x - px, y - py)
         self._prev_xy = (x, y)
         distance = self.distance
-        progress = self._prev_distance - distance
-        self._prev_distance = distance
+        potential = self.path_cost if self._guided else distance
+        progress = self._prev_distance - potential
+        self._prev_distance = potential
         recent = self._progress
         recent.append(progress)
         success = self._success = distance < self._goal_radius
         far = distance > far_from
         closest = min(self._range_list)
+        heading = math.remainder(self._guide_heading, 2 * math.pi) if self._guided else self._heading
         stuck = len(recent) == window and sum(recent) < stuck_progress and far
         return {
             "progress": wp * progress,
             "goal": wg if success else 0.0,
             "collision": wc if self.collision else 0.0,
             "time": wt,
-            "heading": wh * (1.0 - abs(self._heading) / math.pi) if far else 0.0,
+            "heading": wh * (1.0 - abs(heading) / math.pi) if far else 0.0,
             "stuck": ws if stuck else 0.0,
             "proximity": wx * (near - closest) if closest < near else 0.0,
         }

@@ -1,0 +1,145 @@
+"""Path guidance from the floor plan: which way the shortest clear path to a goal leaves the robot.
+
+A warehouse robot knows its floor plan (the racks, shelves and walls of the static layout),
+not where forklifts, workers or dropped pallets are. With ``guidance="floorplan"`` a task adds
+to its observation the direction of a point a little way along the shortest clear path to its
+target and that path's length, and measures its ``progress`` reward term along the path
+instead of the straight line -- the role of the global planner's subgoal in arena-rosnav's
+observation. The robot still has to avoid everything with its lidar: the plan knows nothing
+that moves or appears during the episode.
+
+**The path.** One cost field per goal over the layout's free-space grid
+(:class:`~bulletnav.sim.sampler.FreeSpace`: 0.1 m cells, passable where the cell centre is more
+than the robot's disc radius from every obstacle and wall): Dijkstra over the 8-connected
+passable cells from the goal, each step's length multiplied by ``1 + wall_cost *
+max(0, 1 - margin / wall_margin)``, ``margin`` being how much more clearance than the disc
+radius the two cells have (the mean of the two). The costlier cells near racks keep the path
+in the middle of an aisle instead of grazing rack corners; in open floor the cost is length.
+
+**Per step** (:meth:`PathGuide.query`): the path cost from the robot is the least, over the
+passable cells within ``reach`` cells of it, of the cell's cost plus the straight distance to
+its centre (continuous in the robot's position, so the progress term is smooth); the lookahead
+point is reached from that cell by ``lookahead`` steps of steepest descent of the field. Where
+no passable cell is near (a goal given inside the inflated obstacles, or the robot pressed
+against a rack) the guide falls back to the straight line.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from scipy.sparse import coo_matrix, csr_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from bulletnav.sim.sampler import FreeSpace
+
+WALL_COST = 3.0
+"""Extra cost factor of a step right at the disc radius from an obstacle."""
+WALL_MARGIN = 0.4
+"""Clearance beyond the disc radius (m) over which the extra cost fades to zero."""
+
+
+@njit(cache=True, nogil=True)
+def _query(field: np.ndarray, res: float, x0: float, y0: float, x: float, y: float, reach: int, lookahead: int
+           ) -> tuple[float, float, float]:
+    """(path cost, lookahead x, lookahead y) from (x, y); cost inf when no finite cell is near."""
+    nx, ny = field.shape
+    cx = int(round((x - x0) / res))
+    cy = int(round((y - y0) / res))
+    best, bx, by = np.inf, -1, -1
+    for i in range(max(cx - reach, 0), min(cx + reach + 1, nx)):
+        for j in range(max(cy - reach, 0), min(cy + reach + 1, ny)):
+            f = field[i, j]
+            if f < np.inf:
+                d = f + math.hypot(x - (x0 + i * res), y - (y0 + j * res))
+                if d < best:
+                    best, bx, by = d, i, j
+    if bx < 0:
+        return np.inf, x, y
+    for _ in range(lookahead):
+        low, lx, ly = field[bx, by], bx, by
+        for di in (-1, 0, 1):
+            for dj in (-1, 0, 1):
+                i, j = bx + di, by + dj
+                if 0 <= i < nx and 0 <= j < ny and field[i, j] < low:
+                    low, lx, ly = field[i, j], i, j
+        if lx == bx and ly == by:
+            break
+        bx, by = lx, ly
+    return best, x0 + bx * res, y0 + by * res
+
+
+class PathGuide:
+    """Cost fields to a set of goals over one layout's free space (see the module docstring).
+
+    Args:
+        free: the layout's free-space grids (``scene.free_space``).
+        radius: the robot's disc radius (m), the one ``free`` was built for.
+        reach: cells searched around the robot for the nearest point of the field.
+        lookahead: descent steps (cells) from the robot to the lookahead point.
+    """
+
+    def __init__(self, free: FreeSpace, radius: float, reach: int = 3, lookahead: int = 8) -> None:
+        self.free = free
+        self.reach, self.lookahead = reach, lookahead
+        self.resolution = free.resolution
+        self.x0, self.y0 = float(free.xs[0]), float(free.ys[0])
+        gx, gy = np.meshgrid(free.xs, free.ys, indexing="ij")
+        clearance = free.layout.clearance(gx, gy)
+        self._passable = (free.component > 0) & (clearance > radius)
+        penalty = 1.0 + WALL_COST * np.clip(1.0 - (clearance - radius) / WALL_MARGIN, 0.0, 1.0)
+        self._graph = self._build_graph(self._passable, penalty)
+        self.fields: list[np.ndarray] = []
+
+    @staticmethod
+    def _build_graph(passable: np.ndarray, penalty: np.ndarray) -> csr_matrix:
+        nx, ny = passable.shape
+        index = np.arange(nx * ny).reshape(nx, ny)
+        rows, cols, weights = [], [], []
+        for dx, dy in ((1, 0), (0, 1), (1, 1), (1, -1)):
+            a = (slice(0, nx - dx), slice(max(-dy, 0), ny - max(dy, 0)))
+            b = (slice(dx, nx), slice(max(dy, 0), ny - max(-dy, 0)))
+            both = passable[a] & passable[b]
+            rows.append(index[a][both])
+            cols.append(index[b][both])
+            weights.append(math.hypot(dx, dy) * 0.5 * (penalty[a][both] + penalty[b][both]))
+        r, c, w = np.concatenate(rows), np.concatenate(cols), np.concatenate(weights)
+        return coo_matrix((w, (r, c)), shape=(nx * ny, nx * ny)).tocsr()
+
+    def set_goals(self, goals: tuple[tuple[float, float], ...]) -> None:
+        """One cost field (m) per goal, from the passable cell nearest each goal."""
+        nx, ny = self._passable.shape
+        self.fields = []
+        for gx, gy in goals:
+            cell = self._nearest_passable(gx, gy)
+            if cell is None:
+                self.fields.append(np.full((nx, ny), np.inf))
+                continue
+            dist = dijkstra(self._graph, directed=False, indices=cell[0] * ny + cell[1])
+            field = dist.reshape(nx, ny) * self.resolution
+            # the goal point itself, off the cell centre: cost through the centre
+            field += math.hypot(gx - (self.x0 + cell[0] * self.resolution), gy - (self.y0 + cell[1] * self.resolution))
+            self.fields.append(field)
+
+    def _nearest_passable(self, x: float, y: float, reach: int = 3) -> tuple[int, int] | None:
+        res = self.resolution
+        cx, cy = round((x - self.x0) / res), round((y - self.y0) / res)
+        nx, ny = self._passable.shape
+        best, cell = math.inf, None
+        for i in range(max(cx - reach, 0), min(cx + reach + 1, nx)):
+            for j in range(max(cy - reach, 0), min(cy + reach + 1, ny)):
+                if self._passable[i, j]:
+                    d = math.hypot(x - (self.x0 + i * res), y - (self.y0 + j * res))
+                    if d < best:
+                        best, cell = d, (i, j)
+        return cell
+
+    def query(self, goal: int, x: float, y: float) -> tuple[float, float, float]:
+        """``(cost, lx, ly)``: the path cost (m) from (x, y) to goal ``goal`` and the lookahead
+        point; the straight line (distance, the goal itself) where the field has nothing near."""
+        cost, lx, ly = _query(self.fields[goal], self.resolution, self.x0, self.y0, x, y, self.reach, self.lookahead)
+        if cost == math.inf:
+            return math.inf, lx, ly
+        return float(cost), float(lx), float(ly)
