@@ -433,6 +433,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 DEFAULT_MODEL = "models/ppo_warehouse.zip"
+SHIPPED_MODELS = {"bulletnav/Warehouse-v0": DEFAULT_MODEL, "bulletnav/WarehouseMission-v0": "models/ppo_mission.zip"}
+"""The model ``demo`` runs on each env id when ``--model`` is not given (others: ``DEFAULT_MODEL``)."""
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
@@ -442,10 +444,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     from bulletnav.errors import ModelError
 
+    shipped = args.model is None
+    if shipped:
+        args.model = SHIPPED_MODELS.get(args.env_id, DEFAULT_MODEL)
     model = Path(args.model)
     if not model.is_file():
-        packaged = Path(__file__).resolve().parent.parent / DEFAULT_MODEL
-        if args.model == DEFAULT_MODEL and packaged.is_file():
+        packaged = Path(__file__).resolve().parent.parent / args.model
+        if shipped and packaged.is_file():
             model = packaged
         else:
             raise ModelError(f"{args.model}: model file not found (train one with `bulletnav train`)")
@@ -556,7 +561,8 @@ def build_parser() -> argparse.ArgumentParser:
     cmp_.set_defaults(func=cmd_compare)
 
     demo = add("demo", "the main job: the shipped PPO policy, report, video and trajectory plot")
-    demo.add_argument("--model", default=DEFAULT_MODEL, help=f"model zip (default {DEFAULT_MODEL})")
+    demo.add_argument("--model", help=f"model zip (default: the shipped model for --env, {DEFAULT_MODEL} on "
+                      "Warehouse-v0, models/ppo_mission.zip on WarehouseMission-v0)")
     demo.add_argument("--episodes", type=int, default=5, help="episodes to run (default 5)")
     demo.add_argument("--seed", type=int, default=2024, help="episode k uses env seed S + k (default 2024)")
     _add_env_arg(demo)

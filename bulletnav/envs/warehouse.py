@@ -134,6 +134,8 @@ class WarehouseEnv(gym.Env):
     | 41 | IMU gyroscope z | rad/s | / 1.5 | [-3, 3] |
     | 42 | distance to the goal | m | / 10 | [0, 3] |
     | 43- | with ``lidar_history=k``: the k - 1 earlier scans, newest first, 36 each | m | / lidar_range | [0, 1] |
+    | then | with ``guidance="floorplan"``: path cost to the target along the floor plan | m | / 10 | [0, 3] |
+    | +1, +2 | sin, cos of the bearing of the point 0.8 m along that path, from the heading | - | - | [-1, 1] |
     | then | missions (``task_name="mission"``): distance to the target goal | m | / 10 | [0, 3] |
     | +1, +2 | sin, cos of the target's bearing from the heading | - | - | [-1, 1] |
     | +3 | goals left / K | - | - | [0, 1] |
@@ -141,7 +143,9 @@ class WarehouseEnv(gym.Env):
 
     Missions (``bulletnav/WarehouseMission-v0``; :mod:`bulletnav.tasks.mission`): in free order
     the target, and the progress term, is the nearest goal not yet reached; entries 36 and 42
-    refer to the target.
+    refer to the target. With ``guidance="floorplan"`` the free-order target is instead the next
+    goal of the shortest tour on the floor plan's path costs (fixed for the episode), and the
+    progress term of any task is measured along the path (:mod:`bulletnav.tasks.guidance`).
 
     The robot's pose for entries 36 and 42 is ground truth (``pose_source="truth"``, as in
     the article) or the odometry estimate (``pose_source="odometry"``). With
@@ -212,7 +216,7 @@ class WarehouseEnv(gym.Env):
     - v0: initial release. Later additions (``end_reason`` in ``info``, the options
       ``collision_terminates``, ``layout_style``, ``lidar_rate_hz``, ``camera_enabled``,
       ``task_name``, ``min_detour``, ``blocked_by``, ``detour_share``, ``aisles``,
-      ``lidar_history``, the movers' ``forklifts``, ``workers``, ``forklift_speed``,
+      ``lidar_history``, ``guidance``, the movers' ``forklifts``, ``workers``, ``forklift_speed``,
       ``worker_speed``, ``pallet_events_per_min``, ``yield_to_robot``; YAML ``dynamic:`` and
       ``events:``) leave every default episode bit-identical.
     - ``bulletnav/WarehouseAisles-v0``: the same env with ``layout_style="aisles"`` on a 20 x 16 m

@@ -234,8 +234,11 @@ class NavigationTask(Task):
 
     def info(self, scene: Scene) -> dict[str, Any]:
         state = scene.robot.state
-        return {
+        out = {
             "distance_to_goal": self.distance, "collision": self.collision, "is_success": self._success,
             "path_length": self.path_length, "initial_distance": self.initial_distance, "goal": self.goal,
             "pose": np.array((state.x, state.y, state.yaw)),
         }
+        if self._guided:
+            out["path_cost"] = self.path_cost
+        return out

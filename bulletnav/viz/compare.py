@@ -42,6 +42,13 @@ REACH_SUCCESS = 0.8
 """Success rate whose first crossing ``compare`` reports as the sample-efficiency mark."""
 
 
+def _steps_label(value: float, _pos: int) -> str:
+    """Tick label for a timestep count: 0, 250k, 1.5M."""
+    if abs(value) >= 1e6:
+        return f"{value / 1e6:g}M"
+    return f"{value / 1e3:g}k" if abs(value) >= 1e3 else f"{value:g}"
+
+
 def compare_runs(run_dirs: list[Path], out_png: Path) -> list[dict[str, Any]]:
     """Learning curves of several runs in one PNG (success rate against timesteps and
     against wall-clock time, mean reward against timesteps; one colour per algorithm, one
@@ -51,10 +58,13 @@ def compare_runs(run_dirs: list[Path], out_png: Path) -> list[dict[str, Any]]:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import FuncFormatter
 
     rows = []
     fig, (ax1, ax3, ax2) = plt.subplots(1, 3, figsize=(15, 4), dpi=100)
-    colours: dict[str, Any] = {}  # one colour per algorithm; its seeds share it
+    colours: dict[str, Any] = {}  # one colour per algorithm; its seeds share it, each its own line style
+    styles = ("o-", "s--", "^:", "d-.")
+    seen: dict[str, int] = {}
     for run in run_dirs:
         for name in ("eval_history.json", "run.json"):
             if not (run / name).is_file():
@@ -62,13 +72,14 @@ def compare_runs(run_dirs: list[Path], out_png: Path) -> list[dict[str, Any]]:
         history = json.loads((run / "eval_history.json").read_text())
         record = json.loads((run / "run.json").read_text())
         algo = record["algo"]
-        first = algo not in colours
         colour = colours.setdefault(algo, f"C{len(colours) % 10}")
-        label = algo.upper() if first else None
+        style = styles[seen.get(algo, 0) % len(styles)]
+        seen[algo] = seen.get(algo, 0) + 1
+        label = f"{algo.upper()} seed {record['seed']}"
         steps = [h["timesteps"] for h in history]
-        ax1.plot(steps, [h["success_rate"] for h in history], "o-", color=colour, alpha=0.8, ms=3, label=label)
-        ax2.plot(steps, [h["mean_reward"] for h in history], "o-", color=colour, alpha=0.8, ms=3, label=label)
-        ax3.plot([h["wall_time"] / 60 for h in history], [h["success_rate"] for h in history], "o-", color=colour,
+        ax1.plot(steps, [h["success_rate"] for h in history], style, color=colour, alpha=0.8, ms=3, label=label)
+        ax2.plot(steps, [h["mean_reward"] for h in history], style, color=colour, alpha=0.8, ms=3, label=label)
+        ax3.plot([h["wall_time"] / 60 for h in history], [h["success_rate"] for h in history], style, color=colour,
                  alpha=0.8, ms=3, label=label)
         final = history[-1]
         best = max(history, key=lambda h: h["success_rate"])
@@ -89,6 +100,8 @@ def compare_runs(run_dirs: list[Path], out_png: Path) -> list[dict[str, Any]]:
     ax3.set_ylabel("success rate (20 unseen episodes)")
     for ax in (ax1, ax2, ax3):
         ax.grid(alpha=0.3)
+    for ax in (ax1, ax2):  # 400k, not 400000: the labels of a 1.5M-step run stay apart
+        ax.xaxis.set_major_formatter(FuncFormatter(_steps_label))
     for ax in (ax1, ax3):
         ax.set_ylim(-0.02, 1.02)
     ax1.legend(loc="upper left")

@@ -1,0 +1,36 @@
+"""The shipped mission policy: it loads with its settings and completes unseen missions."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import gymnasium as gym
+import pytest
+
+import bulletnav  # noqa: F401
+from bulletnav.cli import SHIPPED_MODELS
+from bulletnav.evaluation import run_episodes
+from bulletnav.rl.envs import evaluation_env_kwargs
+from bulletnav.rl.io import load_model
+from bulletnav.rl.policy import SB3Policy
+
+ROOT = Path(__file__).resolve().parents[1]
+MODEL = ROOT / SHIPPED_MODELS["bulletnav/WarehouseMission-v0"]
+needs_model = pytest.mark.skipif(not MODEL.is_file(), reason=f"{MODEL.name} is not in this checkout")
+
+
+@needs_model
+def test_the_shipped_mission_policy_completes_unseen_missions():
+    model, meta, vecnorm = load_model(str(MODEL))
+    assert meta["env_id"] == "bulletnav/WarehouseMission-v0" and meta["env_kwargs"]["guidance"] == "floorplan"
+    env = gym.make(meta["env_id"], **evaluation_env_kwargs(meta["env_kwargs"]))
+    results = run_episodes(env, SB3Policy(model, vecnorm), episodes=3, seed=424_242)
+    env.close()
+    assert all(r.goals_total == 3 for r in results)
+    assert sum(r.success for r in results) >= 2
+    assert sum(r.goals_reached for r in results) >= 7
+
+
+def test_every_shipped_model_is_in_the_checkout():
+    for env_id, path in SHIPPED_MODELS.items():
+        assert (ROOT / path).is_file(), f"demo --env {env_id} would look for {path}"
