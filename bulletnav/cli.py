@@ -66,6 +66,8 @@ def _world_kwargs(args: argparse.Namespace, obstacles: int | None = None) -> dic
         kwargs.update(task_name="mission", goals=args.goals)
     if getattr(args, "order", None) is not None:
         kwargs.update(task_name="mission", goal_order=args.order)
+    if getattr(args, "perturb", None) is not None:  # a named evaluation shift, on any env and controller
+        kwargs["perturb"] = args.perturb
     return kwargs
 
 
@@ -74,6 +76,11 @@ def _add_mission_args(parser: argparse.ArgumentParser) -> None:
                         help="a mission of K goals (1-8) on any env (default: the env's own task)")
     parser.add_argument("--order", choices=["fixed", "free"], default=None,
                         help="mission goal order: fixed (as given) or free (any; default free)")
+    from bulletnav.envs.shifts import PERTURBATIONS
+
+    parser.add_argument("--perturb", choices=list(PERTURBATIONS), default=None, metavar="NAME",
+                        help=f"evaluate under a named shift of robot, floor or sensors: {', '.join(PERTURBATIONS)} "
+                             "(the same episodes; default none)")
 
 
 def _world_label(args: argparse.Namespace, obstacles: int | None = None) -> str:
@@ -287,12 +294,13 @@ def cmd_navigate(args: argparse.Namespace) -> int:
     results, written, layout_size = _run_with_visuals(args, env, nav, line, f"PID + {args.planner} (seed {args.seed})")
     summary = summarize(results)
     summary.update(planner=args.planner, seed=args.seed, pose_source=args.pose, env_id=args.env_id,
-                   world=_world_label(args), world_size=layout_size)
+                   world=_world_label(args), world_size=layout_size, perturb=args.perturb)
     if args.json:
         print(_json(summary))
         return 0
     env_name = "" if args.env_id == DEFAULT_ENV_ID else f"{args.env_id} | "
-    print(f"\nplanner {args.planner} | {env_name}{summary['world']} | episodes {summary['episodes']} | seed {args.seed}")
+    shift = f" | perturb {args.perturb}" if args.perturb else ""
+    print(f"\nplanner {args.planner} | {env_name}{summary['world']} | episodes {summary['episodes']} | seed {args.seed}{shift}")
     print(f"success rate   {summary['success_rate'] * 100:5.1f} %   collisions {summary['collision_rate'] * 100:5.1f} %   "
           f"SPL {summary['spl']:.3f}")
     print(f"steps          {summary['mean_length']:.1f} +/- {summary['std_length']:.1f}   "
@@ -356,7 +364,8 @@ def _evaluate_report(args: argparse.Namespace, model_path: str) -> dict:
     bar = "=" * 60
     if not args.json:
         env_name = "" if args.env_id == DEFAULT_ENV_ID else f", {args.env_id}"
-        print(f"{bar}\nRunning {args.episodes} evaluation episodes ({algo} {model_path}, seed {args.seed}{env_name})\n{bar}")
+        shift = f", perturb {args.perturb}" if args.perturb else ""
+        print(f"{bar}\nRunning {args.episodes} evaluation episodes ({algo} {model_path}, seed {args.seed}{env_name}{shift})\n{bar}")
 
     def line(r) -> None:
         if args.json:
@@ -373,7 +382,7 @@ def _evaluate_report(args: argparse.Namespace, model_path: str) -> dict:
             "std_distance", "collision_rate", "spl", *SAFETY_KEYS, "progress", "ppl", "goals_per_minute", "per_episode")
     out = {k: s[k] for k in keys}
     out.update(model=str(model_path), seed=args.seed, env_id=args.env_id,
-               world=_world_label(args, default_obstacles), world_size=layout_size)
+               world=_world_label(args, default_obstacles), world_size=layout_size, perturb=args.perturb)
     if args.json:
         print(_json(out))
         return out

@@ -6,6 +6,7 @@ derive a variant with :func:`dataclasses.replace`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -456,6 +457,68 @@ class DynamicConfig:
 
 
 @dataclass(frozen=True)
+class ShiftConfig:
+    """Departures of the robot, the floor and the sensors from their nominal models, applied at
+    every reset. Named evaluation shifts fix them (:data:`bulletnav.envs.shifts.PERTURBATIONS`);
+    the defaults change nothing, and an env whose shift is the default never touches them.
+
+    PyBullet combines the friction of two touching bodies as the product of their coefficients,
+    so the wheel-floor friction is ``RobotConfig.wheel_friction * wheel_friction_scale *
+    floor_friction``.
+    """
+
+    floor_friction: float = 1.0
+    """The floor's lateral friction coefficient (nominal 1.0)."""
+    wheel_friction_scale: float = 1.0
+    """Multiplies the wheels' lateral friction coefficient."""
+    mass_scale: float = 1.0
+    """Multiplies the robot body's mass and its inertia (the wheels keep theirs)."""
+    motor_force_scale: float = 1.0
+    """Multiplies the wheel motors' torque limit."""
+    odometry_wheel_radius_scale: float = 1.0
+    """The odometry model's wheel radius over the true one (a miscalibrated encoder model)."""
+    odometry_wheelbase_scale: float = 1.0
+    """The odometry model's wheelbase over the true one."""
+    action_latency: int = 0
+    """Control steps between an action and the motors receiving it (0-2 typical); the motors
+    hold a stop command for the first ``action_latency`` steps of an episode."""
+    lidar_noise_std: float = 0.0
+    """Extra Gaussian range noise (m), independent of ``LidarConfig.noise_std``."""
+    lidar_dropout: float = 0.0
+    """Probability that a ray returns nothing (reads ``max_range``), per ray and scan."""
+    imu_noise_scale: float = 1.0
+    """Multiplies the IMU's white-noise standard deviations."""
+    imu_accel_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Added to the accelerometer's constant bias (m/s^2, body frame)."""
+    imu_gyro_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Added to the gyroscope's constant bias (rad/s, body frame)."""
+    depth_noise_std: float = 0.0
+    """Gaussian noise on the camera's depth image (m), clipped to [near, far]."""
+
+    def __post_init__(self) -> None:
+        for name in ("floor_friction", "wheel_friction_scale", "mass_scale", "motor_force_scale",
+                     "odometry_wheel_radius_scale", "odometry_wheelbase_scale", "imu_noise_scale"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"shift {name} must be a finite number > 0, got {value!r}")
+        if not (isinstance(self.action_latency, int) and 0 <= self.action_latency <= 10):
+            raise ValueError(f"shift action_latency must be an integer from 0 to 10 control steps, got {self.action_latency!r}")
+        for name in ("lidar_noise_std", "depth_noise_std"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"shift {name} must be >= 0, got {getattr(self, name)!r}")
+        if not 0.0 <= self.lidar_dropout < 1.0:
+            raise ValueError(f"shift lidar_dropout must be in [0, 1), got {self.lidar_dropout!r}")
+        for name in ("imu_accel_bias", "imu_gyro_bias"):
+            if len(getattr(self, name)) != 3:
+                raise ValueError(f"shift {name} must have 3 entries (x, y, z), got {getattr(self, name)!r}")
+
+    @property
+    def nominal(self) -> bool:
+        """True when this shift changes nothing."""
+        return self == ShiftConfig()
+
+
+@dataclass(frozen=True)
 class EnvConfig:
     """Everything that defines a ``bulletnav/Warehouse-v0`` episode."""
 
@@ -468,6 +531,7 @@ class EnvConfig:
     sensors: SensorsConfig = field(default_factory=SensorsConfig)
     task: TaskConfig = field(default_factory=TaskConfig)
     dynamic: DynamicConfig = field(default_factory=DynamicConfig)
+    shift: ShiftConfig = field(default_factory=ShiftConfig)
     layout_file: str | None = None
     """YAML layout to use for every episode; None draws procedural warehouses."""
     layouts_every: int = 1

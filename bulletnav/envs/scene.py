@@ -9,11 +9,12 @@ evaluation, videos, plots, dashboard -- reached as ``env.unwrapped.scene``.
 from __future__ import annotations
 
 import math
+from collections import deque
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from bulletnav.config import EnvConfig
+from bulletnav.config import EnvConfig, ShiftConfig
 from bulletnav.geometry import RobotGeometry, robot_geometry
 from bulletnav.planning.grid import OccupancyGrid
 from bulletnav.sensors.suite import SensorSuite
@@ -61,6 +62,10 @@ class Scene:
         """Events that happened in the last step."""
         self._built_at = -1
         self._cmap: ClearanceMap | None = None
+        self.shift: ShiftConfig = config.shift
+        """The robot, floor and sensor shift of this episode (``EnvConfig.shift`` unless the env sets another)."""
+        self._shifted = False
+        self._latency: deque[tuple[float, float]] | None = None
         self._mover_set: frozenset[int] = frozenset()
         self._static_set: frozenset[int] = frozenset()
         # movers farther than this cannot be seen (lidar range; everywhere when a camera looks)
@@ -105,6 +110,8 @@ class Scene:
             raise RuntimeError("use_layout() before place_robot()")
         self.sim.reset(layout, start, rebuild=self._rebuild)
         self._rebuild = False
+        if self._shifted or not self.shift.nominal:  # a nominal env never touches these
+            self._apply_shift(self.shift)
         self.sensors.reset(rng)
         self.start = (float(start[0]), float(start[1]), float(start[2]))
         self.goals = tuple((float(g[0]), float(g[1])) for g in goals)
@@ -126,6 +133,15 @@ class Scene:
         self.collision_with = None
         self.step_events = []
 
+    def _apply_shift(self, shift: ShiftConfig) -> None:
+        """Floor friction, the robot's mass, wheel friction and torque limit (after the robot
+        was placed: a rebuilt scene reloads it nominal), the sensors' models and the action delay."""
+        self.sim.world.set_floor_friction(shift.floor_friction)
+        self.robot.apply_shift(shift.mass_scale, shift.wheel_friction_scale, shift.motor_force_scale)
+        self.sensors.apply_shift(shift)
+        self._latency = deque([(0.0, 0.0)] * shift.action_latency) if shift.action_latency else None
+        self._shifted = not shift.nominal
+
     def _build_pools(self, layout: Layout) -> None:
         dyn = self.config.dynamic
         shapes: dict[tuple[str, tuple[float, ...]], int] = {}
@@ -146,7 +162,11 @@ class Scene:
         self._built_at = self.sim.rebuilds
 
     def step(self, v: float, w: float) -> None:
-        """Command (v m/s, w rad/s), advance one control period, update the sensors."""
+        """Command (v m/s, w rad/s), advance one control period, update the sensors. With an
+        action latency of k steps the motors get the command of k steps before."""
+        if self._latency is not None:
+            self._latency.append((v, w))
+            v, w = self._latency.popleft()
         if not self.dynamic:
             self.sim.step(v, w)
             self.sensors.update()

@@ -12,8 +12,9 @@ import numpy as np
 import pybullet as p
 from gymnasium import spaces
 
-from bulletnav.config import EnvConfig, RewardConfig
+from bulletnav.config import EnvConfig, RewardConfig, ShiftConfig
 from bulletnav.envs.scene import Scene, SceneView
+from bulletnav.envs.shifts import describe, perturbation
 from bulletnav.sim.generators import world_generator
 from bulletnav.sim.layout import Layout, load_layout
 from bulletnav.tasks import make_task
@@ -60,6 +61,7 @@ _KWARGS = {
     "yield_to_robot": (("dynamic",), "yield_to_robot"),
 }
 _REWARD_FIELDS = {f.name for f in fields(RewardConfig)}
+_SHIFT_FIELDS = {f.name for f in fields(ShiftConfig)}
 
 
 def make_config(config: EnvConfig | None = None, **kwargs: Any) -> EnvConfig:
@@ -75,6 +77,12 @@ def make_config(config: EnvConfig | None = None, **kwargs: Any) -> EnvConfig:
     for key, value in kwargs.items():
         if key == "world":
             cfg = replace(cfg, layout_file=None if value is None else str(value))
+        elif key == "perturb":
+            cfg = replace(cfg, shift=ShiftConfig() if value is None else perturbation(value))
+        elif key.startswith("shift_") and key[6:] in _SHIFT_FIELDS:
+            if key in ("shift_imu_accel_bias", "shift_imu_gyro_bias"):
+                value = tuple(float(v) for v in value)
+            cfg = replace(cfg, shift=replace(cfg.shift, **{key[6:]: value}))
         elif key.startswith("reward_") and key[7:] in _REWARD_FIELDS:
             cfg = replace(cfg, task=replace(cfg.task, reward=replace(cfg.task.reward, **{key[7:]: value})))
         elif key in _KWARGS:
@@ -87,7 +95,8 @@ def make_config(config: EnvConfig | None = None, **kwargs: Any) -> EnvConfig:
                 value = (float(value), float(value)) if isinstance(value, (int, float)) else tuple(value)
             cfg = _replace_at(cfg, path, name, value)
         else:
-            known = sorted([*_KWARGS, "world", "config", "render_mode", *(f"reward_{f}" for f in _REWARD_FIELDS)])
+            known = sorted([*_KWARGS, "world", "config", "render_mode", "perturb", *(f"reward_{f}" for f in _REWARD_FIELDS),
+                            *(f"shift_{f}" for f in _SHIFT_FIELDS)])
             raise TypeError(f"bulletnav/Warehouse-v0 got an unknown keyword argument {key!r}; known: {', '.join(known)}")
     return cfg
 
@@ -277,6 +286,7 @@ class WarehouseEnv(gym.Env):
         else:
             self.observation_space = state
         self._term_keys = tuple(f"reward_{name}" for name in self.task.reward_terms)
+        self._shift_info = None if cfg.shift.nominal else describe(cfg.shift)
         self._resets_on_layout = 0
         self._last_frame_time = 0.0
 
@@ -363,6 +373,8 @@ class WarehouseEnv(gym.Env):
         info.update(self.task.info(self._scene))
         if self._scene.dynamic:
             info.update(self._scene.dynamic_info())
+        if self._shift_info is not None:
+            info["shift"] = dict(self._shift_info)
         info["end_reason"] = reason
         return info
 

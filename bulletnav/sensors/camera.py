@@ -49,6 +49,8 @@ class Camera(Sensor):
         pitch = math.radians(config.pitch)
         self._forward = np.array([math.cos(pitch), 0.0, math.sin(pitch)])
         self._up = np.array([-math.sin(pitch), 0.0, math.cos(pitch)])
+        self.depth_noise_std = 0.0
+        """Gaussian depth noise (m) of an evaluation shift or randomization; 0: exact depth."""
 
     def space(self) -> spaces.Dict:
         cfg = self.config
@@ -78,5 +80,8 @@ class Camera(Sensor):
         rgb = np.reshape(np.asarray(rgba, dtype=np.uint8), (cfg.height, cfg.width, 4))[:, :, :3].copy()
         depth_m = linearize_depth(np.reshape(np.asarray(depth, dtype=np.float64), (cfg.height, cfg.width)),
                                   cfg.near, cfg.far).astype(np.float32)
+        if self.depth_noise_std > 0:
+            depth_m += self.rng.normal(0.0, self.depth_noise_std, depth_m.shape).astype(np.float32)
+            np.clip(depth_m, cfg.near, cfg.far, out=depth_m)
         seg_ids = np.reshape(np.asarray(seg, dtype=np.int32), (cfg.height, cfg.width))
         return CameraImage(rgb, depth_m, seg_ids)

@@ -26,8 +26,7 @@ class Imu(VectorSensor):
         super().__init__(robot, clock, config.rate_hz)
         self.config = config
         self._gravity = (0.0, 0.0, -gravity)
-        self._noise_std = np.repeat([config.accel_noise_std, config.gyro_noise_std], 3)
-        self._bias = np.concatenate([config.accel_bias, config.gyro_bias])
+        self.shift(1.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
         self._prev_velocity: tuple[float, ...] = (0.0, 0.0, 0.0)
         self._prev_time = 0.0
         self._latest = [0.0] * 6
@@ -35,6 +34,14 @@ class Imu(VectorSensor):
 
     def space(self) -> spaces.Box:
         return spaces.Box(-np.inf, np.inf, (6,), dtype=np.float32)
+
+    def shift(self, noise_scale: float, accel_bias: tuple[float, float, float], gyro_bias: tuple[float, float, float]
+              ) -> None:
+        """Noise standard deviations times ``noise_scale`` and biases plus the given ones, from
+        the next :meth:`reset` on (the config's values with 1.0 and zeros)."""
+        cfg = self.config
+        self._noise_std = np.repeat([cfg.accel_noise_std, cfg.gyro_noise_std], 3) * noise_scale
+        self._bias = np.concatenate([cfg.accel_bias, cfg.gyro_bias]) + np.concatenate([accel_bias, gyro_bias])
 
     def reset(self, rng: np.random.Generator) -> None:
         super().reset(rng)

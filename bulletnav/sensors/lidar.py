@@ -44,6 +44,10 @@ class Lidar(VectorSensor):
         directions = np.stack([np.cos(self.angles), np.sin(self.angles), np.zeros_like(self.angles)], axis=1)
         self._ray_from = np.zeros((config.num_rays, 3)).tolist()
         self._ray_to = (directions * config.max_range).tolist()
+        self.extra_noise_std = 0.0
+        """Extra range noise (m) of an evaluation shift or randomization, on top of the config's."""
+        self.dropout = 0.0
+        """Probability that a ray returns nothing (``max_range``), per ray and scan."""
 
     def space(self) -> spaces.Box:
         cfg = self.config
@@ -62,9 +66,13 @@ class Lidar(VectorSensor):
 
     def measure_floats(self) -> list[float]:
         cfg = self.config
-        if cfg.noise_std > 0:
+        if cfg.noise_std > 0 or self.extra_noise_std > 0 or self.dropout > 0:
             ranges = self.cast() * cfg.max_range
-            ranges += self.rng.normal(0.0, cfg.noise_std, ranges.shape)
+            std = math.hypot(cfg.noise_std, self.extra_noise_std)
+            if std > 0:
+                ranges += self.rng.normal(0.0, std, ranges.shape)
+            if self.dropout > 0:
+                ranges[self.rng.random(ranges.shape) < self.dropout] = cfg.max_range
             np.clip(ranges, cfg.min_range, cfg.max_range, out=ranges)
             return float32_list(ranges.tolist())
         # Noise-free (the default, once per step): the double products rounded to float32.

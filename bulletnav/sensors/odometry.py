@@ -38,6 +38,8 @@ class Odometry(VectorSensor):
         self._rates = (0.0, 0.0)
         self.distance = 0.0
         """Path length driven according to the encoders (m)."""
+        self.model_scale = (1.0, 1.0)
+        """The odometry model's wheel radius and wheelbase over the true ones (1.0: calibrated)."""
 
     def space(self) -> spaces.Box:
         high = np.array([np.inf, np.inf, np.pi, np.inf, np.inf], dtype=np.float32)
@@ -58,7 +60,7 @@ class Odometry(VectorSensor):
         if self.config.encoder_noise_std > 0:
             noise = self.rng.normal(0.0, self.config.encoder_noise_std, 2)
             d_left, d_right = d_left + float(noise[0]), d_right + float(noise[1])
-        r, base = self.robot.wheel_radius, self.robot.wheelbase
+        r, base = self.robot.wheel_radius * self.model_scale[0], self.robot.wheelbase * self.model_scale[1]
         ds = r * (d_left + d_right) / 2
         dyaw = r * (d_right - d_left) / base
         x, y, yaw = self.state
@@ -68,7 +70,7 @@ class Odometry(VectorSensor):
 
     def measure_floats(self) -> list[float]:
         rates = self._rates  # sampled with the angles in the last update
-        r, base = self.robot.wheel_radius, self.robot.wheelbase
+        r, base = self.robot.wheel_radius * self.model_scale[0], self.robot.wheelbase * self.model_scale[1]
         v = r * (rates[0] + rates[1]) / 2
         w = r * (rates[1] - rates[0]) / base
         x, y, yaw = self.state

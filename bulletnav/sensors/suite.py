@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from gymnasium import spaces
 
-from bulletnav.config import SensorsConfig
+from bulletnav.config import SensorsConfig, ShiftConfig
 from bulletnav.sensors.base import Sensor
 from bulletnav.sensors.camera import Camera
 from bulletnav.sensors.imu import Imu
@@ -62,6 +62,18 @@ class SensorSuite:
             sensor = getattr(self, name)
             if sensor is not None:
                 sensor.reset(np.random.default_rng(seeds[i] if i < _DRAWS else [seeds[0], i]))
+
+    def apply_shift(self, shift: ShiftConfig) -> None:
+        """Take the sensor part of ``shift`` (noise, dropout, biases, the odometry model) from the
+        next :meth:`reset` on; the default :class:`ShiftConfig` restores the nominal sensors."""
+        if self.lidar is not None:
+            self.lidar.extra_noise_std, self.lidar.dropout = shift.lidar_noise_std, shift.lidar_dropout
+        if self.imu is not None:
+            self.imu.shift(shift.imu_noise_scale, shift.imu_accel_bias, shift.imu_gyro_bias)
+        if self.odometry is not None:
+            self.odometry.model_scale = (shift.odometry_wheel_radius_scale, shift.odometry_wheelbase_scale)
+        if self.camera is not None:
+            self.camera.depth_noise_std = shift.depth_noise_std
 
     def update(self) -> None:
         """Advance the stateful sensors after a control step."""

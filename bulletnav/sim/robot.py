@@ -63,6 +63,7 @@ class Robot:
         self.wheelbase = 0.0
         """Distance between the wheel contact points, read from the URDF joints (m)."""
         self._com_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        self._nominal_mass: tuple[float, tuple[float, ...]] = (0.0, (0.0, 0.0, 0.0))
         self.state: RobotState | None = None
         """The snapshot taken by the last :meth:`sample`: after every control step and every
         :meth:`reset_pose` (the per-step code of sensors and task reads this one)."""
@@ -111,7 +112,23 @@ class Robot:
                              rollingFriction=0.0, spinningFriction=0.0, physicsClientId=cid)
         p.changeDynamics(self.body, self.caster_link, lateralFriction=self.config.caster_friction,
                          rollingFriction=0.0, spinningFriction=0.0, physicsClientId=cid)
+        info = p.getDynamicsInfo(self.body, -1, physicsClientId=cid)
+        self._nominal_mass = (float(info[0]), tuple(float(v) for v in info[2]))
+        self._torques = [self.config.max_wheel_torque] * 2
         self.reset_pose(pose)
+
+    def apply_shift(self, mass_scale: float = 1.0, wheel_friction_scale: float = 1.0,
+                    motor_force_scale: float = 1.0) -> None:
+        """Scale the body's mass and inertia, the wheels' friction and the motors' torque limit
+        from their nominal (URDF and :class:`RobotConfig`) values; 1.0 restores each."""
+        cid = self.cid
+        mass, inertia = self._nominal_mass
+        p.changeDynamics(self.body, -1, mass=mass * mass_scale,
+                         localInertiaDiagonal=[v * mass_scale for v in inertia], physicsClientId=cid)
+        for wheel in (self.left_joint, self.right_joint):
+            p.changeDynamics(self.body, wheel, lateralFriction=self.config.wheel_friction * wheel_friction_scale,
+                             physicsClientId=cid)
+        self._torques = [self.config.max_wheel_torque * motor_force_scale] * 2
 
     def reset_pose(self, pose: tuple[float, float, float]) -> None:
         """Teleport to ``pose`` at rest, wheels zeroed, motors stopped (no reload)."""

@@ -40,6 +40,10 @@ COLOURS = {
 }
 
 
+FLOOR_FRICTION = 1.0
+"""The floor's nominal lateral friction coefficient."""
+
+
 class World:
     """Builds a layout into the physics client ``cid`` and remembers what each body is."""
 
@@ -55,6 +59,10 @@ class World:
         made once per :meth:`build`, because the collision check runs every step."""
         self.labels: dict[int, str] = {}
         """Body id -> category (floor, wall, rack, pallet, box, column, robot)."""
+
+    def set_floor_friction(self, mu: float) -> None:
+        """Set the floor's lateral friction coefficient (PyBullet multiplies it with the wheels')."""
+        p.changeDynamics(self.floor_id, -1, lateralFriction=mu, physicsClientId=self.cid)
 
     def build(self, layout: Layout) -> None:
         """Reset the simulation and create the floor, walls and obstacles of ``layout``.
@@ -74,7 +82,7 @@ class World:
             rgbaColor=COLOURS["floor"], physicsClientId=cid,
         )
         self.floor_id = p.createMultiBody(0.0, floor_col, floor_vis, [0, 0, 0], physicsClientId=cid)
-        p.changeDynamics(self.floor_id, -1, lateralFriction=1.0, physicsClientId=cid)
+        p.changeDynamics(self.floor_id, -1, lateralFriction=FLOOR_FRICTION, physicsClientId=cid)
         self.labels[self.floor_id] = "floor"
         h = layout.wall_height
         t = WALL_THICKNESS
