@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 
 def asset_path(*parts: str) -> Path:
@@ -494,10 +495,12 @@ class ShiftConfig:
     """Added to the gyroscope's constant bias (rad/s, body frame)."""
     depth_noise_std: float = 0.0
     """Gaussian noise on the camera's depth image (m), clipped to [near, far]."""
+    mover_speed_scale: float = 1.0
+    """Multiplies every mover's cruise or walking speed (procedural and YAML movers)."""
 
     def __post_init__(self) -> None:
         for name in ("floor_friction", "wheel_friction_scale", "mass_scale", "motor_force_scale",
-                     "odometry_wheel_radius_scale", "odometry_wheelbase_scale", "imu_noise_scale"):
+                     "odometry_wheel_radius_scale", "odometry_wheelbase_scale", "imu_noise_scale", "mover_speed_scale"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"shift {name} must be a finite number > 0, got {value!r}")
@@ -532,6 +535,9 @@ class EnvConfig:
     task: TaskConfig = field(default_factory=TaskConfig)
     dynamic: DynamicConfig = field(default_factory=DynamicConfig)
     shift: ShiftConfig = field(default_factory=ShiftConfig)
+    randomize: tuple[Any, ...] = ()
+    """Domain randomization: :class:`bulletnav.envs.randomization.Distribution` per parameter,
+    drawn every episode (the env kwarg ``randomize`` parses a mapping into these); empty: none."""
     layout_file: str | None = None
     """YAML layout to use for every episode; None draws procedural warehouses."""
     layouts_every: int = 1

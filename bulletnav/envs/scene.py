@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -127,6 +128,8 @@ class Scene:
                 self._cmap = ClearanceMap(layout)
             avoid = (self.start[:2], *self.goals)
             specs = specs + draw_movers(layout, rng, dyn, self.geometry.radius, avoid, self._cmap)
+        if self.shift.mover_speed_scale != 1.0:
+            specs = tuple(replace(s, speed=s.speed * self.shift.mover_speed_scale) for s in specs)
         self.movers.start(specs)
         inflated = self.occupancy(self.events.resolution, self.geometry.radius).occupied
         self.events.start(rng if dyn.pallet_events_per_min > 0 else None, dyn.pallet_events_per_min, inflated)

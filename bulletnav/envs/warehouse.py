@@ -14,6 +14,8 @@ from gymnasium import spaces
 
 from bulletnav.config import EnvConfig, RewardConfig, ShiftConfig
 from bulletnav.envs.scene import Scene, SceneView
+from bulletnav.envs.randomization import STREAM as DR_STREAM
+from bulletnav.envs.randomization import Distribution, draw, draw_world, parse_randomize
 from bulletnav.envs.shifts import describe, perturbation
 from bulletnav.sim.generators import world_generator
 from bulletnav.sim.layout import Layout, load_layout
@@ -77,6 +79,8 @@ def make_config(config: EnvConfig | None = None, **kwargs: Any) -> EnvConfig:
     for key, value in kwargs.items():
         if key == "world":
             cfg = replace(cfg, layout_file=None if value is None else str(value))
+        elif key == "randomize":
+            cfg = replace(cfg, randomize=value if _parsed(value) else parse_randomize(value))
         elif key == "perturb":
             cfg = replace(cfg, shift=ShiftConfig() if value is None else perturbation(value))
         elif key.startswith("shift_") and key[6:] in _SHIFT_FIELDS:
@@ -95,10 +99,15 @@ def make_config(config: EnvConfig | None = None, **kwargs: Any) -> EnvConfig:
                 value = (float(value), float(value)) if isinstance(value, (int, float)) else tuple(value)
             cfg = _replace_at(cfg, path, name, value)
         else:
-            known = sorted([*_KWARGS, "world", "config", "render_mode", "perturb", *(f"reward_{f}" for f in _REWARD_FIELDS),
+            known = sorted([*_KWARGS, "world", "config", "render_mode", "perturb", "randomize", *(f"reward_{f}" for f in _REWARD_FIELDS),
                             *(f"shift_{f}" for f in _SHIFT_FIELDS)])
             raise TypeError(f"bulletnav/Warehouse-v0 got an unknown keyword argument {key!r}; known: {', '.join(known)}")
     return cfg
+
+
+def _parsed(value: Any) -> bool:
+    """True for distributions already parsed (a config's ``randomize`` passed on)."""
+    return isinstance(value, tuple) and all(isinstance(d, Distribution) for d in value)
 
 
 def _replace_at(obj: Any, path: tuple[str, ...], name: str, value: Any) -> Any:
@@ -287,6 +296,9 @@ class WarehouseEnv(gym.Env):
             self.observation_space = state
         self._term_keys = tuple(f"reward_{name}" for name in self.task.reward_terms)
         self._shift_info = None if cfg.shift.nominal else describe(cfg.shift)
+        self._dr_rng: np.random.Generator | None = None
+        self._dr_world: dict[str, Any] = {}
+        self._dr_info: dict[str, Any] = {}
         self._resets_on_layout = 0
         self._last_frame_time = 0.0
 
@@ -298,11 +310,20 @@ class WarehouseEnv(gym.Env):
         rng = self.np_random
         scene = self._scene
         layout = self._fixed_layout
+        dr = cfg.randomize
+        if dr and (seed is not None or self._dr_rng is None):  # a stream of its own, seeded with the reset
+            self._dr_rng = np.random.default_rng(None if seed is None else [seed, DR_STREAM])
         if layout is None:
             layout = scene.layout
             if seed is not None or layout is None or self._resets_on_layout >= cfg.layouts_every:
-                layout = self._generate(rng, cfg.world)
+                world = cfg.world
+                if dr:
+                    world, self._dr_world = draw_world(dr, self._dr_rng, world)
+                layout = self._generate(rng, world)
                 self._resets_on_layout = 0
+        if dr:
+            scene.shift, values = draw(dr, self._dr_rng, cfg.shift)
+            self._dr_info = {**values, **self._dr_world}
         self._resets_on_layout += 1
         # A seeded reset rebuilds the scene so that it is bit-identical whatever came before.
         scene.use_layout(layout, rebuild=seed is not None)
@@ -375,6 +396,8 @@ class WarehouseEnv(gym.Env):
             info.update(self._scene.dynamic_info())
         if self._shift_info is not None:
             info["shift"] = dict(self._shift_info)
+        if self.config.randomize:
+            info["dr"] = dict(self._dr_info)
         info["end_reason"] = reason
         return info
 

@@ -13,8 +13,9 @@ EVAL_SEED_BASE = 10_000_000
 """Evaluation during training uses seeds from here up: training only seeds its first resets
 with ``seed + rank`` (small numbers), so these episodes are never trained on."""
 
-TRAINING_ONLY_KWARGS = ("collision_terminates",)
-"""Env options that shape learning, not the benchmark: evaluation leaves them out."""
+TRAINING_ONLY_KWARGS = ("collision_terminates", "randomize")
+"""Env options that shape learning, not the benchmark: evaluation leaves them out (a shift to
+evaluate under is chosen with ``--perturb``)."""
 
 
 def make_env_fn(env_kwargs: dict[str, Any], env_id: str = ENV_ID) -> Callable[[], gym.Env]:

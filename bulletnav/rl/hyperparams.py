@@ -18,7 +18,7 @@ from bulletnav.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
-ENV_KEYS = frozenset({"policy", "n_envs", "env_kwargs", "normalize", "action_noise"})
+ENV_KEYS = frozenset({"policy", "n_envs", "env_kwargs", "normalize", "action_noise", "randomize"})
 """Keys of a hyperparameter entry that set up the envs, not the algorithm."""
 
 
@@ -42,7 +42,15 @@ def load_hyperparams(algo: str, env_id: str = ENV_ID, path: str | Path | None = 
         raise ConfigError(f"{path}: no hyperparameters for env id {env_id!r}")
     if not isinstance(data[env_id], dict):
         raise ConfigError(f"{path}: {env_id!r} must map hyperparameter names to values")
-    return upgrade_hyperparams(dict(data[env_id]), str(path))
+    hp = upgrade_hyperparams(dict(data[env_id]), str(path))
+    if hp.get("randomize"):  # checked now: a typo fails before any env starts
+        from bulletnav.envs.randomization import parse_randomize
+
+        try:
+            parse_randomize(hp["randomize"], where=f"{path}: {env_id}.randomize")
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
+    return hp
 
 
 def upgrade_hyperparams(hp: dict[str, Any], where: str = "hyperparameters") -> dict[str, Any]:

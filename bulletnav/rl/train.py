@@ -75,6 +75,8 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
     torch.set_num_threads(1)  # 2 cores: more threads slow PPO down and starve the env workers
     hp = load_hyperparams(cfg.algo, env_id=cfg.env_id, path=cfg.hyperparams)
     env_kwargs = {**hp.get("env_kwargs", {}), **(cfg.env_overrides or {})}
+    if hp.get("randomize"):  # domain randomization: the hyperparameter file's randomize: block
+        env_kwargs.setdefault("randomize", hp["randomize"])
     recorded = cfg.out / "config.json"
     if cfg.resume and recorded.is_file():  # a resumed run keeps the settings it started with
         original = json.loads(recorded.read_text())
