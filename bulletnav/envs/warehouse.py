@@ -13,9 +13,9 @@ import pybullet as p
 from gymnasium import spaces
 
 from bulletnav.config import EnvConfig, RewardConfig, ShiftConfig
-from bulletnav.envs.scene import Scene, SceneView
 from bulletnav.envs.randomization import STREAM as DR_STREAM
 from bulletnav.envs.randomization import Distribution, draw, draw_world, parse_randomize
+from bulletnav.envs.scene import Scene, SceneView
 from bulletnav.envs.shifts import describe, perturbation
 from bulletnav.sim.generators import world_generator
 from bulletnav.sim.layout import Layout, load_layout
@@ -99,8 +99,8 @@ def make_config(config: EnvConfig | None = None, **kwargs: Any) -> EnvConfig:
                 value = (float(value), float(value)) if isinstance(value, (int, float)) else tuple(value)
             cfg = _replace_at(cfg, path, name, value)
         else:
-            known = sorted([*_KWARGS, "world", "config", "render_mode", "perturb", "randomize", *(f"reward_{f}" for f in _REWARD_FIELDS),
-                            *(f"shift_{f}" for f in _SHIFT_FIELDS)])
+            known = sorted([*_KWARGS, "world", "config", "render_mode", "perturb", "randomize",
+                            *(f"reward_{f}" for f in _REWARD_FIELDS), *(f"shift_{f}" for f in _SHIFT_FIELDS)])
             raise TypeError(f"bulletnav/Warehouse-v0 got an unknown keyword argument {key!r}; known: {', '.join(known)}")
     return cfg
 
