@@ -318,11 +318,13 @@ def cmd_navigate(args: argparse.Namespace) -> int:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
+    import logging
     from pathlib import Path
 
     from bulletnav.provenance import command_line
     from bulletnav.rl.train import TrainConfig, train
 
+    logging.getLogger("bulletnav.rl.curriculum").setLevel(logging.INFO)  # stage changes on the console
     extra = {"env_id": args.env_id}
     cfg = TrainConfig(
         algo=args.algo, timesteps=args.timesteps, out=Path(args.out), seed=args.seed, n_envs=args.n_envs,

@@ -63,6 +63,13 @@ _KWARGS = {
     "yield_to_robot": (("dynamic",), "yield_to_robot"),
 }
 _REWARD_FIELDS = {f.name for f in fields(RewardConfig)}
+STAGE_KWARGS = frozenset({
+    "num_obstacles", "world_size", "layout_style", "aisles", "min_goal_distance", "max_goal_distance", "min_detour",
+    "blocked_by", "detour_share", "forklifts", "workers", "forklift_speed", "worker_speed", "pallet_events_per_min",
+    "yield_to_robot", "perturb", "randomize", *(f"shift_{f.name}" for f in fields(ShiftConfig)),
+})
+"""Keyword arguments :meth:`WarehouseEnv.set_episode_config` accepts: what episodes are drawn
+from (world, goals, movers, shifts), never what changes the spaces, the task or the reward."""
 _SHIFT_FIELDS = {f.name for f in fields(ShiftConfig)}
 
 
@@ -222,7 +229,13 @@ class WarehouseEnv(gym.Env):
     planning episodes need the straight line to cross an obstacle with one of these labels,
     e.g. ``("rack",)``), ``detour_share`` (1.0; share of planning episodes while either is on),
     ``aisles`` (an :class:`~bulletnav.config.AislesConfig` for ``layout_style="aisles"``),
-    ``reward_<term>`` weights, ``render_mode``
+    ``reward_<term>`` weights, ``guidance`` ("none"; "floorplan": see the observation table),
+    ``perturb`` (None; a named shift of :mod:`bulletnav.envs.shifts`: ``slippery``, ``heavy``,
+    ``noisy``, ``miscalibrated``, ``laggy``), ``shift_<field>`` (a
+    :class:`~bulletnav.config.ShiftConfig` field: friction, mass, motor force, odometry model,
+    action latency, sensor noise, mover speeds), ``randomize`` (a mapping of parameter to
+    distribution drawn every episode, :mod:`bulletnav.envs.randomization`; ``info["dr"]``
+    reports the draws, ``info["shift"]`` a fixed shift), ``render_mode``
     (``"human"``: PyBullet GUI, needs a display; ``"rgb_array"``: a chase-camera frame), and
     ``config`` (an :class:`EnvConfig` the other keywords modify).
 
@@ -235,8 +248,9 @@ class WarehouseEnv(gym.Env):
       ``collision_terminates``, ``layout_style``, ``lidar_rate_hz``, ``camera_enabled``,
       ``task_name``, ``min_detour``, ``blocked_by``, ``detour_share``, ``aisles``,
       ``lidar_history``, ``guidance``, the movers' ``forklifts``, ``workers``, ``forklift_speed``,
-      ``worker_speed``, ``pallet_events_per_min``, ``yield_to_robot``; YAML ``dynamic:`` and
-      ``events:``) leave every default episode bit-identical.
+      ``worker_speed``, ``pallet_events_per_min``, ``yield_to_robot``, ``perturb``,
+      ``shift_<field>``, ``randomize``; YAML ``dynamic:`` and ``events:``) leave every default
+      episode bit-identical.
     - ``bulletnav/WarehouseAisles-v0``: the same env with ``layout_style="aisles"`` on a 20 x 16 m
       floor, goals 3-10 m away, 80 % planning episodes (straight line through a rack, detour
       >= 1.5 on the sampler's grid), ``collision_terminates=True``, 2,400 steps
@@ -296,11 +310,32 @@ class WarehouseEnv(gym.Env):
             self.observation_space = state
         self._term_keys = tuple(f"reward_{name}" for name in self.task.reward_terms)
         self._shift_info = None if cfg.shift.nominal else describe(cfg.shift)
+        self._made_config = cfg
         self._dr_rng: np.random.Generator | None = None
         self._dr_world: dict[str, Any] = {}
         self._dr_info: dict[str, Any] = {}
         self._resets_on_layout = 0
         self._last_frame_time = 0.0
+
+    def set_episode_config(self, **kwargs: Any) -> None:
+        """Draw the next episodes from another distribution (a curriculum stage): keyword
+        arguments as for ``gym.make``, limited to :data:`STAGE_KWARGS`, applied on top of the
+        config the env was made with (no arguments restore it). The env is not rebuilt; the next
+        reset draws a new layout. Reaches sub-process envs through ``VecEnv.env_method``.
+
+        Raises:
+            ValueError: a keyword outside :data:`STAGE_KWARGS` (the message lists them).
+        """
+        bad = sorted(set(kwargs) - STAGE_KWARGS)
+        if bad:
+            raise ValueError(f"set_episode_config: {', '.join(bad)} cannot change between episodes "
+                             f"(they change the spaces, the task or the reward); allowed: {', '.join(sorted(STAGE_KWARGS))}")
+        cfg = make_config(self._made_config, **kwargs)
+        self.config = self.task.config = self._scene.config = cfg
+        self._scene.shift = cfg.shift
+        self._generate = world_generator(cfg.world.style)
+        self._shift_info = None if cfg.shift.nominal else describe(cfg.shift)
+        self._resets_on_layout = cfg.layouts_every  # the next reset draws a new layout
 
     # ------------------------------------------------------------------ gym API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -311,8 +346,10 @@ class WarehouseEnv(gym.Env):
         scene = self._scene
         layout = self._fixed_layout
         dr = cfg.randomize
-        if dr and (seed is not None or self._dr_rng is None):  # a stream of its own, seeded with the reset
-            self._dr_rng = np.random.default_rng(None if seed is None else [seed, DR_STREAM])
+        if seed is not None:  # randomization's own stream, seeded with the reset (also for a later stage's)
+            self._dr_rng = np.random.default_rng([seed, DR_STREAM])
+        elif dr and self._dr_rng is None:
+            self._dr_rng = np.random.default_rng()
         if layout is None:
             layout = scene.layout
             if seed is not None or layout is None or self._resets_on_layout >= cfg.layouts_every:

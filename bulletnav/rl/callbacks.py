@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -22,13 +23,14 @@ EVAL_KEYS = ("success_rate", "collision_rate", "mean_reward", "std_reward", "mea
 """Summary entries each evaluation row keeps."""
 
 
-def save_checkpoint(model: Any, out: Path, vecnorm: Any) -> None:
-    """``out/checkpoints/last.zip`` (+ normalisation statistics and step count), atomically."""
+def save_checkpoint(model: Any, out: Path, vecnorm: Any, extra: dict[str, Any] | None = None) -> None:
+    """``out/checkpoints/last.zip`` (+ normalisation statistics, step count and ``extra``, such
+    as the curriculum's state, in ``last.json``), atomically."""
     ckpt = out / "checkpoints" / "last.zip"
     atomic_save_model(model, ckpt)
     if vecnorm is not None:
         atomic_save_vecnormalize(vecnorm, vecnormalize_path(ckpt))
-    atomic_write_json(out / "checkpoints" / "last.json", {"timesteps": int(model.num_timesteps)})
+    atomic_write_json(out / "checkpoints" / "last.json", {"timesteps": int(model.num_timesteps), **(extra or {})})
 
 
 def _vecnorm(model: Any) -> Any:
@@ -41,11 +43,13 @@ def _vecnorm(model: Any) -> Any:
 class CheckpointCallback(BaseCallback):
     """Every ``every`` timesteps (summed over envs): :func:`save_checkpoint` into ``out``."""
 
-    def __init__(self, out: Path, every: int) -> None:
+    def __init__(self, out: Path, every: int, state: Callable[[], dict[str, Any]] | None = None) -> None:
         super().__init__()
         self.out = out
         self.every = every
         self.next_at = 0
+        self.state = state
+        """Extra state for ``last.json`` (the curriculum's), asked at each checkpoint."""
 
     def _on_training_start(self) -> None:
         self.next_at = (self.num_timesteps // self.every + 1) * self.every
@@ -53,7 +57,7 @@ class CheckpointCallback(BaseCallback):
     def _on_step(self) -> bool:
         if self.num_timesteps >= self.next_at:
             self.next_at += self.every
-            save_checkpoint(self.model, self.out, _vecnorm(self.model))
+            save_checkpoint(self.model, self.out, _vecnorm(self.model), self.state() if self.state else None)
         return True
 
 

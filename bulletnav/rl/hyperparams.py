@@ -18,7 +18,7 @@ from bulletnav.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
-ENV_KEYS = frozenset({"policy", "n_envs", "env_kwargs", "normalize", "action_noise", "randomize"})
+ENV_KEYS = frozenset({"policy", "n_envs", "env_kwargs", "normalize", "action_noise", "randomize", "curriculum"})
 """Keys of a hyperparameter entry that set up the envs, not the algorithm."""
 
 
@@ -48,6 +48,13 @@ def load_hyperparams(algo: str, env_id: str = ENV_ID, path: str | Path | None = 
 
         try:
             parse_randomize(hp["randomize"], where=f"{path}: {env_id}.randomize")
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
+    if hp.get("curriculum"):
+        from bulletnav.rl.curriculum import Curriculum
+
+        try:
+            Curriculum.from_spec(hp["curriculum"], where=f"{path}: {env_id}.curriculum")
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
     return hp

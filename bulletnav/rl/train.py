@@ -70,6 +70,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
     import torch
     from stable_baselines3.common.vec_env import VecNormalize
 
+    from bulletnav.rl.curriculum import Curriculum, CurriculumCallback
     from bulletnav.viz.compare import plot_learning_curve
 
     torch.set_num_threads(1)  # 2 cores: more threads slow PPO down and starve the env workers
@@ -107,7 +108,18 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
                     tensorboard_log=str(cfg.out / "tb"), **model_kwargs(hp, venv.action_space.shape[0]))
     vecnorm = venv if isinstance(venv, VecNormalize) else None
     evaluation = EvaluationCallback(cfg.out, cfg.eval_freq, cfg.eval_episodes, env_kwargs, history, env_id=cfg.env_id)
-    checkpoints = CheckpointCallback(cfg.out, cfg.checkpoint_freq)
+    callbacks = [evaluation]
+    curriculum = None
+    if hp.get("curriculum"):
+        curriculum = CurriculumCallback(Curriculum.from_spec(hp["curriculum"], where=f"{cfg.algo} {cfg.env_id} curriculum"))
+        if cfg.resume:
+            state = json.loads((cfg.out / "checkpoints" / "last.json").read_text()).get("curriculum")
+            if state:
+                curriculum.curriculum.restore(state)
+        curriculum.send_stage(venv)  # before the envs' first reset in learn()
+        callbacks.append(curriculum)
+    state = (lambda: {"curriculum": curriculum.curriculum.state()}) if curriculum else None
+    checkpoints = CheckpointCallback(cfg.out, cfg.checkpoint_freq, state)
     record: dict[str, Any] = {
         "command": cfg.command, "algo": cfg.algo, "env_id": cfg.env_id, "seed": cfg.seed, "timesteps": cfg.timesteps,
         "n_envs": n_envs, "vec_env": cfg.vec_env, "hyperparams": hp, "env_kwargs": env_kwargs,
@@ -119,10 +131,10 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
     t0 = time.time()
     remaining = max(cfg.timesteps - start_steps, 0)
     if remaining:
-        model.learn(total_timesteps=remaining, callback=[checkpoints, evaluation], progress_bar=cfg.progress_bar,
+        model.learn(total_timesteps=remaining, callback=[checkpoints, *callbacks], progress_bar=cfg.progress_bar,
                     reset_num_timesteps=not cfg.resume, tb_log_name=cfg.algo)
     wall = time.time() - t0
-    save_checkpoint(model, cfg.out, vecnorm)
+    save_checkpoint(model, cfg.out, vecnorm, state() if state else None)
     final_path = cfg.out / "model.zip"
     atomic_save_model(model, final_path)
     if vecnorm is not None:
@@ -135,6 +147,8 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
         evaluation.evaluate(model)
     evaluation.close()
     venv.close()
+    if curriculum is not None:
+        record["curriculum_final"] = curriculum.curriculum.state()
     record.update(wall_time_s=round(wall, 1), total_timesteps=int(model.num_timesteps),
                   final_eval=history[-1] if history else None, eval_seeds=f"{EVAL_SEED_BASE}..")
     atomic_write_json(sidecar_path(final_path), {"algo": cfg.algo, "env_id": cfg.env_id, "env_kwargs": env_kwargs,
