@@ -122,3 +122,23 @@ def test_a_hyperparameter_file_with_a_bad_randomize_block_names_file_and_key(tmp
     path.write_text("bulletnav/Warehouse-v0:\n  policy: MlpPolicy\n  randomize: {mass_scale: [0.0, 2.0]}\n")
     with pytest.raises(ConfigError, match=r"ppo\.yml: bulletnav/Warehouse-v0\.randomize\.mass_scale: the range reaches 0\.0"):
         load_hyperparams("ppo", path=path)
+
+
+def test_the_ablation_files_differ_from_the_shipped_settings_only_in_their_arm():
+    base = load_hyperparams("ppo", "bulletnav/WarehouseDynamic-v0")
+    arms = {}
+    for arm in ("curriculum", "randomize", "both"):
+        path = asset_path("..", "rl", "hyperparams", f"ppo_dynamic_{arm}.yml")
+        hp = load_hyperparams("ppo", "bulletnav/WarehouseDynamic-v0", path)
+        arms[arm] = hp
+        assert {k: v for k, v in hp.items() if k not in ("curriculum", "randomize")} == base
+    assert set(arms["curriculum"]) - set(base) == {"curriculum"}
+    assert set(arms["randomize"]) - set(base) == {"randomize"}
+    assert arms["both"]["curriculum"] == arms["curriculum"]["curriculum"]
+    assert arms["both"]["randomize"] == arms["randomize"]["randomize"]
+    env = gym.make("bulletnav/WarehouseDynamic-v0", randomize=arms["randomize"]["randomize"])
+    for seed in range(3):  # every drawn world and shift builds and runs
+        env.reset(seed=seed)
+        for _ in range(5):
+            env.step(env.action_space.sample())
+    env.close()
