@@ -1,0 +1,281 @@
+"""A safety shield: vetoes a command whose stopping sweep would touch what the lidar sees or
+where a mover is headed, and replaces it with the closest safe one. It never drives.
+
+**The sweep.** For a command (v, w) the robot is assumed to run at ``max(v_now, v)`` for one
+control period, then to brake at ``decel`` along the same arc (a turn in place keeps turning
+while the robot coasts to a stop); the horizon is one control period plus the time to stop.
+The robot's outline (its collision rectangles, grown by ``margin``) is placed at ``samples``
+poses along that path and tested against:
+
+- the current lidar scan's hits, in the body frame, with the surface between two neighbouring
+  rays filled in every 5 cm when their ranges are within ``join`` of each other (36 rays are
+  17 cm apart at 1 m: a box corner could hide between two);
+- the movers the scene exposes (``scene.movers``), each moved ahead at its current speed and
+  heading to the time of each pose, as points on its footprint.
+
+**The choice.** A command whose sweep is clear passes unchanged, bit for bit. Otherwise the
+shield tries a small set of commands -- the commanded speed scaled by 0.75, 0.5, 0.25 and 0,
+each with the commanded yaw rate and yaw rates around it, always including a full stop -- and
+takes the clear one with the smallest change in wheel speeds. When the robot is already inside
+the margin and none is clear, turning in place is tried again against the bare outline (5 mm),
+so that it can turn away; when none is clear even then, it stops. The
+action space is forward-only, so it never backs into space the lidar has not seen.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from bulletnav.geometry import RobotGeometry
+
+
+@dataclass(frozen=True)
+class ShieldConfig:
+    """Safety shield settings."""
+
+    margin: float = 0.04
+    """Added to every side of the robot's collision rectangles (m)."""
+    decel: float = 1.5
+    """Braking deceleration assumed for the sweep (m/s^2; the motors reach about 2.6)."""
+    samples: int = 12
+    """Poses along each sweep."""
+    join: float = 0.25
+    """Neighbouring lidar hits closer in range than this (m) are joined into a surface."""
+    speed_scales: tuple[float, ...] = (0.75, 0.5, 0.25, 0.0)
+    """Fallback forward speeds, as fractions of the commanded one."""
+    turn_offsets: tuple[float, ...] = (0.0, 0.4, -0.4, 0.8, -0.8, 1.5, -1.5)
+    """Fallback yaw rates: the commanded one plus these (rad/s), clipped to the action range."""
+
+    def __post_init__(self) -> None:
+        if self.margin < 0 or self.decel <= 0 or self.samples < 2 or self.join < 0:
+            raise ValueError(f"shield needs margin >= 0, decel > 0, samples >= 2, join >= 0; got {self}")
+
+
+@dataclass(frozen=True)
+class ShieldDecision:
+    """What the shield did this step."""
+
+    intervened: bool
+    v: float
+    """Forward speed sent to the motors (m/s)."""
+    w: float
+    """Yaw rate sent (rad/s)."""
+    change: float
+    """Change in wheel rim speeds, |dv_left| + |dv_right| (m/s); 0 when it passed the command."""
+    safe: bool
+    """False when no candidate was clear (the shield stopped)."""
+
+    def as_info(self) -> dict[str, Any]:
+        return {"intervened": self.intervened, "v": self.v, "w": self.w, "change": self.change, "safe": self.safe}
+
+
+class Shield:
+    """The decision alone: :meth:`check` a command, :meth:`filter` one (see the module docstring).
+
+    Args:
+        geometry: the robot's geometry (collision rectangles, lidar mount, wheelbase).
+        angles: lidar ray angles (rad, body frame).
+        max_range: lidar range (m): readings at it are no hit.
+        control_dt: the control period (s).
+        v_max, w_max: the action bounds (m/s, rad/s).
+    """
+
+    def __init__(self, geometry: RobotGeometry, angles: np.ndarray, max_range: float, control_dt: float,
+                 v_max: float, w_max: float, config: ShieldConfig = ShieldConfig()) -> None:
+        self.config = config
+        self.geometry = geometry
+        self.angles = np.asarray(angles, dtype=np.float64)
+        self.cos, self.sin = np.cos(self.angles), np.sin(self.angles)
+        self.max_range = max_range
+        self.dt = control_dt
+        self.v_max, self.w_max = v_max, w_max
+        m = config.margin
+        rects = [(r.cx, r.cy, r.half_x + m, r.half_y + m) for r in geometry.rectangles]
+        self._rects = np.array(rects, dtype=np.float64)  # (R, 4)
+        self._bare = np.array([(r.cx, r.cy, r.half_x + 0.005, r.half_y + 0.005) for r in geometry.rectangles])
+        self._half_base = geometry.wheelbase / 2
+        self._reach = geometry.outline_radius + m
+
+    # ------------------------------------------------------------------ geometry
+    def points(self, ranges: np.ndarray, within: float = math.inf) -> np.ndarray:
+        """Lidar hits in the body frame, with joined surfaces filled in every 5 cm (N, 2); with
+        ``within``, only the hits and surfaces that come that close to the body centre."""
+        r = np.asarray(ranges, dtype=np.float64)
+        hit = r < self.max_range * 0.999
+        x = self.geometry.lidar_offset + r * self.cos
+        y = r * self.sin
+        nxt = np.roll(np.arange(len(r)), -1)
+        pair = hit & hit[nxt] & (np.abs(r - r[nxt]) < self.config.join)
+        if within < math.inf:
+            d = np.hypot(x, y)
+            near = d < within
+            # a joined surface passes no closer than its nearer end minus half its length
+            span = np.hypot(x[nxt] - x, y[nxt] - y)
+            pair &= np.minimum(d, d[nxt]) - span / 2 < within
+            hit &= near
+        i = np.flatnonzero(pair)
+        j = nxt[i]
+        n = np.minimum((np.hypot(x[j] - x[i], y[j] - y[i]) / 0.05).astype(int), 40)
+        total = int(n.sum())
+        if not total:
+            return np.stack([x[hit], y[hit]], axis=1)
+        start = np.repeat(np.cumsum(n) - n, n)
+        t = (np.arange(total) - start + 1) / np.repeat(n + 1, n)
+        ii, jj = np.repeat(i, n), np.repeat(j, n)
+        fx, fy = x[ii] + t * (x[jj] - x[ii]), y[ii] + t * (y[jj] - y[ii])
+        return np.stack([np.concatenate([x[hit], fx]), np.concatenate([y[hit], fy])], axis=1)
+
+    def sweep(self, v: float | np.ndarray, w: float | np.ndarray, v_now: float) -> tuple[np.ndarray, np.ndarray]:
+        """Poses (C, K, 3) in the current body frame along the stopping sweeps of C commands
+        (scalars give C = 1), and their times (C, K)."""
+        cfg = self.config
+        v = np.atleast_1d(np.asarray(v, dtype=np.float64))[:, None]
+        w = np.atleast_1d(np.asarray(w, dtype=np.float64))[:, None]
+        v1 = np.where(v > 0, np.maximum(v_now, v), max(v_now, 0.0))
+        horizon = self.dt + v1 / cfg.decel
+        t = np.linspace(0.0, 1.0, cfg.samples)[None, :] * horizon  # (C, K)
+        speed = np.where(t < self.dt, v1, np.maximum(v1 - cfg.decel * (t - self.dt), 0.0))
+        # the commanded curvature while driving; a turn in place keeps turning while coasting
+        rate = np.where(v > 0, w * speed / np.maximum(v1, 1e-9), w)
+        dt = np.diff(t, axis=1, prepend=0.0)
+        yaw = np.cumsum(rate * dt, axis=1)
+        mid = yaw - rate * dt / 2
+        x = np.cumsum(speed * np.cos(mid) * dt, axis=1)
+        y = np.cumsum(speed * np.sin(mid) * dt, axis=1)
+        return np.stack([x, y, yaw], axis=2), t
+
+    def _blocked(self, poses: np.ndarray, points: np.ndarray, rects: np.ndarray) -> np.ndarray:
+        """(C,) True where a point ((N, 2), or per pose (C, K, M, 2)) lies in the grown outline
+        at one of the poses (C, K, 3)."""
+        n_cmd = poses.shape[0]
+        if points.shape[-2] == 0:
+            return np.zeros(n_cmd, dtype=bool)
+        if points.ndim == 2:
+            points = points[None, None]
+        px = points[..., 0] - poses[:, :, 0, None]
+        py = points[..., 1] - poses[:, :, 1, None]
+        c, s = np.cos(poses[:, :, 2])[..., None], np.sin(poses[:, :, 2])[..., None]
+        bx, by = c * px + s * py, -s * px + c * py
+        hit = np.zeros(bx.shape, dtype=bool)
+        for cx, cy, hx, hy in rects:
+            hit |= (np.abs(bx - cx) <= hx) & (np.abs(by - cy) <= hy)
+        return hit.reshape(n_cmd, -1).any(axis=1)
+
+    def _mover_points(self, movers: list[Any], times: np.ndarray, pose: tuple[float, float, float]) -> np.ndarray:
+        """Footprint points of every mover at each time (C, K), in the robot's body frame (C, K, M, 2)."""
+        rx, ry, ryaw = pose
+        c0, s0 = math.cos(ryaw), math.sin(ryaw)
+        out = []
+        for m in movers:
+            mx, my, myaw = m.pose
+            lx, ly = m.size[0] / 2, m.size[1] / 2
+            if m.kind == "worker":
+                a = np.linspace(0, 2 * math.pi, 12, endpoint=False)
+                local = np.stack([lx * np.cos(a), lx * np.sin(a)], axis=1)
+            else:
+                u = np.linspace(-1, 1, 5)
+                local = np.concatenate([np.stack([u * lx, np.full(5, ly)], 1), np.stack([u * lx, np.full(5, -ly)], 1),
+                                        np.stack([np.full(3, lx), u[1:4] * ly], 1), np.stack([np.full(3, -lx), u[1:4] * ly], 1)])
+            cm, sm = math.cos(myaw), math.sin(myaw)
+            wx = mx + cm * local[:, 0] - sm * local[:, 1]
+            wy = my + sm * local[:, 0] + cm * local[:, 1]
+            # constant velocity along its heading (a worker's heading is its walking direction)
+            dx = (m.speed * cm * times)[..., None] + wx - rx
+            dy = (m.speed * sm * times)[..., None] + wy - ry
+            out.append(np.stack([c0 * dx + s0 * dy, -s0 * dx + c0 * dy], axis=-1))
+        return np.concatenate(out, axis=2)
+
+    # ------------------------------------------------------------------ decisions
+    def check(self, v: float | np.ndarray, w: float | np.ndarray, v_now: float, points: np.ndarray,
+              movers: list[Any] | None = None, pose: tuple[float, float, float] = (0.0, 0.0, 0.0),
+              rects: np.ndarray | None = None) -> np.ndarray:
+        """(C,) True where the sweep of command (v, w) is clear of ``points`` (body frame) and
+        ``movers`` for the outline grown by the margin (or ``rects``: (R, 4) centre and half sizes)."""
+        poses, times = self.sweep(v, w, v_now)
+        rects = self._rects if rects is None else rects
+        blocked = self._blocked(poses, points, rects)
+        if movers:
+            blocked |= self._blocked(poses, self._mover_points(movers, times, pose), rects)
+        return ~blocked
+
+    def filter(self, v: float, w: float, v_now: float, ranges: np.ndarray, movers: list[Any] | None = None,
+               pose: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> ShieldDecision:
+        """The command to send instead of (v, w) (itself when its sweep is clear)."""
+        cfg = self.config
+        coast = self.dt + self.v_max / cfg.decel
+        reach = self._reach + max(v_now, self.v_max) * coast  # the farthest any sweep gets
+        points = self.points(ranges, within=reach)
+        near = [m for m in (movers or ()) if math.hypot(m.pose[0] - pose[0], m.pose[1] - pose[1])
+                < reach + max(m.size[:2]) + m.speed * coast]
+        if self.check(v, w, v_now, points, near, pose)[0]:
+            return ShieldDecision(False, v, w, 0.0, True)
+        hb = self._half_base
+        cand = np.array([(v * scale, min(max(w + dw, -self.w_max), self.w_max))
+                         for scale in (1.0, *cfg.speed_scales) for dw in cfg.turn_offsets
+                         if (scale, dw) != (1.0, 0.0)] + [(0.0, 0.0)])  # a full stop is always among them
+        change = (np.abs((cand[:, 0] - cand[:, 1] * hb) - (v - w * hb))
+                  + np.abs((cand[:, 0] + cand[:, 1] * hb) - (v + w * hb)))
+        clear = self.check(cand[:, 0], cand[:, 1], v_now, points, near, pose)
+        if not clear.any():  # already inside the margin: turning in place (or stopping) off the outline itself
+            clear = (cand[:, 0] == 0.0) & self.check(cand[:, 0], cand[:, 1], v_now, points, near, pose, rects=self._bare)
+        if not clear.any():
+            return ShieldDecision(True, 0.0, 0.0, float(change[-1]), False)
+        best = int(np.flatnonzero(clear)[np.argmin(change[clear])])
+        return ShieldDecision(True, float(cand[best, 0]), float(cand[best, 1]), float(change[best]), True)
+
+
+class ShieldWrapper(gym.Wrapper):
+    """The shield between any controller and an env: each ``step``'s action is checked against
+    the current lidar scan and the scene's movers and replaced when its sweep is not clear;
+    ``info["shield"]`` reports the decision (``intervened``, the sent ``v`` and ``w``, the
+    wheel-speed ``change``, ``safe``). With it around the training env (``train --shield``) a
+    policy learns with the shield in the loop.
+    """
+
+    def __init__(self, env: gym.Env, config: ShieldConfig = ShieldConfig()) -> None:
+        super().__init__(env)
+        self.shield = shield_for(env, config)
+        self.decision: ShieldDecision | None = None
+        """The last step's decision."""
+
+    def step(self, action: Any):
+        base = self.env.unwrapped
+        scene = base.scene
+        v, w = base.command(action)
+        ranges = np.asarray(scene.sensors.lidar.read(), dtype=np.float64)
+        v_now = float(scene.sensors.odometry.read()[3])
+        movers = list(scene.movers) if scene.dynamic else None
+        d = self.decision = self.shield.filter(v, w, v_now, ranges, movers, tuple(scene.pose))
+        if d.intervened:
+            action = self._action(d.v, d.w)
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        info["shield"] = d.as_info()
+        return obs, reward, terminated, truncated, info
+
+    def reset(self, **kwargs: Any):
+        obs, info = self.env.reset(**kwargs)
+        self.decision = None
+        info["shield"] = {"intervened": False, "v": 0.0, "w": 0.0, "change": 0.0, "safe": True}
+        return obs, info
+
+    def _action(self, v: float, w: float) -> np.ndarray:
+        """(v, w) in the env's action space (normalised or physical)."""
+        base = self.env.unwrapped
+        if base.config.normalize_actions:
+            t = base.config.task
+            return np.array([2.0 * v / t.max_speed - 1.0, w / t.max_turn_rate], dtype=np.float32)
+        return np.array([v, w], dtype=np.float32)
+
+
+def shield_for(env: Any, config: ShieldConfig = ShieldConfig()) -> Shield:
+    """A :class:`Shield` for ``env`` (its robot, lidar, control period and action bounds)."""
+    scene = env.unwrapped.scene
+    lidar = scene.sensors.lidar
+    task = env.unwrapped.config.task
+    return Shield(scene.geometry, lidar.angles, lidar.config.max_range, scene.control_dt, task.max_speed,
+                  task.max_turn_rate, config)
