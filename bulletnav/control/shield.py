@@ -240,6 +240,9 @@ class ShieldWrapper(gym.Wrapper):
     def __init__(self, env: gym.Env, config: ShieldConfig = ShieldConfig()) -> None:
         super().__init__(env)
         self.shield = shield_for(env, config)
+        low, high = env.action_space.low.astype(np.float64), env.action_space.high.astype(np.float64)
+        (lo_v, lo_w), (hi_v, hi_w) = env.unwrapped.command(low), env.unwrapped.command(high)
+        self._map = (lo_v, lo_w, hi_v, hi_w, low, high)
         self.decision: ShieldDecision | None = None
         """The last step's decision."""
 
@@ -264,18 +267,17 @@ class ShieldWrapper(gym.Wrapper):
         return obs, info
 
     def _action(self, v: float, w: float) -> np.ndarray:
-        """(v, w) in the env's action space (normalised or physical)."""
-        base = self.env.unwrapped
-        if base.config.normalize_actions:
-            t = base.config.task
-            return np.array([2.0 * v / t.max_speed - 1.0, w / t.max_turn_rate], dtype=np.float32)
-        return np.array([v, w], dtype=np.float32)
+        """(v, w) in the env's action space: the inverse of the env's own linear ``command`` map."""
+        lo_v, lo_w, hi_v, hi_w, low, high = self._map
+        a0 = low[0] + (v - lo_v) / (hi_v - lo_v) * (high[0] - low[0])
+        a1 = low[1] + (w - lo_w) / (hi_w - lo_w) * (high[1] - low[1])
+        return np.array([a0, a1], dtype=np.float32)
 
 
 def shield_for(env: Any, config: ShieldConfig = ShieldConfig()) -> Shield:
     """A :class:`Shield` for ``env`` (its robot, lidar, control period and action bounds)."""
     scene = env.unwrapped.scene
     lidar = scene.sensors.lidar
-    task = env.unwrapped.config.task
-    return Shield(scene.geometry, lidar.angles, lidar.config.max_range, scene.control_dt, task.max_speed,
-                  task.max_turn_rate, config)
+    space = env.action_space
+    v_max, w_max = env.unwrapped.command(space.high.astype(np.float64))
+    return Shield(scene.geometry, lidar.angles, lidar.config.max_range, scene.control_dt, v_max, w_max, config)
