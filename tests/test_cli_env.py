@@ -157,8 +157,15 @@ def test_train_reads_the_env_ids_own_hyperparameters_and_records_it(monkeypatch,
     from bulletnav.rl import train as train_module
     from bulletnav.rl.hyperparams import load_hyperparams
 
-    for algo in ("ppo", "sac", "td3", "a2c"):  # every packaged file has the three ids
-        assert load_hyperparams(algo, env_id="bulletnav/WarehouseDynamic-v0") == load_hyperparams(algo)
+    for algo in ("ppo", "sac", "td3", "a2c"):  # every packaged file has the ids, as Warehouse-v0 plus guidance at most
+        base = load_hyperparams(algo)
+        for env_id in ("bulletnav/WarehouseAisles-v0", "bulletnav/WarehouseDynamic-v0", "bulletnav/WarehouseMission-v0"):
+            hp = load_hyperparams(algo, env_id=env_id)
+            kwargs = dict(hp["env_kwargs"])
+            assert kwargs.pop("guidance", "floorplan") == "floorplan"
+            assert {**hp, "env_kwargs": kwargs} == base
+    for env_id in ("bulletnav/WarehouseDynamic-v0", "bulletnav/WarehouseMission-v0"):  # PPO's are trained with it
+        assert load_hyperparams("ppo", env_id=env_id)["env_kwargs"]["guidance"] == "floorplan"
     seen = {}
 
     def fake_train(cfg):
