@@ -60,19 +60,7 @@ class FreeSpace:
     @cached_property
     def _graph(self) -> csr_matrix:
         """The 8-connected graph of passable cells (node = flat cell index), edges in cells."""
-        passable = self.component > 0
-        nx, ny = passable.shape
-        index = np.arange(nx * ny).reshape(nx, ny)
-        rows, cols, weights = [], [], []
-        for dx, dy in ((1, 0), (0, 1), (1, 1), (1, -1)):
-            a = (slice(0, nx - dx), slice(max(-dy, 0), ny - max(dy, 0)))
-            b = (slice(dx, nx), slice(max(dy, 0), ny - max(-dy, 0)))
-            both = passable[a] & passable[b]  # the same neighbourhood as the component labels
-            rows.append(index[a][both])
-            cols.append(index[b][both])
-            weights.append(np.full(int(both.sum()), math.hypot(dx, dy)))
-        r, c, w = np.concatenate(rows), np.concatenate(cols), np.concatenate(weights)
-        return coo_matrix((w, (r, c)), shape=(nx * ny, nx * ny)).tocsr()
+        return grid_graph(self.component > 0)  # the same neighbourhood as the component labels
 
     def path_lengths(self, cell: tuple[int, int]) -> np.ndarray:
         """Shortest path length (m) from ``cell`` to every cell for the robot's disc: Dijkstra
@@ -81,6 +69,26 @@ class FreeSpace:
         nx, ny = self.component.shape
         dist = dijkstra(self._graph, directed=False, indices=cell[0] * ny + cell[1])
         return dist.reshape(nx, ny) * self.resolution
+
+
+def grid_graph(passable: np.ndarray, cost: np.ndarray | None = None) -> csr_matrix:
+    """The 8-connected graph of the ``passable`` cells of a grid (node = flat cell index ``ix *
+    ny + iy``), each edge as long as its step in cells (1 or sqrt(2)), times the mean ``cost`` of
+    its two cells when a cost grid is given."""
+    nx, ny = passable.shape
+    index = np.arange(nx * ny).reshape(nx, ny)
+    rows, cols, weights = [], [], []
+    for dx, dy in ((1, 0), (0, 1), (1, 1), (1, -1)):
+        a = (slice(0, nx - dx), slice(max(-dy, 0), ny - max(dy, 0)))
+        b = (slice(dx, nx), slice(max(dy, 0), ny - max(-dy, 0)))
+        both = passable[a] & passable[b]
+        rows.append(index[a][both])
+        cols.append(index[b][both])
+        step = math.hypot(dx, dy)
+        weights.append(np.full(int(both.sum()), step) if cost is None
+                       else step * 0.5 * (cost[a][both] + cost[b][both]))
+    r, c, w = np.concatenate(rows), np.concatenate(cols), np.concatenate(weights)
+    return coo_matrix((w, (r, c)), shape=(nx * ny, nx * ny)).tocsr()
 
 
 def sample_start_goal(

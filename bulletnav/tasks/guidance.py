@@ -30,10 +30,9 @@ import math
 
 import numpy as np
 from numba import njit
-from scipy.sparse import coo_matrix, csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from bulletnav.sim.sampler import FreeSpace
+from bulletnav.sim.sampler import FreeSpace, grid_graph
 
 WALL_COST = 3.0
 """Extra cost factor of a step right at the disc radius from an obstacle."""
@@ -90,23 +89,8 @@ class PathGuide:
         clearance = free.layout.clearance(gx, gy)
         self._passable = (free.component > 0) & (clearance > radius)
         penalty = 1.0 + WALL_COST * np.clip(1.0 - (clearance - radius) / WALL_MARGIN, 0.0, 1.0)
-        self._graph = self._build_graph(self._passable, penalty)
+        self._graph = grid_graph(self._passable, penalty)
         self.fields: list[np.ndarray] = []
-
-    @staticmethod
-    def _build_graph(passable: np.ndarray, penalty: np.ndarray) -> csr_matrix:
-        nx, ny = passable.shape
-        index = np.arange(nx * ny).reshape(nx, ny)
-        rows, cols, weights = [], [], []
-        for dx, dy in ((1, 0), (0, 1), (1, 1), (1, -1)):
-            a = (slice(0, nx - dx), slice(max(-dy, 0), ny - max(dy, 0)))
-            b = (slice(dx, nx), slice(max(dy, 0), ny - max(-dy, 0)))
-            both = passable[a] & passable[b]
-            rows.append(index[a][both])
-            cols.append(index[b][both])
-            weights.append(math.hypot(dx, dy) * 0.5 * (penalty[a][both] + penalty[b][both]))
-        r, c, w = np.concatenate(rows), np.concatenate(cols), np.concatenate(weights)
-        return coo_matrix((w, (r, c)), shape=(nx * ny, nx * ny)).tocsr()
 
     def set_goals(self, goals: tuple[tuple[float, float], ...]) -> None:
         """One cost field (m) per goal, from the passable cell nearest each goal."""
