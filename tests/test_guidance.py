@@ -127,8 +127,8 @@ def test_guided_free_missions_follow_the_exact_tour_on_the_path_costs():
 
 
 def test_guidance_off_keeps_the_observation_and_checkers_pass_with_it_on():
-    plain = gym.make("bulletnav/Warehouse-v0")
-    guided = gym.make("bulletnav/Warehouse-v0", guidance="floorplan")
+    plain = gym.make("bulletnav/Warehouse-v0", normalize_actions=True)
+    guided = gym.make("bulletnav/Warehouse-v0", guidance="floorplan", normalize_actions=True)
     a, _ = plain.reset(seed=3)
     b, _ = guided.reset(seed=3)
     assert a.shape == (43,) and b.shape == (46,)
