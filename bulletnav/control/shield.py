@@ -130,9 +130,11 @@ class Shield:
         fx, fy = x[ii] + t * (x[jj] - x[ii]), y[ii] + t * (y[jj] - y[ii])
         return np.stack([np.concatenate([x[hit], fx]), np.concatenate([y[hit], fy])], axis=1)
 
-    def sweep(self, v: float | np.ndarray, w: float | np.ndarray, v_now: float) -> tuple[np.ndarray, np.ndarray]:
+    def sweep(self, v: float | np.ndarray, w: float | np.ndarray, v_now: float, w_now: float | None = None
+              ) -> tuple[np.ndarray, np.ndarray]:
         """Poses (C, K, 3) in the current body frame along the stopping sweeps of C commands
-        (scalars give C = 1), and their times (C, K)."""
+        (scalars give C = 1), and their times (C, K). With ``w_now`` the yaw rate moves from it
+        to the command's over the first control period (the motors need that long)."""
         cfg = self.config
         v = np.atleast_1d(np.asarray(v, dtype=np.float64))[:, None]
         w = np.atleast_1d(np.asarray(w, dtype=np.float64))[:, None]
@@ -142,6 +144,9 @@ class Shield:
         speed = np.where(t < self.dt, v1, np.maximum(v1 - cfg.decel * (t - self.dt), 0.0))
         # the commanded curvature while driving; a turn in place keeps turning while coasting
         rate = np.where(v > 0, w * speed / np.maximum(v1, 1e-9), w)
+        if w_now is not None:
+            blend = np.clip(t / self.dt, 0.0, 1.0)
+            rate = w_now + blend * (rate - w_now)
         dt = np.diff(t, axis=1, prepend=0.0)
         yaw = np.cumsum(rate * dt, axis=1)
         mid = yaw - rate * dt / 2
@@ -193,10 +198,10 @@ class Shield:
     # ------------------------------------------------------------------ decisions
     def check(self, v: float | np.ndarray, w: float | np.ndarray, v_now: float, points: np.ndarray,
               movers: list[Any] | None = None, pose: tuple[float, float, float] = (0.0, 0.0, 0.0),
-              rects: np.ndarray | None = None) -> np.ndarray:
+              rects: np.ndarray | None = None, w_now: float | None = None) -> np.ndarray:
         """(C,) True where the sweep of command (v, w) is clear of ``points`` (body frame) and
         ``movers`` for the outline grown by the margin (or ``rects``: (R, 4) centre and half sizes)."""
-        poses, times = self.sweep(v, w, v_now)
+        poses, times = self.sweep(v, w, v_now, w_now)
         rects = self._rects if rects is None else rects
         blocked = self._blocked(poses, points, rects)
         if movers:
@@ -204,7 +209,7 @@ class Shield:
         return ~blocked
 
     def filter(self, v: float, w: float, v_now: float, ranges: np.ndarray, movers: list[Any] | None = None,
-               pose: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> ShieldDecision:
+               pose: tuple[float, float, float] = (0.0, 0.0, 0.0), w_now: float | None = None) -> ShieldDecision:
         """The command to send instead of (v, w) (itself when its sweep is clear)."""
         cfg = self.config
         coast = self.dt + self.v_max / cfg.decel
@@ -212,7 +217,7 @@ class Shield:
         points = self.points(ranges, within=reach)
         near = [m for m in (movers or ()) if math.hypot(m.pose[0] - pose[0], m.pose[1] - pose[1])
                 < reach + max(m.size[:2]) + m.speed * coast]
-        if self.check(v, w, v_now, points, near, pose)[0]:
+        if self.check(v, w, v_now, points, near, pose, w_now=w_now)[0]:
             return ShieldDecision(False, v, w, 0.0, True)
         hb = self._half_base
         cand = np.array([(v * scale, min(max(w + dw, -self.w_max), self.w_max))
@@ -220,9 +225,10 @@ class Shield:
                          if (scale, dw) != (1.0, 0.0)] + [(0.0, 0.0)])  # a full stop is always among them
         change = (np.abs((cand[:, 0] - cand[:, 1] * hb) - (v - w * hb))
                   + np.abs((cand[:, 0] + cand[:, 1] * hb) - (v + w * hb)))
-        clear = self.check(cand[:, 0], cand[:, 1], v_now, points, near, pose)
+        clear = self.check(cand[:, 0], cand[:, 1], v_now, points, near, pose, w_now=w_now)
         if not clear.any():  # already inside the margin: turning in place (or stopping) off the outline itself
-            clear = (cand[:, 0] == 0.0) & self.check(cand[:, 0], cand[:, 1], v_now, points, near, pose, rects=self._bare)
+            clear = (cand[:, 0] == 0.0) & self.check(cand[:, 0], cand[:, 1], v_now, points, near, pose,
+                                                     rects=self._bare, w_now=w_now)
         if not clear.any():
             return ShieldDecision(True, 0.0, 0.0, float(change[-1]), False)
         best = int(np.flatnonzero(clear)[np.argmin(change[clear])])
@@ -251,9 +257,10 @@ class ShieldWrapper(gym.Wrapper):
         scene = base.scene
         v, w = base.command(action)
         ranges = np.asarray(scene.sensors.lidar.read(), dtype=np.float64)
-        v_now = float(scene.sensors.odometry.read()[3])
+        odometry = scene.sensors.odometry.read()
         movers = list(scene.movers) if scene.dynamic else None
-        d = self.decision = self.shield.filter(v, w, v_now, ranges, movers, tuple(scene.pose))
+        d = self.decision = self.shield.filter(v, w, float(odometry[3]), ranges, movers, tuple(scene.pose),
+                                               w_now=float(odometry[4]))
         if d.intervened:
             action = self._action(d.v, d.w)
         obs, reward, terminated, truncated, info = self.env.step(action)
