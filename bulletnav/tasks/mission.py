@@ -4,8 +4,10 @@ The navigation task's observation, reward and rules, applied to the current targ
 
 - **Target.** ``fixed``: the first goal not yet reached. ``free``: the nearest goal not yet
   reached (straight-line distance from the pose the task observes with), re-chosen every
-  step, so the progress term is measured toward the nearest remaining goal. A goal counts as
-  reached inside ``goal_radius``, like the single goal.
+  step, so the progress term is measured toward the nearest remaining goal. With
+  ``guidance="floorplan"`` it is instead the next goal of the shortest tour on the floor plan's
+  path costs, fixed at reset (:mod:`bulletnav.tasks.guidance`). A goal counts as reached inside
+  ``goal_radius``, like the single goal.
 - **Reward.** Every term of :class:`NavigationTask` toward the target, and ``subgoal``
   (``reward_subgoal``, +10) once for each goal reached before the last one; the last one earns
   ``goal`` (+50) and ends the episode with success.
