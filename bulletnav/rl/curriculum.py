@@ -131,21 +131,17 @@ class CurriculumCallback(BaseCallback):
         super().__init__()
         self.curriculum = curriculum
 
-    def _on_training_start(self) -> None:  # the stage was sent before the envs' first reset
-        stage = self.curriculum.stages[self.curriculum.stage]
-        log.info("curriculum: training starts in stage %d of %d: %s", self.curriculum.stage, len(self.curriculum.stages),
-                 stage or "the env as made")
-        self.logger.record("curriculum/stage", self.curriculum.stage)
-
     def send_stage(self, venv: Any) -> None:
-        """Set the current stage in every env of ``venv`` (before training starts)."""
+        """Set the current stage in every env of ``venv`` (before training starts, and at each change)."""
         venv.env_method("set_episode_config", **self.curriculum.stages[self.curriculum.stage])
 
-    def _apply(self, announce: str) -> None:
+    def _announce(self, what: str) -> None:
         stage = self.curriculum.stages[self.curriculum.stage]
-        self.training_env.env_method("set_episode_config", **stage)
-        log.info("%s of %d: %s", announce, len(self.curriculum.stages), stage or "the env as made")
+        log.info("curriculum: %s of %d: %s", what, len(self.curriculum.stages), stage or "the env as made")
         self.logger.record("curriculum/stage", self.curriculum.stage)
+
+    def _on_training_start(self) -> None:  # the stage was sent before the envs' first reset
+        self._announce(f"training starts in stage {self.curriculum.stage}")
 
     def _on_step(self) -> bool:
         for done, info in zip(self.locals["dones"], self.locals["infos"]):
@@ -155,9 +151,9 @@ class CurriculumCallback(BaseCallback):
             new = self.curriculum.record(bool(info.get("is_success", False)))
             if new is not None:
                 verb = "promoted" if new > previous else "demoted"
-                self._apply(announce=f"curriculum: {verb} to stage {new} at {self.num_timesteps} steps "
-                                     f"(success {self.curriculum.changed_at_rate:.2f} over the last "
-                                     f"{self.curriculum.window} episodes)")
+                self.send_stage(self.training_env)
+                self._announce(f"{verb} to stage {new} at {self.num_timesteps} steps (success "
+                               f"{self.curriculum.changed_at_rate:.2f} over the last {self.curriculum.window} episodes)")
         rate = self.curriculum.success_rate
         if rate is not None:
             self.logger.record("curriculum/success_rate", rate)
