@@ -110,7 +110,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if args.what == "env":
         from bulletnav.bench.env_bench import bench_env
 
-        result = bench_env(steps=args.steps or 6000, seed=args.seed, env_id=args.env_id)
+        result = bench_env(steps=args.steps or 6000, seed=args.seed, env_id=args.env_id or DEFAULT_ENV_ID)
         if result["benchmark"] == "env_pair":
             lines = [
                 f"{result['env_id']:32s} {result['env_steps_per_s']:8.1f} steps/s  (reset {result['reset_ms_mean']:.1f} ms)",
@@ -150,6 +150,19 @@ def cmd_bench(args: argparse.Namespace) -> int:
                          f"{row['plan_ms_median']:11.3f} {row['plan_ms_p95']:7.3f} {row['replans_per_episode']:7.1f} "
                          f"{row['sim_time_to_goal_s']:10.2f} {row['path_length_m']:7.2f}")
         lines.append(f"paired: {result['paired']}")
+    elif args.what == "shield":
+        from bulletnav.bench.shield_bench import DEFAULT_ENV, bench_shield
+
+        result = bench_shield(steps=args.steps or 3000, seed=args.seed, env_id=args.env_id or DEFAULT_ENV)
+        d, s = result["decision_ms"], result["env_step_ms"]
+        lines = [f"shield decision per step ({result['env_id']}, {result['steps']} steps, forward-pushing driver, "
+                 f"acted on {result['intervention_rate'] * 100:.1f} %):",
+                 f"  all      mean {d['mean']:.3f} ms  median {d['median']:.3f} ms  p99 {d['p99']:.3f} ms  max {d['max']:.3f} ms",
+                 f"  passed   mean {result['decision_passed_ms']['mean']:.3f} ms   "
+                 f"replaced mean {result['decision_vetoed_ms']['mean']:.3f} ms",
+                 f"  env step mean {s['mean']:.3f} ms; decision / env step {result['ratio_decision_to_env_step']:.3f}; "
+                 f"target p99 < 1 ms: {'met' if result['meets_target'] else 'NOT met'}; "
+                 f"collisions {result['collisions']} in {result['episodes']} episodes"]
     elif args.what == "gui":
         from bulletnav.bench.gui_bench import bench_gui
 
@@ -179,6 +192,21 @@ def _make_env(args: argparse.Namespace, **extra):
     return gym.make(args.env_id, render_mode="human" if getattr(args, "gui", False) else None, **kwargs)
 
 
+def _shielded(args: argparse.Namespace, env):
+    """``env`` behind the safety shield (``--shield``), else itself."""
+    if not getattr(args, "shield", False):
+        return env
+    from bulletnav.control.shield import ShieldWrapper
+
+    return ShieldWrapper(env)
+
+
+def _shield_line(s: dict) -> str:
+    """One report line of the shield's figures of :func:`bulletnav.evaluation.summarize`."""
+    return (f"replaced the command on {s['shield_rate'] * 100:.2f} % of steps, "
+            f"mean change {_fmt(s['shield_change_mean'], '.3f')} m/s (wheel rim speeds, when it acted)")
+
+
 def _json(obj) -> str:
     """Strict JSON: NaN (nothing to average) becomes null."""
 
@@ -199,11 +227,11 @@ class _Visuals:
 
     They only read the simulation, so switching them on leaves the episodes unchanged."""
 
-    def __init__(self, env, policy, video: str | None, plot: str | None, gui: bool) -> None:
+    def __init__(self, env, policy, video: str | None, plot: str | None, gui: bool, shield: bool = False) -> None:
         from bulletnav.viz import Dashboard, EpisodeRecorder, TrajectoryLog
 
         self.policy = policy
-        self.recorder = EpisodeRecorder(video) if video else None
+        self.recorder = EpisodeRecorder(video, shield=shield) if video else None
         self.log = TrajectoryLog() if plot else None
         self.plot = plot
         self.dashboard = Dashboard(env) if gui else None
@@ -247,7 +275,8 @@ class _Visuals:
 def _run_with_visuals(args, env, policy, line, title: str):
     from bulletnav.evaluation import run_episodes
 
-    visuals = _Visuals(env, policy, getattr(args, "video", None), getattr(args, "plot", None), getattr(args, "gui", False))
+    visuals = _Visuals(env, policy, getattr(args, "video", None), getattr(args, "plot", None), getattr(args, "gui", False),
+                       getattr(args, "shield", False))
     sizes: list[list[float]] = []
 
     def on_reset(env, info) -> None:
@@ -281,7 +310,7 @@ def cmd_navigate(args: argparse.Namespace) -> int:
     from bulletnav.control.navigator import Navigator, NavigatorConfig
     from bulletnav.evaluation import summarize
 
-    env = _make_env(args)
+    env = _shielded(args, _make_env(args))
     nav = Navigator(env.unwrapped.scene, NavigatorConfig(planner=args.planner, pose_source=args.pose))
 
     def line(r) -> None:
@@ -294,12 +323,12 @@ def cmd_navigate(args: argparse.Namespace) -> int:
     results, written, layout_size = _run_with_visuals(args, env, nav, line, f"PID + {args.planner} (seed {args.seed})")
     summary = summarize(results)
     summary.update(planner=args.planner, seed=args.seed, pose_source=args.pose, env_id=args.env_id,
-                   world=_world_label(args), world_size=layout_size, perturb=args.perturb)
+                   world=_world_label(args), world_size=layout_size, perturb=args.perturb, shield=args.shield)
     if args.json:
         print(_json(summary))
         return 0
     env_name = "" if args.env_id == DEFAULT_ENV_ID else f"{args.env_id} | "
-    shift = f" | perturb {args.perturb}" if args.perturb else ""
+    shift = (f" | perturb {args.perturb}" if args.perturb else "") + (" | shield" if args.shield else "")
     print(f"\nplanner {args.planner} | {env_name}{summary['world']} | episodes {summary['episodes']} | seed {args.seed}{shift}")
     print(f"success rate   {summary['success_rate'] * 100:5.1f} %   collisions {summary['collision_rate'] * 100:5.1f} %   "
           f"SPL {summary['spl']:.3f}")
@@ -309,6 +338,8 @@ def cmd_navigate(args: argparse.Namespace) -> int:
     print(f"planning       median {_fmt(summary['plan_ms_median'], '.3f')} ms  p95 {_fmt(summary['plan_ms_p95'], '.3f')} ms  "
           f"calls {summary['plan_calls']}  replans/episode {summary['replans_mean']:.1f}")
     print(f"safety         {_safety_line(summary)}")
+    if args.shield:
+        print(f"shield         {_shield_line(summary)}")
     if any(r.goals_total > 1 for r in results):
         print(f"mission        progress {summary['progress'] * 100:.1f} %   PPL {summary['ppl']:.3f}   "
               f"goals per minute {summary['goals_per_minute']:.2f}")
@@ -330,7 +361,8 @@ def cmd_train(args: argparse.Namespace) -> int:
         algo=args.algo, timesteps=args.timesteps, out=Path(args.out), seed=args.seed, n_envs=args.n_envs,
         resume=args.resume, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
         checkpoint_freq=args.checkpoint_freq, progress_bar=not args.no_progress, vec_env=args.vec_env,
-        hyperparams=Path(args.hyperparams) if args.hyperparams else None, command=command_line(), **extra,
+        hyperparams=Path(args.hyperparams) if args.hyperparams else None, command=command_line(), shield=args.shield,
+        **extra,
     )
     record = train(cfg)
     final = record.get("final_eval") or {}
@@ -351,7 +383,7 @@ def _evaluate_report(args: argparse.Namespace, model_path: str) -> dict:
     import gymnasium as gym
 
     import bulletnav  # noqa: F401
-    from bulletnav.evaluation import SAFETY_KEYS, summarize
+    from bulletnav.evaluation import SAFETY_KEYS, SHIELD_KEYS, summarize
     from bulletnav.rl.envs import evaluation_env_kwargs
     from bulletnav.rl.io import load_model
     from bulletnav.rl.policy import SB3Policy
@@ -361,12 +393,12 @@ def _evaluate_report(args: argparse.Namespace, model_path: str) -> dict:
     default_obstacles = EVALUATE_OBSTACLES if args.env_id == DEFAULT_ENV_ID else None
     env_kwargs = evaluation_env_kwargs(meta.get("env_kwargs", {}))
     env_kwargs.update(_world_kwargs(args, default_obstacles))
-    env = gym.make(args.env_id, render_mode="human" if args.gui else None, **env_kwargs)
+    env = _shielded(args, gym.make(args.env_id, render_mode="human" if args.gui else None, **env_kwargs))
     algo = str(meta.get("algo", getattr(args, "algo", None) or "?")).upper()
     bar = "=" * 60
     if not args.json:
         env_name = "" if args.env_id == DEFAULT_ENV_ID else f", {args.env_id}"
-        shift = f", perturb {args.perturb}" if args.perturb else ""
+        shift = (f", perturb {args.perturb}" if args.perturb else "") + (", shield" if args.shield else "")
         print(f"{bar}\nRunning {args.episodes} evaluation episodes ({algo} {model_path}, seed {args.seed}{env_name}{shift})\n{bar}")
 
     def line(r) -> None:
@@ -381,10 +413,11 @@ def _evaluate_report(args: argparse.Namespace, model_path: str) -> dict:
     results, written, layout_size = _run_with_visuals(args, env, SB3Policy(model, vecnorm), line, f"{algo} (seed {args.seed})")
     s = summarize(results)
     keys = ("episodes", "success_rate", "mean_reward", "std_reward", "mean_length", "std_length", "mean_distance",
-            "std_distance", "collision_rate", "spl", *SAFETY_KEYS, "progress", "ppl", "goals_per_minute", "per_episode")
+            "std_distance", "collision_rate", "spl", *SAFETY_KEYS, *SHIELD_KEYS, "progress", "ppl", "goals_per_minute",
+            "per_episode")
     out = {k: s[k] for k in keys}
     out.update(model=str(model_path), seed=args.seed, env_id=args.env_id,
-               world=_world_label(args, default_obstacles), world_size=layout_size, perturb=args.perturb)
+               world=_world_label(args, default_obstacles), world_size=layout_size, perturb=args.perturb, shield=args.shield)
     if args.json:
         print(_json(out))
         return out
@@ -396,6 +429,8 @@ def _evaluate_report(args: argparse.Namespace, model_path: str) -> dict:
           f"Average distance:        {s['mean_distance']:.2f}m \u00b1 {s['std_distance']:.2f}m\n"
           f"Collision rate: {s['collision_rate'] * 100:.1f}%   SPL: {s['spl']:.3f}\n"
           f"Safety: {_safety_line(s)}")
+    if args.shield:
+        print(f"Shield: {_shield_line(s)}")
     if any(r.goals_total > 1 for r in results):
         print(f"Mission: progress {s['progress'] * 100:.1f} %   PPL {s['ppl']:.3f}   "
               f"goals per minute {s['goals_per_minute']:.2f}")
@@ -526,6 +561,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="pose for mapping and steering (default truth)")
     nav.add_argument("--gui", action="store_true", help="watch in the PyBullet GUI (needs a display)")
     nav.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
+    nav.add_argument("--shield", action="store_true",
+                     help="behind the safety shield: a command whose stopping sweep would touch what the lidar sees or "
+                          "a mover is replaced by the closest safe one (reports how often)")
     nav.add_argument("--video", metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
     nav.add_argument("--plot", metavar="PNG", help="write all episodes' paths over their maps")
     nav.set_defaults(func=cmd_navigate)
@@ -546,6 +584,8 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--hyperparams", metavar="YAML",
                     help="hyperparameter file to use instead of the packaged rl/hyperparams/<algo>.yml (same format)")
     tr.add_argument("--no-progress", action="store_true", help="no progress bar")
+    tr.add_argument("--shield", action="store_true",
+                    help="train (and evaluate during training) behind the safety shield, so the policy learns with it")
     tr.set_defaults(func=cmd_train)
 
     ev = add("evaluate", "evaluate a trained model (deterministic actions)")
@@ -560,6 +600,9 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--seed", type=int, default=1000, help="episode k uses env seed S + k (default 1000)")
     ev.add_argument("--gui", action="store_true", help="watch in the PyBullet GUI (needs a display)")
     ev.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
+    ev.add_argument("--shield", action="store_true",
+                     help="behind the safety shield: a command whose stopping sweep would touch what the lidar sees or "
+                          "a mover is replaced by the closest safe one (reports how often)")
     ev.add_argument("--video", metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
     ev.add_argument("--plot", metavar="PNG", help="write all episodes' paths over their maps")
     ev.set_defaults(func=cmd_evaluate)
@@ -584,6 +627,9 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--video", metavar="PATH", help="video file (default DIR/episodes.mp4)")
     demo.add_argument("--gui", action="store_true", help="watch live in the PyBullet GUI")
     demo.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
+    demo.add_argument("--shield", action="store_true",
+                     help="behind the safety shield: a command whose stopping sweep would touch what the lidar sees or "
+                          "a mover is replaced by the closest safe one (reports how often)")
     demo.set_defaults(func=cmd_demo, algo=None)
 
     view = add("view", "look at a warehouse in the PyBullet GUI")
@@ -595,16 +641,17 @@ def build_parser() -> argparse.ArgumentParser:
     view.set_defaults(func=cmd_view)
 
     bench = add("bench", "benchmarks (print JSON with --json)")
-    bench.add_argument("what", choices=["env", "physics", "planners", "gui"],
+    bench.add_argument("what", choices=["env", "physics", "planners", "gui", "shield"],
                        help="env: env vs raw PyBullet loop; physics: solver settings; planners: A* vs RRT; "
-                            "gui: dashboard frame rate (needs a display: xvfb-run -a)")
+                            "gui: dashboard frame rate (needs a display: xvfb-run -a); shield: the safety "
+                            "shield's decision time per step against the env step (default env WarehouseDynamic-v0)")
     bench.add_argument("--episodes", type=int, default=50, help="navigation episodes per planner (planners)")
     bench.add_argument("--json", action="store_true", help="print one JSON object")
     bench.add_argument("--steps", type=int, default=0, help="steps to time (default: the benchmark's own)")
     bench.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    bench.add_argument("--env", dest="env_id", default=DEFAULT_ENV_ID, metavar="ID",
+    bench.add_argument("--env", dest="env_id", default=None, metavar="ID",
                        help="env: Warehouse-v0 against raw PyBullet, or WarehouseDynamic-v0 against "
-                            "WarehouseAisles-v0 (default Warehouse-v0)")
+                            "WarehouseAisles-v0 (default Warehouse-v0); shield: any env (default WarehouseDynamic-v0)")
     bench.set_defaults(func=cmd_bench)
     return parser
 

@@ -12,7 +12,9 @@ Safety metrics read two optional ``info`` keys that envs with moving obstacles r
 ``nearest_mover_m`` (metres from the robot's outline to the nearest mover, ``inf`` when
 there is none) and ``collision_with`` (``"static"``, ``"dynamic"`` or None). Static worlds
 leave both out: a collision there is a static one, and an episode has no separation to
-movers (NaN) and no near misses.
+movers (NaN) and no near misses. Behind a safety shield (``ShieldWrapper``, which reports
+``info["shield"]``, or a ``SafetyShield`` policy, read through its ``decision``) each
+episode also counts the steps the shield replaced the command and by how much.
 """
 
 from __future__ import annotations
@@ -66,6 +68,10 @@ class EpisodeResult:
     """Goals reached (1 on a successful single-goal episode)."""
     ppl: float = 0.0
     """Progress (goals reached / goals) x optimal tour / max(driven, optimal tour); SPL for one goal."""
+    shield_steps: int = 0
+    """Steps on which a safety shield replaced the command (``info["shield"]["intervened"]``)."""
+    shield_change: float = 0.0
+    """Sum over those steps of the shield's change in wheel rim speeds (m/s)."""
     min_separation: InitVar[float] = math.nan
     # Not a field: NaN (no movers) has no strict-JSON form, and the per-episode rows
     # (``asdict``, ``summarize``'s ``per_episode``, the CLI's JSON) stay plain numbers.
@@ -82,6 +88,9 @@ class EpisodeResult:
 SAFETY_KEYS = ("collision_static_rate", "collision_dynamic_rate", "timeout_rate", "min_separation_m", "near_miss_rate",
                "episode_time_s")
 """The safety entries of :func:`summarize`."""
+
+SHIELD_KEYS = ("shield_rate", "shield_change_mean")
+"""The safety shield's entries of :func:`summarize` (0 and NaN without a shield)."""
 
 NEAR_MISS_M = 0.2
 """A step is a near miss when the robot's outline comes closer than this to a mover (m)."""
@@ -186,6 +195,7 @@ def run_episodes(env, policy: Policy, episodes: int, seed: int,
             shortest = shortest_path_length(scene.layout, (start[0], start[1]), scene.goal, radius=scene.geometry.radius)
         total, steps = 0.0, 0
         safety = SafetyTracker()
+        shield_steps, shield_change = 0, 0.0
         t0 = time.perf_counter()
         while True:
             action = policy.act(obs, info)
@@ -193,6 +203,10 @@ def run_episodes(env, policy: Policy, episodes: int, seed: int,
             total += reward
             steps += 1
             safety.step(info)
+            veto = _shield_decision(info, policy)
+            if veto is not None and veto["intervened"]:
+                shield_steps += 1
+                shield_change += float(veto["change"])
             if on_step is not None:
                 on_step(env, info)
             if terminated or truncated:
@@ -209,12 +223,23 @@ def run_episodes(env, policy: Policy, episodes: int, seed: int,
             success=success, collision=bool(info["collision"]), spl=spl,
             sim_time=steps * scene.control_dt, wall_time=time.perf_counter() - t0,
             plan_ms=[t * 1e3 for t in getattr(policy, "plan_times", [])], replans=int(getattr(policy, "replans", 0)),
-            goals_total=len(goals), goals_reached=reached, ppl=ppl, **safety.result(info),
+            goals_total=len(goals), goals_reached=reached, ppl=ppl, shield_steps=shield_steps,
+            shield_change=shield_change, **safety.result(info),
         )
         results.append(result)
         if on_episode is not None:
             on_episode(result)
     return results
+
+
+def _shield_decision(info: dict, policy: Any) -> dict | None:
+    """This step's shield decision: ``info["shield"]`` (a ``ShieldWrapper``), else a
+    ``SafetyShield`` policy's ``decision``; None when no shield is on."""
+    veto = info.get("shield")
+    if veto is None:
+        decision = getattr(policy, "decision", None)
+        veto = decision.as_info() if hasattr(decision, "as_info") else None
+    return veto
 
 
 def summarize(results: list[EpisodeResult]) -> dict[str, Any]:
@@ -224,7 +249,10 @@ def summarize(results: list[EpisodeResult]) -> dict[str, Any]:
     had movers), the share of all steps that were near misses, and the mean episode length
     in simulated seconds. Missions add ``progress`` (mean share of goals reached), ``ppl``
     (progress weighted by the optimal tour over the path driven) and ``goals_per_minute``
-    (goals reached per simulated minute, all episodes); for single goals ``ppl`` is SPL."""
+    (goals reached per simulated minute, all episodes); for single goals ``ppl`` is SPL.
+    Behind a safety shield: ``shield_rate`` (share of all steps on which it replaced the
+    command) and ``shield_change_mean`` (mean change in wheel rim speeds over those steps,
+    m/s; NaN when it never intervened)."""
     n = len(results)
     rewards = np.array([r.reward for r in results])
     lengths = np.array([r.steps for r in results])
@@ -260,5 +288,8 @@ def summarize(results: list[EpisodeResult]) -> dict[str, Any]:
         "ppl": float(np.mean([r.ppl for r in results])) if n else 0.0,
         "goals_per_minute": (60.0 * sum(r.goals_reached for r in results) / sum(r.sim_time for r in results)
                              if n and sum(r.sim_time for r in results) > 0 else 0.0),
+        "shield_rate": sum(r.shield_steps for r in results) / total_steps if total_steps else 0.0,
+        "shield_change_mean": (sum(r.shield_change for r in results) / sum(r.shield_steps for r in results)
+                               if any(r.shield_steps for r in results) else math.nan),
         "per_episode": [{k: v for k, v in asdict(r).items() if k != "plan_ms"} for r in results],
     }

@@ -1,14 +1,22 @@
-"""Safety shield (issue 18, in progress): analytic cases on synthetic scans, and the wrapper."""
+"""Safety shield: analytic cases on synthetic scans, the sweep against closed forms, a fuzz
+test in cluttered worlds with movers (no contact with the shield on), the policy and env
+wrappers on the same episodes, evaluation's intervention figures, the CLI's ``--shield``,
+``train --shield``, the video tint, the dashboard line and ``bench shield``."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import gymnasium as gym
 import numpy as np
+import pytest
 
 import bulletnav  # noqa: F401
-from bulletnav.control.shield import Shield, ShieldWrapper
+from bulletnav.cli import main
+from bulletnav.config import asset_path
+from bulletnav.control.shield import SafetyShield, Shield, ShieldConfig, ShieldWrapper
+from bulletnav.evaluation import run_episodes, summarize
 from bulletnav.geometry import robot_geometry
 from bulletnav.sensors.lidar import ray_angles
 
@@ -50,9 +58,12 @@ def _box(cx: float, cy: float, half: float, n: int = 400) -> np.ndarray:
 
 def test_a_wall_inside_the_stopping_sweep_stops_a_forward_command_and_one_just_beyond_does_not():
     """At 0.5 m/s the sweep is one control period at full speed plus the braking distance:
-    0.5 / 24 + 0.5^2 / (2 x 1.5) = 0.104 m past the front face (0.15 m) and its 0.04 m margin."""
-    reach = 0.15 + 0.04 + 0.5 / 24 + 0.5**2 / (2 * 1.5)
+    0.5 / 24 + 0.5^2 / (2 x 1.5) = 0.104 m past the front face (0.15 m) and its 0.05 m margin:
+    0.304 m from the centre, so a wall dead ahead at 0.3 m stops it."""
+    reach = 0.15 + 0.05 + 0.5 / 24 + 0.5**2 / (2 * 1.5)
     shield = _shield()
+    at_03 = shield.filter(0.5, 0.0, 0.5, _wall_ahead(0.3))  # the issue's case: a wall dead ahead at 0.3 m
+    assert at_03.intervened and (at_03.v, at_03.w) == (0.0, 0.0) and at_03.safe
     near = shield.filter(0.5, 0.0, 0.5, _wall_ahead(reach - 0.01))
     far = shield.filter(0.5, 0.0, 0.5, _wall_ahead(reach + 0.01))
     assert near.intervened and near.v == 0.0 and near.safe
@@ -90,3 +101,165 @@ def test_the_wrapper_reports_its_decision_and_passes_actions_bit_for_bit_when_cl
         np.testing.assert_array_equal(a, b)
     plain.close()
     shielded.close()
+
+
+def test_the_sweep_ends_where_the_closed_form_stop_does():
+    """Straight: one control period at speed, then v^2 / (2 decel). On an arc of curvature
+    w / v the end pose is (R sin th, R (1 - cos th), th) with th = w s / v."""
+    shield = _shield()
+    dt, decel = 1 / 24, ShieldConfig().decel
+    s = 0.4 * dt + 0.4**2 / (2 * decel)
+    poses, times = shield.sweep(0.4, 0.0, 0.4)
+    np.testing.assert_allclose(poses[0, -1], (s, 0.0, 0.0), atol=1e-12)
+    assert times[0, 1] == pytest.approx(dt) and times[0, -1] == pytest.approx(dt + 0.4 / decel)
+    poses, _ = shield.sweep(0.4, 1.0, 0.4)
+    th, radius = 1.0 * s / 0.4, 0.4 / 1.0
+    np.testing.assert_allclose(poses[0, -1], (radius * math.sin(th), radius * (1 - math.cos(th)), th), atol=2e-4)
+    # a turn in place slows at the rim deceleration: w dt + w^2 (b / 2) / (2 decel) in all
+    poses, _ = shield.sweep(0.0, 1.5, 0.0)
+    half = GEOMETRY.wheelbase / 2
+    assert poses[0, -1, 2] == pytest.approx(1.5 * dt + 1.5**2 * half / (2 * decel), rel=1e-9)
+    np.testing.assert_allclose(poses[0, :, :2], 0.0)
+
+
+def test_turning_in_place_inside_the_margin_may_turn_away_from_a_wall_but_never_into_it():
+    """The robot beside a wall (its side 2 cm off it, inside the 5 cm margin): nothing is clear
+    with the margin, so only a turn that brings no point of the outline closer may pass."""
+    wall_y = -(0.12 + 0.02)  # the wheels stick out to 0.12 m
+    s = np.sin(ANGLES)
+    with np.errstate(divide="ignore"):
+        ranges = np.minimum(np.where(s < -1e-6, wall_y / s, 5.0), 5.0)
+    shield = _shield()
+    for w in (1.5, -1.5, 0.8, -0.8):
+        d = shield.filter(0.3, w, 0.0, ranges, w_now=0.0)
+        assert d.intervened and d.v == 0.0
+        poses, _ = shield.sweep(d.v, d.w, 0.0, 0.0)
+        gap = shield._clearance(poses, shield.points(ranges))[0]
+        assert gap >= shield._clearance(np.zeros((1, 1, 3)), shield.points(ranges))[0] - 1e-4
+
+
+def _fuzz(env, rng: np.random.Generator, driver: str, steps: int) -> tuple[int, int, int]:
+    """(collisions, interventions, steps) of one episode of a random or a ramming driver."""
+    low, high = env.action_space.low, env.action_space.high
+    hold, action, vetoed, n = 0, None, 0, 0
+    for _ in range(steps):
+        if driver == "random":
+            action = rng.uniform(low, high).astype(np.float32)
+        elif hold <= 0:  # full speed ahead on a held heading change, into whatever is there
+            action = np.array([high[0], rng.uniform(low[1], high[1]) * rng.choice([0.0, 0.3, 1.0])], dtype=np.float32)
+            hold = int(rng.integers(5, 60))
+        hold -= 1
+        _, _, terminated, truncated, info = env.step(action)
+        n += 1
+        vetoed += info["shield"]["intervened"]
+        if info["collision"]:
+            return 1, vetoed, n
+        if terminated or truncated:
+            break
+    return 0, vetoed, n
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("env_id,kwargs", [
+    ("bulletnav/Warehouse-v0", {"num_obstacles": 40}),
+    ("bulletnav/WarehouseAisles-v0", {}),
+    ("bulletnav/WarehouseDynamic-v0", {"forklift_speed": 1.0}),  # movers, events, fast forklifts
+])
+def test_fuzz_random_and_ramming_drivers_never_touch_anything_behind_the_shield(env_id, kwargs):
+    env = ShieldWrapper(gym.make(env_id, **kwargs))
+    try:
+        collisions = vetoed = steps = 0
+        for k in range(3):
+            for driver in ("random", "ram"):
+                env.reset(seed=4200 + k)
+                c, v, n = _fuzz(env, np.random.default_rng(4200 + k), driver, 250)
+                collisions, vetoed, steps = collisions + c, vetoed + v, steps + n
+        assert collisions == 0
+        assert vetoed > 0.05 * steps  # the drivers did push it: the shield acted often
+    finally:
+        env.close()
+
+
+class _Ram:
+    """A user's controller: full speed ahead, slowly turning left, whatever is in the way."""
+
+    def reset(self, info):
+        self.calls = 0
+
+    def act(self, obs, info):
+        self.calls += 1
+        return np.array([0.5, 0.05], dtype=np.float32)
+
+
+def test_the_policy_wrapper_and_the_env_wrapper_run_the_same_episodes_and_evaluation_counts_them():
+    kwargs = {"num_obstacles": 40, "max_episode_steps": 300}
+    by_policy = gym.make("bulletnav/Warehouse-v0", **kwargs)
+    by_env = ShieldWrapper(gym.make("bulletnav/Warehouse-v0", **kwargs))
+    try:
+        policy = SafetyShield(_Ram(), by_policy)
+        a = run_episodes(by_policy, policy, 2, seed=7)
+        b = run_episodes(by_env, _Ram(), 2, seed=7)
+        assert policy.calls == policy.steps  # the wrapped policy's attributes show through
+        for ra, rb in zip(a, b):
+            assert (ra.steps, ra.path_length, ra.collision, ra.shield_steps) == (rb.steps, rb.path_length, rb.collision,
+                                                                               rb.shield_steps)
+            assert ra.shield_change == pytest.approx(rb.shield_change)
+            assert not ra.collision and ra.shield_steps > 0  # it drove at the clutter and was stopped
+        s = summarize(b)
+        assert s["shield_rate"] == pytest.approx(sum(r.shield_steps for r in b) / sum(r.steps for r in b))
+        assert s["shield_change_mean"] > 0
+        plain = summarize(run_episodes(by_policy, _Ram(), 1, seed=7))
+        assert plain["shield_rate"] == 0.0 and math.isnan(plain["shield_change_mean"]) and plain["collision_rate"] == 1.0
+    finally:
+        by_policy.close()
+        by_env.close()
+
+
+def test_navigate_and_evaluate_take_shield_and_report_it(capsys):
+    assert main(["navigate", "--planner", "none", "--episodes", "2", "--obstacles", "40", "--seed", "11",
+                 "--shield", "--json"]) == 0
+    nav = json.loads(capsys.readouterr().out)
+    assert nav["shield"] is True and 0.0 <= nav["shield_rate"] <= 1.0 and nav["collision_rate"] == 0.0
+    assert main(["evaluate", "--model", "models/ppo_warehouse.zip", "--episodes", "1", "--shield"]) == 0
+    out = capsys.readouterr().out
+    assert ", shield)" in out and "Shield: replaced the command on" in out
+    assert main(["evaluate", "--model", "models/ppo_warehouse.zip", "--episodes", "1", "--json"]) == 0
+    plain = json.loads(capsys.readouterr().out)
+    assert plain["shield"] is False and plain["shield_rate"] == 0.0
+
+
+def test_train_with_the_shield_in_the_loop_records_it(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["train", "--timesteps", "256", "--n-envs", "1", "--vec-env", "dummy", "--out", str(out),
+                 "--eval-freq", "256", "--eval-episodes", "1", "--no-progress", "--shield"]) == 0
+    assert json.loads((out / "run.json").read_text())["shield"] is True
+    assert json.loads((out / "model.json").read_text())["shield"] is True
+
+
+def test_video_tints_the_robot_on_shielded_steps(tmp_path):
+    from bulletnav.viz.video import ROBOT, SHIELD, EpisodeRecorder
+
+    env = gym.make("bulletnav/Warehouse-v0", world=str(asset_path("worlds", "empty.yaml")))
+    try:
+        _, info = env.reset(seed=0)
+        with EpisodeRecorder(tmp_path / "v.gif", shield=True) as rec:
+            rec.on_reset(env, info)
+            _, _, _, _, info = env.step(np.zeros(2, dtype=np.float32))
+            rec.on_step(env, {**info, "shield": {"intervened": False, "change": 0.0}})
+            calm = rec.last_frame[:480, :480].copy()
+            rec.on_step(env, {**info, "shield": {"intervened": True, "change": 0.3}})
+            vetoed = rec.last_frame[:480, :480].copy()
+        def has(frame, colour):
+            return bool(np.all(frame == np.array(colour, dtype=np.uint8), axis=-1).any())
+        assert has(calm, ROBOT) and not has(calm, SHIELD)
+        assert has(vetoed, SHIELD)
+    finally:
+        env.close()
+
+
+def test_bench_shield_prints_json_with_the_decision_time(capsys):
+    assert main(["bench", "shield", "--steps", "150", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["benchmark"] == "shield" and result["env_id"] == "bulletnav/WarehouseDynamic-v0"
+    assert result["decision_ms"]["n"] == 150 and result["decision_ms"]["mean"] > 0
+    assert result["ratio_decision_to_env_step"] > 0 and result["collisions"] == 0

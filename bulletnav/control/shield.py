@@ -2,14 +2,17 @@
 where a mover is headed, and replaces it with the closest safe one. It never drives.
 
 **The sweep.** For a command (v, w) the robot is assumed to run at ``max(v_now, v)`` for one
-control period, then to brake at ``decel`` along the same arc (a turn in place keeps turning
-while the robot coasts to a stop); the horizon is one control period plus the time to stop.
+control period, then to brake at ``decel`` along the same arc; a turn in place slows down at
+the same rim deceleration (its yaw rate at ``decel / (wheelbase / 2)``), so it keeps turning a
+little after the period. The horizon is one control period plus the longer of the two stops.
 The robot's outline (its collision rectangles, grown by ``margin``) is placed at ``samples``
 poses along that path and tested against:
 
 - the current lidar scan's hits, in the body frame, with the surface between two neighbouring
-  rays filled in every 5 cm when their ranges are within ``join`` of each other (36 rays are
-  17 cm apart at 1 m: a box corner could hide between two);
+  rays filled in every 5 cm when the two hits are within ``join`` of each other (36 rays are
+  17 cm apart at 1 m: a box corner could hide between two, and a wall seen at a grazing angle
+  has hits far apart in range but close in space; a gap narrower than the robot is no
+  passage, so closing it costs nothing);
 - the movers the scene exposes (``scene.movers``), each moved ahead at its current speed and
   heading to the time of each pose, as points on its footprint.
 
@@ -17,8 +20,10 @@ poses along that path and tested against:
 shield tries a small set of commands -- the commanded speed scaled by 0.75, 0.5, 0.25 and 0,
 each with the commanded yaw rate and yaw rates around it, always including a full stop -- and
 takes the clear one with the smallest change in wheel speeds. When the robot is already inside
-the margin and none is clear, turning in place is tried again against the bare outline (5 mm),
-so that it can turn away; when none is clear even then, it stops. The
+the margin and none is clear, it may still turn in place, but only where the turn never brings
+the bare outline closer to anything than it is now (so it can turn away from a wall it has come
+close to, never into it: a clearance test, robust to the 5 cm spacing of the filled surfaces);
+when no turn qualifies, it stops. The
 action space is forward-only, so it never backs into space the lidar has not seen.
 """
 
@@ -33,27 +38,31 @@ import numpy as np
 
 from bulletnav.geometry import RobotGeometry
 
+_BATCH = 8
+"""Fallback commands checked per batch, in order of increasing change."""
+
 
 @dataclass(frozen=True)
 class ShieldConfig:
     """Safety shield settings."""
 
-    margin: float = 0.04
-    """Added to every side of the robot's collision rectangles (m)."""
+    margin: float = 0.05
+    """Added to every side of the robot's collision rectangles (m): covers the 5 cm spacing of
+    filled surfaces (a corner pokes up to 2.5 cm between two points) and leaves 2.5 cm."""
     decel: float = 1.5
     """Braking deceleration assumed for the sweep (m/s^2; the motors reach about 2.6)."""
     samples: int = 12
     """Poses along each sweep."""
     join: float = 0.25
-    """Neighbouring lidar hits closer in range than this (m) are joined into a surface."""
+    """Neighbouring lidar hits closer to each other than this (m) are joined into a surface."""
     speed_scales: tuple[float, ...] = (0.75, 0.5, 0.25, 0.0)
     """Fallback forward speeds, as fractions of the commanded one."""
     turn_offsets: tuple[float, ...] = (0.0, 0.4, -0.4, 0.8, -0.8, 1.5, -1.5)
     """Fallback yaw rates: the commanded one plus these (rad/s), clipped to the action range."""
 
     def __post_init__(self) -> None:
-        if self.margin < 0 or self.decel <= 0 or self.samples < 2 or self.join < 0:
-            raise ValueError(f"shield needs margin >= 0, decel > 0, samples >= 2, join >= 0; got {self}")
+        if self.margin < 0 or self.decel <= 0 or self.samples < 3 or self.join < 0:
+            raise ValueError(f"shield needs margin >= 0, decel > 0, samples >= 3, join >= 0; got {self}")
 
 
 @dataclass(frozen=True)
@@ -97,9 +106,10 @@ class Shield:
         m = config.margin
         rects = [(r.cx, r.cy, r.half_x + m, r.half_y + m) for r in geometry.rectangles]
         self._rects = np.array(rects, dtype=np.float64)  # (R, 4)
-        self._bare = np.array([(r.cx, r.cy, r.half_x + 0.005, r.half_y + 0.005) for r in geometry.rectangles])
+        self._outline = np.array([(r.cx, r.cy, r.half_x, r.half_y) for r in geometry.rectangles])
         self._half_base = geometry.wheelbase / 2
         self._reach = geometry.outline_radius + m
+        self._tail = np.linspace(0.0, 1.0, config.samples - 1)[None, 1:]
 
     # ------------------------------------------------------------------ geometry
     def points(self, ranges: np.ndarray, within: float = math.inf) -> np.ndarray:
@@ -110,12 +120,12 @@ class Shield:
         x = self.geometry.lidar_offset + r * self.cos
         y = r * self.sin
         nxt = np.roll(np.arange(len(r)), -1)
-        pair = hit & hit[nxt] & (np.abs(r - r[nxt]) < self.config.join)
+        span = np.hypot(x[nxt] - x, y[nxt] - y)
+        pair = hit & hit[nxt] & (span < self.config.join)
         if within < math.inf:
             d = np.hypot(x, y)
             near = d < within
             # a joined surface passes no closer than its nearer end minus half its length
-            span = np.hypot(x[nxt] - x, y[nxt] - y)
             pair &= np.minimum(d, d[nxt]) - span / 2 < within
             hit &= near
         i = np.flatnonzero(pair)
@@ -139,19 +149,28 @@ class Shield:
         v = np.atleast_1d(np.asarray(v, dtype=np.float64))[:, None]
         w = np.atleast_1d(np.asarray(w, dtype=np.float64))[:, None]
         v1 = np.where(v > 0, np.maximum(v_now, v), max(v_now, 0.0))
-        horizon = self.dt + v1 / cfg.decel
-        t = np.linspace(0.0, 1.0, cfg.samples)[None, :] * horizon  # (C, K)
-        speed = np.where(t < self.dt, v1, np.maximum(v1 - cfg.decel * (t - self.dt), 0.0))
-        # the commanded curvature while driving; a turn in place keeps turning while coasting
-        rate = np.where(v > 0, w * speed / np.maximum(v1, 1e-9), w)
+        spin = np.abs(w) * self._half_base / cfg.decel  # a turn in place's time to stop turning
+        horizon = self.dt + np.maximum(v1 / cfg.decel, np.where(v > 0, 0.0, spin))
+        # times: 0, the end of the control period (where braking starts), then evenly to the horizon
+        t = np.concatenate([np.zeros_like(horizon), np.full_like(horizon, self.dt),
+                            self.dt + self._tail * (horizon - self.dt)], axis=1)  # (C, K)
+        after = np.maximum(t - self.dt, 0.0)
+        braking = np.minimum(after, v1 / cfg.decel)
+        speed = np.where(t < self.dt, v1, v1 - cfg.decel * braking)
+        travelled = v1 * np.minimum(t, self.dt) + v1 * braking - cfg.decel * braking**2 / 2  # exact
+        # the commanded curvature while driving; a turn in place slows at the rim deceleration
+        rate = np.where(v > 0, w * speed / np.maximum(v1, 1e-9), w * np.clip(1.0 - after / np.maximum(spin, 1e-9), 0.0, 1.0))
         if w_now is not None:
             blend = np.clip(t / self.dt, 0.0, 1.0)
             rate = w_now + blend * (rate - w_now)
-        dt = np.diff(t, axis=1, prepend=0.0)
-        yaw = np.cumsum(rate * dt, axis=1)
-        mid = yaw - rate * dt / 2
-        x = np.cumsum(speed * np.cos(mid) * dt, axis=1)
-        y = np.cumsum(speed * np.sin(mid) * dt, axis=1)
+        # yaw by the trapezoid rule (exact where the rate is linear between samples), position
+        # by the distance travelled in each interval along the interval's mean heading
+        dt = np.diff(t, axis=1)
+        yaw = np.concatenate([np.zeros_like(horizon), np.cumsum((rate[:, 1:] + rate[:, :-1]) / 2 * dt, axis=1)], axis=1)
+        mid = (yaw[:, 1:] + yaw[:, :-1]) / 2
+        ds = np.diff(travelled, axis=1)
+        x = np.concatenate([np.zeros_like(horizon), np.cumsum(ds * np.cos(mid), axis=1)], axis=1)
+        y = np.concatenate([np.zeros_like(horizon), np.cumsum(ds * np.sin(mid), axis=1)], axis=1)
         return np.stack([x, y, yaw], axis=2), t
 
     def _blocked(self, poses: np.ndarray, points: np.ndarray, rects: np.ndarray) -> np.ndarray:
@@ -170,6 +189,25 @@ class Shield:
         for cx, cy, hx, hy in rects:
             hit |= (np.abs(bx - cx) <= hx) & (np.abs(by - cy) <= hy)
         return hit.reshape(n_cmd, -1).any(axis=1)
+
+    def _clearance(self, poses: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """(C,) the smallest distance (m) over the poses (C, K, 3) from a point ((N, 2), or per
+        pose (C, K, M, 2)) to the bare outline (its collision rectangles); inf without points."""
+        n_cmd = poses.shape[0]
+        if points.shape[-2] == 0:
+            return np.full(n_cmd, np.inf)
+        if points.ndim == 2:
+            points = points[None, None]
+        px = points[..., 0] - poses[:, :, 0, None]
+        py = points[..., 1] - poses[:, :, 1, None]
+        c, s = np.cos(poses[:, :, 2])[..., None], np.sin(poses[:, :, 2])[..., None]
+        bx, by = c * px + s * py, -s * px + c * py
+        dist = np.full(bx.shape, np.inf)
+        for cx, cy, hx, hy in self._outline:
+            dx = np.maximum(np.abs(bx - cx) - hx, 0.0)
+            dy = np.maximum(np.abs(by - cy) - hy, 0.0)
+            dist = np.minimum(dist, np.hypot(dx, dy))
+        return dist.reshape(n_cmd, -1).min(axis=1)
 
     def _mover_points(self, movers: list[Any], times: np.ndarray, pose: tuple[float, float, float]) -> np.ndarray:
         """Footprint points of every mover at each time (C, K), in the robot's body frame (C, K, M, 2)."""
@@ -208,6 +246,29 @@ class Shield:
             blocked |= self._blocked(poses, self._mover_points(movers, times, pose), rects)
         return ~blocked
 
+    def _touch_free(self, v_now: float, points: np.ndarray, movers: list[Any], pose: tuple[float, float, float],
+                    w_now: float | None) -> bool:
+        """Whether the full stop's sweep keeps the bare outline off every point and mover."""
+        poses, times = self.sweep(0.0, 0.0, v_now, w_now)
+        gap = float(self._clearance(poses, points)[0])
+        if movers:
+            gap = min(gap, float(self._clearance(poses, self._mover_points(movers, times, pose))[0]))
+        return gap > 0.0
+
+    def _no_closer(self, v: np.ndarray, w: np.ndarray, v_now: float, points: np.ndarray, movers: list[Any],
+                   pose: tuple[float, float, float], w_now: float | None) -> np.ndarray:
+        """(C,) True where no pose of the command's sweep is closer to the points and movers
+        than the robot is now (to within 0.1 mm)."""
+        poses, times = self.sweep(v, w, v_now, w_now)
+        here = np.zeros((1, 1, 3))
+        now = float(self._clearance(here, points)[0])
+        gap = self._clearance(poses, points)
+        if movers:
+            pts = self._mover_points(movers, times, pose)
+            now = min(now, float(self._clearance(here, pts[:1, :1])[0]))
+            gap = np.minimum(gap, self._clearance(poses, pts))
+        return gap >= now - 1e-4
+
     def filter(self, v: float, w: float, v_now: float, ranges: np.ndarray, movers: list[Any] | None = None,
                pose: tuple[float, float, float] = (0.0, 0.0, 0.0), w_now: float | None = None) -> ShieldDecision:
         """The command to send instead of (v, w) (itself when its sweep is clear)."""
@@ -225,44 +286,112 @@ class Shield:
                          if (scale, dw) != (1.0, 0.0)] + [(0.0, 0.0)])  # a full stop is always among them
         change = (np.abs((cand[:, 0] - cand[:, 1] * hb) - (v - w * hb))
                   + np.abs((cand[:, 0] + cand[:, 1] * hb) - (v + w * hb)))
-        clear = self.check(cand[:, 0], cand[:, 1], v_now, points, near, pose, w_now=w_now)
-        if not clear.any():  # already inside the margin: turning in place (or stopping) off the outline itself
-            clear = (cand[:, 0] == 0.0) & self.check(cand[:, 0], cand[:, 1], v_now, points, near, pose,
-                                                     rects=self._bare, w_now=w_now)
-        if not clear.any():
-            return ShieldDecision(True, 0.0, 0.0, float(change[-1]), False)
-        best = int(np.flatnonzero(clear)[np.argmin(change[clear])])
+        order = np.argsort(change, kind="stable")
+        cand, change = cand[order], change[order]
+        # by increasing change, a batch at a time: the first clear one is the closest safe command
+        for lo in range(0, len(cand), _BATCH):
+            hi = lo + _BATCH
+            clear = self.check(cand[lo:hi, 0], cand[lo:hi, 1], v_now, points, near, pose, w_now=w_now)
+            if clear.any():
+                best = lo + int(np.argmax(clear))
+                return ShieldDecision(True, float(cand[best, 0]), float(cand[best, 1]), float(change[best]), True)
+        # already inside the margin: a turn in place (or the stop) that brings the outline no closer
+        turns = np.flatnonzero(cand[:, 0] == 0.0)
+        clear = self._no_closer(cand[turns, 0], cand[turns, 1], v_now, points, near, pose, w_now)
+        if not clear.any():  # the last resort; safe when even its coasting keeps off the bare outline
+            stop = int(np.flatnonzero((cand[:, 0] == 0.0) & (cand[:, 1] == 0.0))[0])
+            return ShieldDecision(True, 0.0, 0.0, float(change[stop]), self._touch_free(v_now, points, near, pose, w_now))
+        best = int(turns[np.argmax(clear)])
         return ShieldDecision(True, float(cand[best, 0]), float(cand[best, 1]), float(change[best]), True)
+
+
+NO_DECISION = ShieldDecision(False, 0.0, 0.0, 0.0, True)
+"""What ``info["shield"]`` holds after a reset (no command yet)."""
+
+
+class Veto:
+    """The shield on one env, one call per step: ``veto(action) -> (action to send, decision)``.
+    It reads the scene's lidar scan, odometry and movers, and maps a replacement command back
+    into the env's action space (the inverse of the env's linear ``command`` map).
+    :class:`ShieldWrapper` and :class:`SafetyShield` both decide through it."""
+
+    def __init__(self, env: Any, config: ShieldConfig) -> None:
+        self.base = env.unwrapped
+        self.shield = shield_for(env, config)
+        low, high = env.action_space.low.astype(np.float64), env.action_space.high.astype(np.float64)
+        (lo_v, lo_w), (hi_v, hi_w) = self.base.command(low), self.base.command(high)
+        self._map = (lo_v, lo_w, hi_v, hi_w, low, high)
+
+    def __call__(self, action: Any) -> tuple[Any, ShieldDecision]:
+        """The action to send instead of ``action`` (``action`` itself, the same object, when
+        its sweep is clear) and the decision."""
+        scene = self.base.scene
+        v, w = self.base.command(action)
+        ranges = np.asarray(scene.sensors.lidar.read(), dtype=np.float64)
+        odometry = scene.sensors.odometry.read()
+        movers = list(scene.movers) if scene.dynamic else None
+        d = self.shield.filter(v, w, float(odometry[3]), ranges, movers, tuple(scene.pose), w_now=float(odometry[4]))
+        return (self._action(d.v, d.w) if d.intervened else action), d
+
+    def _action(self, v: float, w: float) -> np.ndarray:
+        lo_v, lo_w, hi_v, hi_w, low, high = self._map
+        a0 = low[0] + (v - lo_v) / (hi_v - lo_v) * (high[0] - low[0])
+        a1 = low[1] + (w - lo_w) / (hi_w - lo_w) * (high[1] - low[1])
+        return np.clip(np.array([a0, a1], dtype=np.float32), low.astype(np.float32), high.astype(np.float32))
+
+
+class SafetyShield:
+    """Any :class:`~bulletnav.policy.Policy` behind the shield, itself a Policy: ``act`` asks
+    the wrapped policy, then vetoes its action when the sweep is not clear. ``decision`` is
+    the last step's :class:`ShieldDecision`; ``interventions`` and ``steps`` count this episode.
+
+    Args:
+        policy: the controller to guard (the navigator, an :class:`~bulletnav.rl.policy.SB3Policy`, your own).
+        env: the env it drives (the shield reads ``env.unwrapped.scene``: lidar, odometry, movers).
+    """
+
+    def __init__(self, policy: Any, env: Any, config: ShieldConfig = ShieldConfig()) -> None:
+        self.policy = policy
+        self._veto = Veto(env, config)
+        self.decision: ShieldDecision = NO_DECISION
+        self.interventions = 0
+        self.steps = 0
+
+    def reset(self, info: dict[str, Any]) -> None:
+        self.policy.reset(info)
+        self.decision, self.interventions, self.steps = NO_DECISION, 0, 0
+
+    def act(self, obs: Any, info: dict[str, Any]) -> Any:
+        action, self.decision = self._veto(self.policy.act(obs, info))
+        self.steps += 1
+        self.interventions += self.decision.intervened
+        return action
+
+    def __getattr__(self, name: str) -> Any:  # the wrapped policy's path, plan_times, replans ...
+        if name == "policy":
+            raise AttributeError(name)
+        return getattr(self.policy, name)
 
 
 class ShieldWrapper(gym.Wrapper):
     """The shield between any controller and an env: each ``step``'s action is checked against
     the current lidar scan and the scene's movers and replaced when its sweep is not clear;
     ``info["shield"]`` reports the decision (``intervened``, the sent ``v`` and ``w``, the
-    wheel-speed ``change``, ``safe``). With it around the training env (``train --shield``) a
-    policy learns with the shield in the loop.
+    wheel-speed ``change``, ``safe``). Evaluation (``--shield``) runs every controller this way,
+    and with it around the training env (``train --shield``) a policy learns with the shield
+    in the loop. :class:`SafetyShield` is the same veto as a policy wrapper.
     """
 
     def __init__(self, env: gym.Env, config: ShieldConfig = ShieldConfig()) -> None:
         super().__init__(env)
-        self.shield = shield_for(env, config)
-        low, high = env.action_space.low.astype(np.float64), env.action_space.high.astype(np.float64)
-        (lo_v, lo_w), (hi_v, hi_w) = env.unwrapped.command(low), env.unwrapped.command(high)
-        self._map = (lo_v, lo_w, hi_v, hi_w, low, high)
+        self._veto = Veto(env, config)
+        self.shield = self._veto.shield
         self.decision: ShieldDecision | None = None
         """The last step's decision."""
 
     def step(self, action: Any):
-        base = self.env.unwrapped
-        scene = base.scene
-        v, w = base.command(action)
-        ranges = np.asarray(scene.sensors.lidar.read(), dtype=np.float64)
-        odometry = scene.sensors.odometry.read()
-        movers = list(scene.movers) if scene.dynamic else None
-        d = self.decision = self.shield.filter(v, w, float(odometry[3]), ranges, movers, tuple(scene.pose),
-                                               w_now=float(odometry[4]))
-        if d.intervened:
-            action = self._action(d.v, d.w)
+        action, d = self._veto(action)
+        self.decision = d
         obs, reward, terminated, truncated, info = self.env.step(action)
         info["shield"] = d.as_info()
         return obs, reward, terminated, truncated, info
@@ -270,15 +399,8 @@ class ShieldWrapper(gym.Wrapper):
     def reset(self, **kwargs: Any):
         obs, info = self.env.reset(**kwargs)
         self.decision = None
-        info["shield"] = {"intervened": False, "v": 0.0, "w": 0.0, "change": 0.0, "safe": True}
+        info["shield"] = NO_DECISION.as_info()
         return obs, info
-
-    def _action(self, v: float, w: float) -> np.ndarray:
-        """(v, w) in the env's action space: the inverse of the env's own linear ``command`` map."""
-        lo_v, lo_w, hi_v, hi_w, low, high = self._map
-        a0 = low[0] + (v - lo_v) / (hi_v - lo_v) * (high[0] - low[0])
-        a1 = low[1] + (w - lo_w) / (hi_w - lo_w) * (high[1] - low[1])
-        return np.array([a0, a1], dtype=np.float32)
 
 
 def shield_for(env: Any, config: ShieldConfig = ShieldConfig()) -> Shield:

@@ -13,7 +13,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from bulletnav import ENV_ID
 from bulletnav.evaluation import run_episodes, summarize
-from bulletnav.rl.envs import EVAL_SEED_BASE, evaluation_env_kwargs
+from bulletnav.rl.envs import EVAL_SEED_BASE, evaluation_env_kwargs, make_env
 from bulletnav.rl.io import atomic_save_model, atomic_save_vecnormalize, atomic_write_json, vecnormalize_path
 from bulletnav.rl.policy import SB3Policy
 
@@ -76,16 +76,19 @@ class EvaluationCallback(BaseCallback):
         env_id: the env to evaluate on.
         started: ``time.time()`` when the run (or its first part) began; rows record the
             wall time since.
+        shield: evaluate behind the safety shield (a run trained with ``--shield``).
     """
 
     def __init__(self, out: Path, every: int, episodes: int, env_kwargs: dict[str, Any],
-                 history: list[dict[str, Any]], env_id: str = ENV_ID, started: float | None = None) -> None:
+                 history: list[dict[str, Any]], env_id: str = ENV_ID, started: float | None = None,
+                 shield: bool = False) -> None:
         super().__init__()
         self.out = out
         self.every = every
         self.episodes = episodes
         self.env_kwargs = env_kwargs
         self.env_id = env_id
+        self.shield = shield
         self.history = history
         self.started = time.time() if started is None else started
         self.next_at = 0
@@ -105,7 +108,7 @@ class EvaluationCallback(BaseCallback):
         if self.eval_env is None:
             import bulletnav  # noqa: F401
 
-            self.eval_env = gym.make(self.env_id, **evaluation_env_kwargs(self.env_kwargs))
+            self.eval_env = make_env(self.env_id, evaluation_env_kwargs(self.env_kwargs), self.shield)
         results = run_episodes(self.eval_env, SB3Policy(model, _vecnorm(model)), self.episodes, EVAL_SEED_BASE)
         s = summarize(results)
         row = {"timesteps": int(model.num_timesteps), "wall_time": time.time() - self.started,

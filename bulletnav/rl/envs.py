@@ -18,8 +18,9 @@ TRAINING_ONLY_KWARGS = ("collision_terminates", "randomize")
 evaluate under is chosen with ``--perturb``)."""
 
 
-def make_env_fn(env_kwargs: dict[str, Any], env_id: str = ENV_ID) -> Callable[[], gym.Env]:
-    """A thunk building one training env; it pins torch to one thread in its process."""
+def make_env_fn(env_kwargs: dict[str, Any], env_id: str = ENV_ID, shield: bool = False) -> Callable[[], gym.Env]:
+    """A thunk building one training env (behind the safety shield with ``shield``); it pins
+    torch to one thread in its process."""
 
     def _thunk() -> gym.Env:
         import torch
@@ -27,9 +28,19 @@ def make_env_fn(env_kwargs: dict[str, Any], env_id: str = ENV_ID) -> Callable[[]
         import bulletnav  # noqa: F401  (registers the env in a fresh worker)
 
         torch.set_num_threads(1)
-        return gym.make(env_id, **env_kwargs)
+        return make_env(env_id, env_kwargs, shield)
 
     return _thunk
+
+
+def make_env(env_id: str, env_kwargs: dict[str, Any], shield: bool = False, **make_kwargs: Any) -> gym.Env:
+    """``gym.make(env_id, **env_kwargs)``, wrapped in a :class:`~bulletnav.control.shield.ShieldWrapper` with ``shield``."""
+    env = gym.make(env_id, **env_kwargs, **make_kwargs)
+    if shield:
+        from bulletnav.control.shield import ShieldWrapper
+
+        env = ShieldWrapper(env)
+    return env
 
 
 def evaluation_env_kwargs(env_kwargs: dict[str, Any]) -> dict[str, Any]:

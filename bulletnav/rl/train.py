@@ -54,12 +54,14 @@ class TrainConfig:
     command: str = ""
     env_id: str = ENV_ID
     """The registered env to train on; its entry in the hyperparameter file is used."""
+    shield: bool = False
+    """Train (and evaluate during training) behind the safety shield (``ShieldWrapper``)."""
 
 
-def _make_vec_env(cfg: TrainConfig, env_kwargs: dict[str, Any], n_envs: int):
+def _make_vec_env(cfg: TrainConfig, env_kwargs: dict[str, Any], n_envs: int, shield: bool = False):
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
 
-    fns = [make_env_fn(env_kwargs, cfg.env_id) for _ in range(n_envs)]
+    fns = [make_env_fn(env_kwargs, cfg.env_id, shield) for _ in range(n_envs)]
     venv = SubprocVecEnv(fns, start_method="forkserver") if cfg.vec_env == "subproc" and n_envs > 1 else DummyVecEnv(fns)
     venv.seed(cfg.seed)
     return VecMonitor(venv)
@@ -78,14 +80,16 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
     env_kwargs = {**hp.get("env_kwargs", {}), **(cfg.env_overrides or {})}
     if hp.get("randomize"):  # domain randomization: the hyperparameter file's randomize: block
         env_kwargs.setdefault("randomize", hp["randomize"])
+    shield = cfg.shield
     recorded = cfg.out / "config.json"
     if cfg.resume and recorded.is_file():  # a resumed run keeps the settings it started with
         original = json.loads(recorded.read_text())
         hp = upgrade_hyperparams(original["hyperparams"], str(recorded))
         env_kwargs = {**hp.get("env_kwargs", {}), **original["env_kwargs"]}
+        shield = bool(original.get("shield", False))
     n_envs = int(cfg.n_envs or hp.get("n_envs", 4))
     cfg.out.mkdir(parents=True, exist_ok=True)
-    venv = _make_vec_env(cfg, env_kwargs, n_envs)
+    venv = _make_vec_env(cfg, env_kwargs, n_envs, shield)
     normalize = hp.get("normalize") or None
     cls = algo_class(cfg.algo)
     ckpt = cfg.out / "checkpoints" / "last.zip"
@@ -107,7 +111,8 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
         model = cls(hp["policy"], venv, seed=cfg.seed, device="cpu", verbose=0,
                     tensorboard_log=str(cfg.out / "tb"), **model_kwargs(hp, venv.action_space.shape[0]))
     vecnorm = venv if isinstance(venv, VecNormalize) else None
-    evaluation = EvaluationCallback(cfg.out, cfg.eval_freq, cfg.eval_episodes, env_kwargs, history, env_id=cfg.env_id)
+    evaluation = EvaluationCallback(cfg.out, cfg.eval_freq, cfg.eval_episodes, env_kwargs, history, env_id=cfg.env_id,
+                                    shield=shield)
     callbacks = [evaluation]
     curriculum = None
     if hp.get("curriculum"):
@@ -122,7 +127,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
     checkpoints = CheckpointCallback(cfg.out, cfg.checkpoint_freq, state)
     record: dict[str, Any] = {
         "command": cfg.command, "algo": cfg.algo, "env_id": cfg.env_id, "seed": cfg.seed, "timesteps": cfg.timesteps,
-        "n_envs": n_envs, "vec_env": cfg.vec_env, "hyperparams": hp, "env_kwargs": env_kwargs,
+        "n_envs": n_envs, "vec_env": cfg.vec_env, "hyperparams": hp, "env_kwargs": env_kwargs, "shield": shield,
         "git_commit": git_commit(), "machine": machine(), "torch_threads": torch.get_num_threads(),
         "resumed_from": start_steps or None,
         "versions": _versions(),
@@ -152,6 +157,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
     record.update(wall_time_s=round(wall, 1), total_timesteps=int(model.num_timesteps),
                   final_eval=history[-1] if history else None, eval_seeds=f"{EVAL_SEED_BASE}..")
     atomic_write_json(sidecar_path(final_path), {"algo": cfg.algo, "env_id": cfg.env_id, "env_kwargs": env_kwargs,
+                                                 "shield": shield,
                                                  "seed": cfg.seed, "timesteps": int(model.num_timesteps),
                                                  "git_commit": record["git_commit"], "command": cfg.command})
     atomic_write_json(cfg.out / "run.json", record)

@@ -15,6 +15,9 @@ read from ``scene.events`` on the step it happens, and one line of the episode's
 metrics above the robot (nearest mover, smallest separation so far, near-miss share of
 steps, as evaluation counts them), updated with the lidar rays. Events are rare, and their messages
 reuse a ring of :data:`EVENT_TEXTS` text items. Static worlds draw exactly what they did.
+Behind the safety shield (``info["shield"]`` given to :meth:`Dashboard.on_step`), the same
+line, in any world, adds the share of steps on which the shield replaced the command and its
+mean change in wheel speeds.
 
 Multi-goal missions (``scene.goals`` holds two or more goals): a marker (post and cross) for
 every goal, with its number (1..K in the episode's goal order) above it, coloured by state
@@ -221,6 +224,7 @@ class Dashboard:
         self._events_seen = 0
         self._min_separation = float("inf")
         self._near_miss_steps = 0
+        self._shield_steps, self._shield_change, self._shielded = 0, 0.0, False
         if self._dynamic:
             self._draw_routes()
         elif self._routes_visible:
@@ -260,6 +264,13 @@ class Dashboard:
             self._draw_rays()
         if path is not None and self.steps % cfg.path_every == 0:
             self._draw_path(path)
+        veto = info.get("shield") if info is not None else None
+        if veto is not None:  # behind the safety shield (ShieldWrapper)
+            self._shielded = True
+            if veto["intervened"]:
+                self._shield_steps += 1
+                self._shield_change += float(veto["change"])
+        gap = None
         if self._dynamic:
             events = self.scene.events
             if len(events) > self._events_seen:  # rare: a few per minute at most
@@ -269,8 +280,8 @@ class Dashboard:
             gap = self.scene.nearest_mover_m
             self._min_separation = min(self._min_separation, gap)
             self._near_miss_steps += gap < NEAR_MISS_M
-            if self.steps % cfg.lidar_every == 0:
-                self._show_metrics(gap)
+        if (self._dynamic or self._shielded) and self.steps % cfg.lidar_every == 0:
+            self._show_metrics(gap)
         if not cfg.follow_camera:
             self._overview()
 
@@ -416,11 +427,19 @@ class Dashboard:
             self._text(0, " ", _HIDDEN[0], HUD_COLOUR, self._progress_ids)
         self._goals_visible = min(self._goals_visible, first_text)
 
-    def _show_metrics(self, gap: float) -> None:
-        """The episode's safety metrics so far, in one text item above the robot."""
+    def _show_metrics(self, gap: float | None) -> None:
+        """The episode's safety metrics so far, in one text item above the robot: the movers'
+        (``gap``: nearest mover now, None in static worlds) and the shield's (when it is on)."""
         x, y, _ = self.scene.pose
-        text = (f"nearest mover {gap:.2f} m | min {self._min_separation:.2f} m | "
-                f"near misses {100.0 * self._near_miss_steps / max(self.steps, 1):.1f} % of steps")
+        parts = []
+        if gap is not None:
+            parts.append(f"nearest mover {gap:.2f} m | min {self._min_separation:.2f} m | "
+                         f"near misses {100.0 * self._near_miss_steps / max(self.steps, 1):.1f} % of steps")
+        if self._shielded:
+            change = self._shield_change / self._shield_steps if self._shield_steps else 0.0
+            parts.append(f"shield acted {100.0 * self._shield_steps / max(self.steps, 1):.1f} % of steps, "
+                         f"mean change {change:.2f} m/s")
+        text = " | ".join(parts)
         self._text(0, text, (x, y, 1.2), HUD_COLOUR, self._hud_ids)
 
     def _show_event(self, event: dict[str, Any]) -> None:

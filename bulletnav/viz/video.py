@@ -88,6 +88,8 @@ START = (255, 225, 70)
 OUTCOME_COLOURS = {"success": GOAL, "collision": LIDAR, "timeout": (255, 160, 40)}
 TARGET = (255, 245, 120)
 """Ring around a mission's current target."""
+SHIELD = (255, 120, 20)
+"""The robot's colour on a step where the safety shield replaced the command."""
 
 
 def _rgb(category: str) -> tuple[int, int, int]:
@@ -222,10 +224,13 @@ class EpisodeRecorder:
         fps: playback frames per second.
         quality: H.264 quality 0-10 (imageio's scale; 5 is moderate: ~2-3 MB per minute of video here).
         final_frame: also write the last step of an episode that ended off the stride.
+        shield: the episodes run behind the safety shield: the legend lists its colour, the
+            robot is drawn in :data:`SHIELD` on every step where ``info["shield"]`` says it
+            replaced the command, and the strip counts those steps.
     """
 
     def __init__(self, path: str | Path, stride: int = 1, fps: int = 24, quality: float = 5.0,
-                 final_frame: bool = True) -> None:
+                 final_frame: bool = True, shield: bool = False) -> None:
         import imageio.v2 as imageio  # the writers live here; import cost only when recording
 
         if stride < 1:
@@ -234,6 +239,9 @@ class EpisodeRecorder:
         self.stride = int(stride)
         self.fps = fps
         self.final_frame = final_frame
+        self.shield = shield
+        self._vetoed = False
+        self._vetoes = 0
         self.frame_size: tuple[int, int] = FRAME_SIZE
         """(width, height) of every frame (px)."""
         self.frames_written = 0
@@ -303,6 +311,9 @@ class EpisodeRecorder:
         self._return += _reward(info)
         self._distance = float(info.get("distance_to_goal", self._distance))
         self._outcome = _outcome(env, info, self._step)
+        veto = info.get("shield")
+        self._vetoed = bool(veto and veto.get("intervened"))
+        self._vetoes += self._vetoed
         if self._goals:
             self._mission_info(info)
         due = self._step % self.stride == 0
@@ -405,6 +416,7 @@ class EpisodeRecorder:
         self._distance = math.hypot(scene.goal[0] - x, scene.goal[1] - y)
         self._outcome = None
         self._done_written = False
+        self._vetoed, self._vetoes = False, 0
         self.mission_text = self._progress(scene) if self._goals else ""
 
     def _mission_info(self, info: dict[str, Any] | None) -> None:
@@ -490,17 +502,20 @@ class EpisodeRecorder:
         x, y, yaw = scene.pose
         (cx, cy), = view.to_px((x, y))
         r = view.metres(scene.geometry.radius)
-        draw.ellipse((cx - r, cy - r, cx + r, cy + r), outline=ROBOT, width=1)
+        robot = SHIELD if self._vetoed else ROBOT
+        draw.ellipse((cx - r, cy - r, cx + r, cy + r), outline=robot, width=2 if self._vetoed else 1)
         tri = [(x + 0.3 * math.cos(yaw), y + 0.3 * math.sin(yaw)),
                (x + 0.18 * math.cos(yaw + 2.4), y + 0.18 * math.sin(yaw + 2.4)),
                (x + 0.18 * math.cos(yaw - 2.4), y + 0.18 * math.sin(yaw - 2.4))]
-        draw.polygon(view.to_px(tri), fill=ROBOT, outline=BACKGROUND)
+        draw.polygon(view.to_px(tri), fill=robot, outline=BACKGROUND)
         return img
 
     def _strip(self, frame: Image.Image, scene: Any) -> None:
         dt = scene.control_dt
         line1 = (f"episode {self.episodes}   step {self._step:4d}   t {self._step * dt:6.2f} s   "
                  f"distance to goal {self._distance:5.2f} m   return {self._return:+8.2f}")
+        if self.shield:
+            line1 += f"   shield acted {self._vetoes} steps"
         ImageDraw.Draw(frame).text((10, STRIP_Y + 6), line1, fill=TEXT, font=self._font)  # changes every frame
         name = scene.layout.name or "layout"
         sx, sy, _ = scene.start
@@ -588,7 +603,10 @@ class EpisodeRecorder:
         entries = [("goal zone", GOAL)]
         if mission:
             entries += [("goal reached (ticked)", _mix(GOAL, _rgb("floor"), 0.8)), ("current target", TARGET)]
-        entries += [("start", START), ("robot", ROBOT), ("trajectory", TRAJECTORY),
+        entries += [("start", START), ("robot", ROBOT)]
+        if self.shield:
+            entries += [("robot, shield acting", SHIELD)]
+        entries += [("trajectory", TRAJECTORY),
                    ("planned path", PATH), ("lidar hits", LIDAR)]
         if dynamic:
             entries += [("forklift", mover_colour("forklift", 0)), ("worker", mover_colour("worker", 0)),
