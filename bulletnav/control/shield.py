@@ -40,6 +40,12 @@ from bulletnav.geometry import RobotGeometry
 
 _BATCH = 8
 """Fallback commands checked per batch, in order of increasing change."""
+_DISC = np.stack([np.cos(np.arange(12) * math.pi / 6), np.sin(np.arange(12) * math.pi / 6)], axis=1)
+"""A worker's footprint: 12 points on its circle (scaled by its radius)."""
+_U = np.linspace(-1.0, 1.0, 5)
+_BOX = np.concatenate([np.stack([_U, np.ones(5)], 1), np.stack([_U, -np.ones(5)], 1),
+                       np.stack([np.ones(3), _U[1:4]], 1), np.stack([-np.ones(3), _U[1:4]], 1)])
+"""A forklift's footprint: 16 points on its rectangle's edges (scaled by its half sizes)."""
 
 
 @dataclass(frozen=True)
@@ -110,6 +116,7 @@ class Shield:
         self._half_base = geometry.wheelbase / 2
         self._reach = geometry.outline_radius + m
         self._tail = np.linspace(0.0, 1.0, config.samples - 1)[None, 1:]
+        self._next = np.roll(np.arange(len(self.angles)), -1)  # each ray's neighbour
 
     # ------------------------------------------------------------------ geometry
     def points(self, ranges: np.ndarray, within: float = math.inf) -> np.ndarray:
@@ -119,7 +126,7 @@ class Shield:
         hit = r < self.max_range * 0.999
         x = self.geometry.lidar_offset + r * self.cos
         y = r * self.sin
-        nxt = np.roll(np.arange(len(r)), -1)
+        nxt = self._next
         span = np.hypot(x[nxt] - x, y[nxt] - y)
         pair = hit & hit[nxt] & (span < self.config.join)
         if within < math.inf:
@@ -159,9 +166,9 @@ class Shield:
         speed = np.where(t < self.dt, v1, v1 - cfg.decel * braking)
         travelled = v1 * np.minimum(t, self.dt) + v1 * braking - cfg.decel * braking**2 / 2  # exact
         # the commanded curvature while driving; a turn in place slows at the rim deceleration
-        rate = np.where(v > 0, w * speed / np.maximum(v1, 1e-9), w * np.clip(1.0 - after / np.maximum(spin, 1e-9), 0.0, 1.0))
+        rate = np.where(v > 0, w * speed / np.maximum(v1, 1e-9), w * np.maximum(1.0 - after / np.maximum(spin, 1e-9), 0.0))
         if w_now is not None:
-            blend = np.clip(t / self.dt, 0.0, 1.0)
+            blend = np.minimum(t / self.dt, 1.0)
             rate = w_now + blend * (rate - w_now)
         # yaw by the trapezoid rule (exact where the rate is linear between samples), position
         # by the distance travelled in each interval along the interval's mean heading
@@ -217,13 +224,7 @@ class Shield:
         for m in movers:
             mx, my, myaw = m.pose
             lx, ly = m.size[0] / 2, m.size[1] / 2
-            if m.kind == "worker":
-                a = np.linspace(0, 2 * math.pi, 12, endpoint=False)
-                local = np.stack([lx * np.cos(a), lx * np.sin(a)], axis=1)
-            else:
-                u = np.linspace(-1, 1, 5)
-                local = np.concatenate([np.stack([u * lx, np.full(5, ly)], 1), np.stack([u * lx, np.full(5, -ly)], 1),
-                                        np.stack([np.full(3, lx), u[1:4] * ly], 1), np.stack([np.full(3, -lx), u[1:4] * ly], 1)])
+            local = _DISC * lx if m.kind == "worker" else _BOX * (lx, ly)
             cm, sm = math.cos(myaw), math.sin(myaw)
             wx = mx + cm * local[:, 0] - sm * local[:, 1]
             wy = my + sm * local[:, 0] + cm * local[:, 1]
@@ -278,7 +279,11 @@ class Shield:
         points = self.points(ranges, within=reach)
         near = [m for m in (movers or ()) if math.hypot(m.pose[0] - pose[0], m.pose[1] - pose[1])
                 < reach + max(m.size[:2]) + m.speed * coast]
-        if self.check(v, w, v_now, points, near, pose, w_now=w_now)[0]:
+        # inside the margin already: every sweep starts here, so none is clear (skip to the fallback)
+        here = np.zeros((1, 1, 3))
+        inside = bool(self._blocked(here, points, self._rects)[0]) or bool(
+            near and self._blocked(here, self._mover_points(near, np.zeros((1, 1)), pose), self._rects)[0])
+        if not inside and self.check(v, w, v_now, points, near, pose, w_now=w_now)[0]:
             return ShieldDecision(False, v, w, 0.0, True)
         hb = self._half_base
         cand = np.array([(v * scale, min(max(w + dw, -self.w_max), self.w_max))
@@ -289,7 +294,7 @@ class Shield:
         order = np.argsort(change, kind="stable")
         cand, change = cand[order], change[order]
         # by increasing change, a batch at a time: the first clear one is the closest safe command
-        for lo in range(0, len(cand), _BATCH):
+        for lo in range(0, 0 if inside else len(cand), _BATCH):
             hi = lo + _BATCH
             clear = self.check(cand[lo:hi, 0], cand[lo:hi, 1], v_now, points, near, pose, w_now=w_now)
             if clear.any():
