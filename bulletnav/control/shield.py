@@ -5,11 +5,12 @@ where a mover is headed, and replaces it with the closest safe one. It never dri
 control period, then to brake at ``decel`` along the same arc; a turn in place slows down at
 the same rim deceleration (its yaw rate at ``decel / (wheelbase / 2)``), so it keeps turning a
 little after the period. The horizon is one control period plus the longer of the two stops.
-The robot's outline (its collision rectangles, grown by ``margin``) is placed at ``samples``
-poses along that path and tested against:
+The robot's outline (its collision rectangles, grown by a margin that rises with the sweep's
+starting speed from ``margin_min`` at rest to ``margin`` at full speed) is placed at
+``samples`` poses along that path and tested against:
 
 - the current lidar scan's hits, in the body frame, with the surface between two neighbouring
-  rays filled in every 5 cm when the two hits are within ``join`` of each other (36 rays are
+  rays filled in every 4 cm when the two hits are within ``join`` of each other (36 rays are
   17 cm apart at 1 m: a box corner could hide between two, and a wall seen at a grazing angle
   has hits far apart in range but close in space; a gap narrower than the robot is no
   passage, so closing it costs nothing);
@@ -22,9 +23,15 @@ each with the commanded yaw rate and yaw rates around it, always including a ful
 takes the clear one with the smallest change in wheel speeds. When the robot is already inside
 the margin and none is clear, it may still turn in place, but only where the turn never brings
 the bare outline closer to anything than it is now (so it can turn away from a wall it has come
-close to, never into it: a clearance test, robust to the 5 cm spacing of the filled surfaces);
-when no turn qualifies, it stops. The
-action space is forward-only, so it never backs into space the lidar has not seen.
+close to, never into it: a clearance test, robust to the spacing of the filled surfaces);
+when no turn qualifies, it stops. The action space is forward-only, so it never backs into
+space the lidar has not seen.
+
+**No deadlock.** A controller that keeps asking for a blocked command would stand still
+forever (a deterministic policy sees the same scan and asks again). After ``patience`` steps
+held still the shield is *stuck*: turns in place both ways join the set ahead of the stop,
+and once it has turned one way it keeps to that way while stuck (no dithering), until the
+controller's command, or a forward one near it, is clear again.
 """
 
 from __future__ import annotations
@@ -38,6 +45,8 @@ import numpy as np
 
 from bulletnav.geometry import RobotGeometry
 
+_FILL = 0.04
+"""Largest spacing (m) of the points filled in along a joined lidar surface."""
 _BATCH = 8
 """Fallback commands checked per batch, in order of increasing change."""
 _DISC = np.stack([np.cos(np.arange(12) * math.pi / 6), np.sin(np.arange(12) * math.pi / 6)], axis=1)
@@ -53,8 +62,12 @@ class ShieldConfig:
     """Safety shield settings."""
 
     margin: float = 0.05
-    """Added to every side of the robot's collision rectangles (m): covers the 5 cm spacing of
-    filled surfaces (a corner pokes up to 2.5 cm between two points) and leaves 2.5 cm."""
+    """Added to every side of the robot's collision rectangles (m) for a sweep at full speed;
+    slower sweeps get less, down to ``margin_min`` at rest (the error of a predicted stop grows
+    with speed)."""
+    margin_min: float = 0.03
+    """The margin (m) of a sweep from rest (a turn in place): covers the 4 cm spacing of filled
+    surfaces (a corner pokes up to 2 cm between two points) and leaves 1 cm."""
     decel: float = 1.5
     """Braking deceleration assumed for the sweep (m/s^2; the motors reach about 2.6)."""
     samples: int = 12
@@ -65,10 +78,16 @@ class ShieldConfig:
     """Fallback forward speeds, as fractions of the commanded one."""
     turn_offsets: tuple[float, ...] = (0.0, 0.4, -0.4, 0.8, -0.8, 1.5, -1.5)
     """Fallback yaw rates: the commanded one plus these (rad/s), clipped to the action range."""
+    patience: int = 12
+    """Control steps the shield holds the robot still (stopped or turning in place) while the
+    controller keeps asking for a blocked command; then it is *stuck*: turns in place both
+    ways come before the stop, so the controller gets a new view instead of a deadlock."""
+    escape_rates: tuple[float, ...] = (0.5, 1.0, 1.5)
+    """Yaw rates (rad/s, both signs) of the turns in place offered when stuck."""
 
     def __post_init__(self) -> None:
-        if self.margin < 0 or self.decel <= 0 or self.samples < 3 or self.join < 0:
-            raise ValueError(f"shield needs margin >= 0, decel > 0, samples >= 3, join >= 0; got {self}")
+        if not 0 <= self.margin_min <= self.margin or self.decel <= 0 or self.samples < 3 or self.join < 0 or self.patience < 1:
+            raise ValueError(f"shield needs 0 <= margin_min <= margin, decel > 0, samples >= 3, join >= 0, patience >= 1; got {self}")
 
 
 @dataclass(frozen=True)
@@ -110,8 +129,6 @@ class Shield:
         self.dt = control_dt
         self.v_max, self.w_max = v_max, w_max
         m = config.margin
-        rects = [(r.cx, r.cy, r.half_x + m, r.half_y + m) for r in geometry.rectangles]
-        self._rects = np.array(rects, dtype=np.float64)  # (R, 4)
         self._outline = np.array([(r.cx, r.cy, r.half_x, r.half_y) for r in geometry.rectangles])
         self._half_base = geometry.wheelbase / 2
         self._reach = geometry.outline_radius + m
@@ -120,7 +137,7 @@ class Shield:
 
     # ------------------------------------------------------------------ geometry
     def points(self, ranges: np.ndarray, within: float = math.inf) -> np.ndarray:
-        """Lidar hits in the body frame, with joined surfaces filled in every 5 cm (N, 2); with
+        """Lidar hits in the body frame, with joined surfaces filled in every 4 cm (N, 2); with
         ``within``, only the hits and surfaces that come that close to the body centre."""
         r = np.asarray(ranges, dtype=np.float64)
         hit = r < self.max_range * 0.999
@@ -137,7 +154,7 @@ class Shield:
             hit &= near
         i = np.flatnonzero(pair)
         j = nxt[i]
-        n = np.minimum((np.hypot(x[j] - x[i], y[j] - y[i]) / 0.05).astype(int), 40)
+        n = np.minimum((np.hypot(x[j] - x[i], y[j] - y[i]) / _FILL).astype(int), 40)
         total = int(n.sum())
         if not total:
             return np.stack([x[hit], y[hit]], axis=1)
@@ -180,9 +197,14 @@ class Shield:
         y = np.concatenate([np.zeros_like(horizon), np.cumsum(ds * np.sin(mid), axis=1)], axis=1)
         return np.stack([x, y, yaw], axis=2), t
 
-    def _blocked(self, poses: np.ndarray, points: np.ndarray, rects: np.ndarray) -> np.ndarray:
-        """(C,) True where a point ((N, 2), or per pose (C, K, M, 2)) lies in the grown outline
-        at one of the poses (C, K, 3)."""
+    def margin(self, v1: np.ndarray | float) -> np.ndarray:
+        """The margin (m) of a sweep that starts at speed ``v1`` (m/s)."""
+        cfg = self.config
+        return cfg.margin_min + (cfg.margin - cfg.margin_min) * np.minimum(np.asarray(v1, dtype=np.float64) / self.v_max, 1.0)
+
+    def _blocked(self, poses: np.ndarray, points: np.ndarray, margin: np.ndarray) -> np.ndarray:
+        """(C,) True where a point ((N, 2), or per pose (C, K, M, 2)) lies in the outline grown
+        by the command's ``margin`` ((C,) m) at one of the poses (C, K, 3)."""
         n_cmd = poses.shape[0]
         if points.shape[-2] == 0:
             return np.zeros(n_cmd, dtype=bool)
@@ -192,9 +214,10 @@ class Shield:
         py = points[..., 1] - poses[:, :, 1, None]
         c, s = np.cos(poses[:, :, 2])[..., None], np.sin(poses[:, :, 2])[..., None]
         bx, by = c * px + s * py, -s * px + c * py
+        m = np.broadcast_to(np.asarray(margin, dtype=np.float64), (n_cmd,)).reshape((n_cmd,) + (1,) * (bx.ndim - 1))
         hit = np.zeros(bx.shape, dtype=bool)
-        for cx, cy, hx, hy in rects:
-            hit |= (np.abs(bx - cx) <= hx) & (np.abs(by - cy) <= hy)
+        for cx, cy, hx, hy in self._outline:
+            hit |= (np.abs(bx - cx) <= hx + m) & (np.abs(by - cy) <= hy + m)
         return hit.reshape(n_cmd, -1).any(axis=1)
 
     def _clearance(self, poses: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -237,14 +260,15 @@ class Shield:
     # ------------------------------------------------------------------ decisions
     def check(self, v: float | np.ndarray, w: float | np.ndarray, v_now: float, points: np.ndarray,
               movers: list[Any] | None = None, pose: tuple[float, float, float] = (0.0, 0.0, 0.0),
-              rects: np.ndarray | None = None, w_now: float | None = None) -> np.ndarray:
+              w_now: float | None = None) -> np.ndarray:
         """(C,) True where the sweep of command (v, w) is clear of ``points`` (body frame) and
-        ``movers`` for the outline grown by the margin (or ``rects``: (R, 4) centre and half sizes)."""
+        ``movers`` for the outline grown by the sweep's margin (see :meth:`margin`)."""
         poses, times = self.sweep(v, w, v_now, w_now)
-        rects = self._rects if rects is None else rects
-        blocked = self._blocked(poses, points, rects)
+        v = np.atleast_1d(np.asarray(v, dtype=np.float64))
+        margin = self.margin(np.where(v > 0, np.maximum(v_now, v), max(v_now, 0.0)))
+        blocked = self._blocked(poses, points, margin)
         if movers:
-            blocked |= self._blocked(poses, self._mover_points(movers, times, pose), rects)
+            blocked |= self._blocked(poses, self._mover_points(movers, times, pose), margin)
         return ~blocked
 
     def _touch_free(self, v_now: float, points: np.ndarray, movers: list[Any], pose: tuple[float, float, float],
@@ -271,8 +295,11 @@ class Shield:
         return gap >= now - 1e-4
 
     def filter(self, v: float, w: float, v_now: float, ranges: np.ndarray, movers: list[Any] | None = None,
-               pose: tuple[float, float, float] = (0.0, 0.0, 0.0), w_now: float | None = None) -> ShieldDecision:
-        """The command to send instead of (v, w) (itself when its sweep is clear)."""
+               pose: tuple[float, float, float] = (0.0, 0.0, 0.0), w_now: float | None = None,
+               stuck: float | None = None) -> ShieldDecision:
+        """The command to send instead of (v, w) (itself when its sweep is clear). ``stuck``
+        (see ``ShieldConfig.patience``): 0 adds turns in place both ways and puts the stop
+        last; +1 or -1 also puts the turns in place of the other sign after those of this one."""
         cfg = self.config
         coast = self.dt + self.v_max / cfg.decel
         reach = self._reach + max(v_now, self.v_max) * coast  # the farthest any sweep gets
@@ -281,17 +308,25 @@ class Shield:
                 < reach + max(m.size[:2]) + m.speed * coast]
         # inside the margin already: every sweep starts here, so none is clear (skip to the fallback)
         here = np.zeros((1, 1, 3))
-        inside = bool(self._blocked(here, points, self._rects)[0]) or bool(
-            near and self._blocked(here, self._mover_points(near, np.zeros((1, 1)), pose), self._rects)[0])
+        m_now = self.margin(max(v_now, 0.0))
+        inside = bool(self._blocked(here, points, m_now)[0]) or bool(
+            near and self._blocked(here, self._mover_points(near, np.zeros((1, 1)), pose), m_now)[0])
         if not inside and self.check(v, w, v_now, points, near, pose, w_now=w_now)[0]:
             return ShieldDecision(False, v, w, 0.0, True)
         hb = self._half_base
-        cand = np.array([(v * scale, min(max(w + dw, -self.w_max), self.w_max))
-                         for scale in (1.0, *cfg.speed_scales) for dw in cfg.turn_offsets
-                         if (scale, dw) != (1.0, 0.0)] + [(0.0, 0.0)])  # a full stop is always among them
+        options = [(v * scale, min(max(w + dw, -self.w_max), self.w_max))
+                   for scale in (1.0, *cfg.speed_scales) for dw in cfg.turn_offsets if (scale, dw) != (1.0, 0.0)]
+        if stuck is not None:
+            options += [(0.0, sign * min(rate, self.w_max)) for rate in cfg.escape_rates for sign in (1.0, -1.0)]
+        cand = np.array(options + [(0.0, 0.0)])  # a full stop is always among them
         change = (np.abs((cand[:, 0] - cand[:, 1] * hb) - (v - w * hb))
                   + np.abs((cand[:, 0] + cand[:, 1] * hb) - (v + w * hb)))
-        order = np.argsort(change, kind="stable")
+        rank = change.copy()
+        if stuck is not None:  # anything that moves comes before the stop; turns the other way after
+            if stuck:
+                rank[(cand[:, 0] == 0.0) & (cand[:, 1] * stuck < 0)] += 100.0
+            rank[(cand[:, 0] == 0.0) & (cand[:, 1] == 0.0)] = np.inf
+        order = np.argsort(rank, kind="stable")
         cand, change = cand[order], change[order]
         # by increasing change, a batch at a time: the first clear one is the closest safe command
         for lo in range(0, 0 if inside else len(cand), _BATCH):
@@ -326,6 +361,14 @@ class Veto:
         low, high = env.action_space.low.astype(np.float64), env.action_space.high.astype(np.float64)
         (lo_v, lo_w), (hi_v, hi_w) = self.base.command(low), self.base.command(high)
         self._map = (lo_v, lo_w, hi_v, hi_w, low, high)
+        self.held = 0
+        """Consecutive steps the shield has replaced the command by a stop or a turn in place."""
+        self.escape = 0.0
+        """The sign of the turn in place it took while stuck (0: none yet)."""
+
+    def reset(self) -> None:
+        """Forget the last episode (call at every env reset)."""
+        self.held, self.escape = 0, 0.0
 
     def __call__(self, action: Any) -> tuple[Any, ShieldDecision]:
         """The action to send instead of ``action`` (``action`` itself, the same object, when
@@ -335,7 +378,15 @@ class Veto:
         ranges = np.asarray(scene.sensors.lidar.read(), dtype=np.float64)
         odometry = scene.sensors.odometry.read()
         movers = list(scene.movers) if scene.dynamic else None
-        d = self.shield.filter(v, w, float(odometry[3]), ranges, movers, tuple(scene.pose), w_now=float(odometry[4]))
+        stuck = self.held >= self.shield.config.patience
+        d = self.shield.filter(v, w, float(odometry[3]), ranges, movers, tuple(scene.pose), w_now=float(odometry[4]),
+                               stuck=self.escape if stuck else None)
+        if d.intervened and d.v == 0.0:
+            self.held += 1
+            if stuck and d.w != 0.0 and not self.escape:
+                self.escape = math.copysign(1.0, d.w)
+        else:
+            self.held, self.escape = 0, 0.0
         return (self._action(d.v, d.w) if d.intervened else action), d
 
     def _action(self, v: float, w: float) -> np.ndarray:
@@ -364,6 +415,7 @@ class SafetyShield:
 
     def reset(self, info: dict[str, Any]) -> None:
         self.policy.reset(info)
+        self._veto.reset()
         self.decision, self.interventions, self.steps = NO_DECISION, 0, 0
 
     def act(self, obs: Any, info: dict[str, Any]) -> Any:
@@ -403,6 +455,7 @@ class ShieldWrapper(gym.Wrapper):
 
     def reset(self, **kwargs: Any):
         obs, info = self.env.reset(**kwargs)
+        self._veto.reset()
         self.decision = None
         info["shield"] = NO_DECISION.as_info()
         return obs, info
