@@ -263,3 +263,34 @@ def test_bench_shield_prints_json_with_the_decision_time(capsys):
     assert result["benchmark"] == "shield" and result["env_id"] == "bulletnav/WarehouseDynamic-v0"
     assert result["decision_ms"]["n"] == 150 and result["decision_ms"]["mean"] > 0
     assert result["ratio_decision_to_env_step"] > 0 and result["collisions"] == 0
+
+
+@pytest.mark.gui
+def test_dashboard_shows_the_shields_share_of_steps_in_a_static_world(display, monkeypatch):
+    import pybullet
+
+    from bulletnav.viz.dashboard import Dashboard, DashboardConfig
+
+    texts = []
+    real_text = pybullet.addUserDebugText
+
+    def counting_text(text, *args, **kwargs):
+        texts.append(text)
+        return real_text(text, *args, **kwargs)
+
+    monkeypatch.setattr(pybullet, "addUserDebugText", counting_text)
+    env = ShieldWrapper(gym.make("bulletnav/Warehouse-v0", render_mode="human",
+                                 world=str(asset_path("worlds", "empty.yaml"))))
+    try:
+        env.reset(seed=0, options={"start": [3.9, 0.0, 0.0], "goal": [-3.0, 0.0]})  # facing the wall 1 m ahead
+        dash = Dashboard(env, DashboardConfig(camera_every=10_000))
+        vetoed = 0
+        steps = 6 * dash.config.lidar_every  # the line is redrawn with the lidar rays
+        for _ in range(steps):
+            _, _, _, _, info = env.step(np.array([0.5, 0.0], dtype=np.float32))
+            vetoed += info["shield"]["intervened"]
+            dash.on_step(info=info)
+        line = [t for t in texts if t.startswith("shield acted")][-1]
+        assert vetoed > 0 and f"shield acted {100 * vetoed / steps:.1f} % of steps" in line
+    finally:
+        env.close()
