@@ -161,7 +161,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
                  f"  passed   mean {result['decision_passed_ms']['mean']:.3f} ms   "
                  f"replaced mean {result['decision_vetoed_ms']['mean']:.3f} ms",
                  f"  env step mean {s['mean']:.3f} ms; decision / env step {result['ratio_decision_to_env_step']:.3f}; "
-                 f"target p99 < 1 ms: {'met' if result['meets_target'] else 'NOT met'}; "
+                 f"target mean < 1 ms: {'met' if result['meets_target'] else 'NOT met'}; "
                  f"collisions {result['collisions']} in {result['episodes']} episodes"]
     elif args.what == "gui":
         from bulletnav.bench.gui_bench import bench_gui

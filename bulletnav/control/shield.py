@@ -132,6 +132,9 @@ class Shield:
         self._outline = np.array([(r.cx, r.cy, r.half_x, r.half_y) for r in geometry.rectangles])
         self._half_base = geometry.wheelbase / 2
         self._reach = geometry.outline_radius + m
+        # each rectangle's farthest corner from the centre, less the margin: |c| + half size
+        self._outline_abs = np.abs(self._outline[:, :2]) + self._outline[:, 2:]
+        self._bare_radius = float(np.hypot(self._outline_abs[:, 0], self._outline_abs[:, 1]).max())
         self._tail = np.linspace(0.0, 1.0, config.samples - 1)[None, 1:]
         self._next = np.roll(np.arange(len(self.angles)), -1)  # each ray's neighbour
 
@@ -172,30 +175,33 @@ class Shield:
         cfg = self.config
         v = np.atleast_1d(np.asarray(v, dtype=np.float64))[:, None]
         w = np.atleast_1d(np.asarray(w, dtype=np.float64))[:, None]
-        v1 = np.where(v > 0, np.maximum(v_now, v), max(v_now, 0.0))
-        spin = np.abs(w) * self._half_base / cfg.decel  # a turn in place's time to stop turning
-        horizon = self.dt + np.maximum(v1 / cfg.decel, np.where(v > 0, 0.0, spin))
+        drive = v > 0
+        v1 = np.where(drive, np.maximum(v_now, v), max(v_now, 0.0))
+        stop = v1 / cfg.decel  # time to stop driving
+        spin = np.where(drive, 0.0, np.abs(w) * self._half_base / cfg.decel)  # a turn in place's time to stop turning
         # times: 0, the end of the control period (where braking starts), then evenly to the horizon
-        t = np.concatenate([np.zeros_like(horizon), np.full_like(horizon, self.dt),
-                            self.dt + self._tail * (horizon - self.dt)], axis=1)  # (C, K)
-        after = np.maximum(t - self.dt, 0.0)
-        braking = np.minimum(after, v1 / cfg.decel)
-        speed = np.where(t < self.dt, v1, v1 - cfg.decel * braking)
-        travelled = v1 * np.minimum(t, self.dt) + v1 * braking - cfg.decel * braking**2 / 2  # exact
+        after = np.empty((v.shape[0], cfg.samples))
+        after[:, :2] = 0.0
+        after[:, 2:] = self._tail * np.maximum(stop, spin)  # time since the end of the period
+        t = after + self.dt
+        t[:, 0] = 0.0
+        braking = np.minimum(after, stop)
+        speed = v1 - cfg.decel * braking
+        travelled = v1 * np.minimum(t, self.dt) + braking * (v1 - 0.5 * cfg.decel * braking)  # exact
         # the commanded curvature while driving; a turn in place slows at the rim deceleration
-        rate = np.where(v > 0, w * speed / np.maximum(v1, 1e-9), w * np.maximum(1.0 - after / np.maximum(spin, 1e-9), 0.0))
-        if w_now is not None:
-            blend = np.minimum(t / self.dt, 1.0)
-            rate = w_now + blend * (rate - w_now)
+        rate = np.where(drive, w * speed / np.maximum(v1, 1e-9), w * np.maximum(1.0 - after / np.maximum(spin, 1e-9), 0.0))
+        if w_now is not None:  # the yaw rate moves from w_now to the command's over the period
+            rate[:, 0] = w_now
         # yaw by the trapezoid rule (exact where the rate is linear between samples), position
         # by the distance travelled in each interval along the interval's mean heading
-        dt = np.diff(t, axis=1)
-        yaw = np.concatenate([np.zeros_like(horizon), np.cumsum((rate[:, 1:] + rate[:, :-1]) / 2 * dt, axis=1)], axis=1)
-        mid = (yaw[:, 1:] + yaw[:, :-1]) / 2
+        out = np.zeros((v.shape[0], cfg.samples, 3))
+        yaw = out[:, :, 2]
+        np.cumsum((rate[:, 1:] + rate[:, :-1]) * (0.5 * np.diff(t, axis=1)), axis=1, out=yaw[:, 1:])
+        mid = 0.5 * (yaw[:, 1:] + yaw[:, :-1])
         ds = np.diff(travelled, axis=1)
-        x = np.concatenate([np.zeros_like(horizon), np.cumsum(ds * np.cos(mid), axis=1)], axis=1)
-        y = np.concatenate([np.zeros_like(horizon), np.cumsum(ds * np.sin(mid), axis=1)], axis=1)
-        return np.stack([x, y, yaw], axis=2), t
+        np.cumsum(ds * np.cos(mid), axis=1, out=out[:, 1:, 0])
+        np.cumsum(ds * np.sin(mid), axis=1, out=out[:, 1:, 1])
+        return out, t
 
     def margin(self, v1: np.ndarray | float) -> np.ndarray:
         """The margin (m) of a sweep that starts at speed ``v1`` (m/s)."""
@@ -266,6 +272,11 @@ class Shield:
         poses, times = self.sweep(v, w, v_now, w_now)
         v = np.atleast_1d(np.asarray(v, dtype=np.float64))
         margin = self.margin(np.where(v > 0, np.maximum(v_now, v), max(v_now, 0.0)))
+        if len(points):  # only points within the grown outline's reach of some pose can be hit
+            m = float(margin.max())
+            far = float(np.sqrt((poses[:, :, 0] ** 2 + poses[:, :, 1] ** 2).max())) + float(
+                np.hypot(self._outline_abs[:, 0] + m, self._outline_abs[:, 1] + m).max())
+            points = points[points[:, 0] ** 2 + points[:, 1] ** 2 <= far * far]
         blocked = self._blocked(poses, points, margin)
         if movers:
             blocked |= self._blocked(poses, self._mover_points(movers, times, pose), margin)
@@ -287,6 +298,9 @@ class Shield:
         poses, times = self.sweep(v, w, v_now, w_now)
         here = np.zeros((1, 1, 3))
         now = float(self._clearance(here, points)[0])
+        if len(points) and math.isfinite(now):  # a point farther than this from every pose is farther than now
+            far = float(np.sqrt((poses[:, :, 0] ** 2 + poses[:, :, 1] ** 2).max())) + self._bare_radius + now + 1e-3
+            points = points[points[:, 0] ** 2 + points[:, 1] ** 2 <= far * far]
         gap = self._clearance(poses, points)
         if movers:
             pts = self._mover_points(movers, times, pose)
