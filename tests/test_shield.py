@@ -294,3 +294,45 @@ def test_dashboard_shows_the_shields_share_of_steps_in_a_static_world(display, m
         assert vetoed > 0 and f"shield acted {100 * vetoed / steps:.1f} % of steps" in line
     finally:
         env.close()
+
+
+def test_a_stop_always_passes_and_a_blocked_command_held_for_long_gets_turns_not_a_deadlock():
+    """The front face 4 cm from a wall: every forward command sweeps into the margin, a slow
+    turn in place (3 cm margin at rest) clears the corners."""
+    shield = _shield()
+    ranges = _wall_ahead(0.19)
+    assert not shield.filter(0.0, 0.0, 0.0, ranges).intervened
+    held = shield.filter(0.5, 0.0, 0.0, ranges)  # forward into it: stopped (first among equal changes)
+    assert held.intervened and (held.v, held.w) == (0.0, 0.0)
+    stuck = shield.filter(0.5, 0.0, 0.0, ranges, stuck=0.0)  # after patience: a turn in place instead
+    assert stuck.intervened and stuck.v == 0.0 and stuck.w != 0.0 and stuck.safe
+    assert shield.filter(0.5, 0.0, 0.0, ranges, stuck=-1.0).w < 0  # kept to the way it took
+    assert shield.filter(0.5, 0.0, 0.0, ranges, stuck=1.0).w > 0
+
+
+def test_the_veto_becomes_stuck_after_patience_steps_and_forgets_at_reset():
+    env = ShieldWrapper(gym.make("bulletnav/Warehouse-v0", world=str(asset_path("worlds", "empty.yaml"))))
+    patience = ShieldConfig().patience
+    try:
+        options = {"start": [3.5, 0.0, 0.0], "goal": [-3.0, 0.0]}  # facing the wall 1.5 m ahead
+        env.reset(seed=0, options=options)
+        sent = []
+        for _ in range(120):  # a controller that only ever asks for full speed ahead
+            _, _, _, _, info = env.step(np.array([0.5, 0.0], dtype=np.float32))
+            assert not info["collision"]
+            sent.append((info["shield"]["v"], info["shield"]["w"]) if info["shield"]["intervened"] else None)
+        first = next(i for i, s in enumerate(sent) if s is not None and s[0] == 0.0 and s[1] != 0.0)
+        assert first >= patience and all(s is not None and s[0] == 0.0 for s in sent[first - patience:first])
+        run, runs = [], []  # the turns of each stretch held still, one way each: no dithering
+        for s in sent[first:]:
+            if s is not None and s[0] == 0.0:
+                run.append(np.sign(s[1]))
+            elif run:
+                runs.append(run)
+                run = []
+        runs.append(run)
+        assert all(len(set(r) - {0.0}) <= 1 for r in runs)
+        env.reset(seed=0, options=options)
+        assert env._veto.held == 0 and env._veto.escape == 0.0
+    finally:
+        env.close()

@@ -30,8 +30,10 @@ space the lidar has not seen.
 **No deadlock.** A controller that keeps asking for a blocked command would stand still
 forever (a deterministic policy sees the same scan and asks again). After ``patience`` steps
 held still the shield is *stuck*: turns in place both ways join the set ahead of the stop,
-and once it has turned one way it keeps to that way while stuck (no dithering), until the
-controller's command, or a forward one near it, is clear again.
+and once it has turned one way it keeps to that way while stuck (no dithering: when that way
+is not free it stops), until the controller's command, or a forward one near it, is clear
+again. (A forward-only robot that has come face-first within the margin of a flat wall has
+no turn that keeps its corners off the wall: it stays stopped; only reversing would free it.)
 """
 
 from __future__ import annotations
@@ -313,8 +315,10 @@ class Shield:
                stuck: float | None = None) -> ShieldDecision:
         """The command to send instead of (v, w) (itself when its sweep is clear). ``stuck``
         (see ``ShieldConfig.patience``): 0 adds turns in place both ways and puts the stop
-        last; +1 or -1 also puts the turns in place of the other sign after those of this one."""
+        last; +1 or -1 also puts the turns in place of the other sign after the stop."""
         cfg = self.config
+        if v == 0.0 and w == 0.0:  # a stop passes: nothing is safer, and the shield never drives
+            return ShieldDecision(False, v, w, 0.0, True)
         coast = self.dt + self.v_max / cfg.decel
         reach = self._reach + max(v_now, self.v_max) * coast  # the farthest any sweep gets
         points = self.points(ranges, within=reach)
@@ -332,14 +336,12 @@ class Shield:
                    for scale in (1.0, *cfg.speed_scales) for dw in cfg.turn_offsets if (scale, dw) != (1.0, 0.0)]
         if stuck is not None:
             options += [(0.0, sign * min(rate, self.w_max)) for rate in cfg.escape_rates for sign in (1.0, -1.0)]
-        cand = np.array(options + [(0.0, 0.0)])  # a full stop is always among them
+        cand = np.array([(0.0, 0.0)] + options)  # a full stop is always among them, first among equals
         change = (np.abs((cand[:, 0] - cand[:, 1] * hb) - (v - w * hb))
                   + np.abs((cand[:, 0] + cand[:, 1] * hb) - (v + w * hb)))
         rank = change.copy()
-        if stuck is not None:  # anything that moves comes before the stop; turns the other way after
-            if stuck:
-                rank[(cand[:, 0] == 0.0) & (cand[:, 1] * stuck < 0)] += 100.0
-            rank[(cand[:, 0] == 0.0) & (cand[:, 1] == 0.0)] = np.inf
+        if stuck is not None:  # anything that moves comes before the stop; turns the other way after it
+            rank[(cand[:, 0] == 0.0) & ((cand[:, 1] == 0.0) | (cand[:, 1] * stuck < 0.0))] = np.inf
         order = np.argsort(rank, kind="stable")
         cand, change = cand[order], change[order]
         # by increasing change, a batch at a time: the first clear one is the closest safe command
@@ -350,7 +352,7 @@ class Shield:
                 best = lo + int(np.argmax(clear))
                 return ShieldDecision(True, float(cand[best, 0]), float(cand[best, 1]), float(change[best]), True)
         # already inside the margin: a turn in place (or the stop) that brings the outline no closer
-        turns = np.flatnonzero(cand[:, 0] == 0.0)
+        turns = np.flatnonzero((cand[:, 0] == 0.0) & (cand[:, 1] * (stuck or 0.0) >= 0.0))  # stuck: one way only
         clear = self._no_closer(cand[turns, 0], cand[turns, 1], v_now, points, near, pose, w_now)
         if not clear.any():  # the last resort; safe when even its coasting keeps off the bare outline
             stop = int(np.flatnonzero((cand[:, 0] == 0.0) & (cand[:, 1] == 0.0))[0])
