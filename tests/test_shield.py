@@ -123,19 +123,26 @@ def test_the_sweep_ends_where_the_closed_form_stop_does():
 
 
 def test_turning_in_place_inside_the_margin_may_turn_away_from_a_wall_but_never_into_it():
-    """The robot beside a wall (its side 2 cm off it, inside the 5 cm margin): nothing is clear
-    with the margin, so only a turn that brings no point of the outline closer may pass."""
-    wall_y = -(0.12 + 0.02)  # the wheels stick out to 0.12 m
+    """The robot beside a wall (its wheels 2.8 cm off it, inside the 3 cm margin at rest):
+    nothing is clear with the margin, so only a turn whose every pose keeps every corner of the
+    bare outline at least 1.5 cm off the wall (checked analytically here) may pass."""
+    wall_y = -(0.12 + 0.028)  # the wheels stick out to 0.12 m
     s = np.sin(ANGLES)
     with np.errstate(divide="ignore"):
         ranges = np.minimum(np.where(s < -1e-6, wall_y / s, 5.0), 5.0)
     shield = _shield()
-    for w in (1.5, -1.5, 0.8, -0.8):
-        d = shield.filter(0.3, w, 0.0, ranges, w_now=0.0)
+    corners = np.array([(r.cx + sx * r.half_x, r.cy + sy * r.half_y) for r in GEOMETRY.rectangles
+                        for sx in (-1, 1) for sy in (-1, 1)])
+    turned = 0
+    for w in (1.5, -1.5, 0.8, -0.8, 0.3, -0.3):
+        d = shield.filter(0.3, w, 0.0, ranges, w_now=0.0, stuck=0.0)
         assert d.intervened and d.v == 0.0
         poses, _ = shield.sweep(d.v, d.w, 0.0, 0.0)
-        gap = shield._clearance(poses, shield.points(ranges))[0]
-        assert gap >= shield._clearance(np.zeros((1, 1, 3)), shield.points(ranges))[0] - 1e-4
+        for _x, y, yaw in poses[0]:
+            world_y = y + np.sin(yaw) * corners[:, 0] + np.cos(yaw) * corners[:, 1]
+            assert world_y.min() >= wall_y + 0.015
+        turned += d.w != 0.0
+    assert turned  # it does turn away when asked to move
 
 
 def _fuzz(env, rng: np.random.Generator, driver: str, steps: int) -> tuple[int, int, int]:

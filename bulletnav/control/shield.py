@@ -21,19 +21,21 @@ starting speed from ``margin_min`` at rest to ``margin`` at full speed) is place
 shield tries a small set of commands -- the commanded speed scaled by 0.75, 0.5, 0.25 and 0,
 each with the commanded yaw rate and yaw rates around it, always including a full stop -- and
 takes the clear one with the smallest change in wheel speeds. When the robot is already inside
-the margin and none is clear, it may still turn in place, but only where the turn never brings
-the bare outline closer to anything than it is now (so it can turn away from a wall it has come
-close to, never into it: a clearance test, robust to the spacing of the filled surfaces);
-when no turn qualifies, it stops. The action space is forward-only, so it never backs into
+the margin and none is clear, it may still turn in place, but only where the bare outline
+grown by 2 cm stays off the scan filled in every 1 cm (a corner pokes at most 5 mm between two
+points), so it can turn away from a wall it has come close to, never into it; when no turn
+qualifies, it stops. The action space is forward-only, so it never backs into
 space the lidar has not seen.
 
 **No deadlock.** A controller that keeps asking for a blocked command would stand still
 forever (a deterministic policy sees the same scan and asks again). After ``patience`` steps
 held still the shield is *stuck*: turns in place both ways join the set ahead of the stop,
 and once it has turned one way it keeps to that way while stuck (no dithering: when that way
-is not free it stops), until the controller's command, or a forward one near it, is clear
-again. (A forward-only robot that has come face-first within the margin of a flat wall has
-no turn that keeps its corners off the wall: it stays stopped; only reversing would free it.)
+is not free it stops, unless already inside the margin, where a turn the other way is still
+preferred to standing: a robot held still creeps by a few millimetres a minute in PyBullet),
+until the controller's command, or a forward one near it, is clear again. (A forward-only
+robot that has come face-first within the margin of a flat wall has no turn that keeps its
+corners off the wall: it stays stopped; only reversing would free it.)
 """
 
 from __future__ import annotations
@@ -47,8 +49,6 @@ import numpy as np
 
 from bulletnav.geometry import RobotGeometry
 
-_FILL = 0.04
-"""Largest spacing (m) of the points filled in along a joined lidar surface."""
 _BATCH = 8
 """Fallback commands checked per batch, in order of increasing change."""
 _DISC = np.stack([np.cos(np.arange(12) * math.pi / 6), np.sin(np.arange(12) * math.pi / 6)], axis=1)
@@ -86,6 +86,9 @@ class ShieldConfig:
     ways come before the stop, so the controller gets a new view instead of a deadlock."""
     escape_rates: tuple[float, ...] = (0.5, 1.0, 1.5)
     """Yaw rates (rad/s, both signs) of the turns in place offered when stuck."""
+    close_margin: float = 0.02
+    """Inside the margin, a turn in place may pass where the bare outline grown by this much
+    (m) stays off the scan filled in every 1 cm (a corner pokes at most 5 mm between points)."""
 
     def __post_init__(self) -> None:
         if not 0 <= self.margin_min <= self.margin or self.decel <= 0 or self.samples < 3 or self.join < 0 or self.patience < 1:
@@ -141,9 +144,9 @@ class Shield:
         self._next = np.roll(np.arange(len(self.angles)), -1)  # each ray's neighbour
 
     # ------------------------------------------------------------------ geometry
-    def points(self, ranges: np.ndarray, within: float = math.inf) -> np.ndarray:
-        """Lidar hits in the body frame, with joined surfaces filled in every 4 cm (N, 2); with
-        ``within``, only the hits and surfaces that come that close to the body centre."""
+    def points(self, ranges: np.ndarray, within: float = math.inf, fill: float = 0.04) -> np.ndarray:
+        """Lidar hits in the body frame, with joined surfaces filled in every ``fill`` m (N, 2);
+        with ``within``, only the hits and surfaces that come that close to the body centre."""
         r = np.asarray(ranges, dtype=np.float64)
         hit = r < self.max_range * 0.999
         x = self.geometry.lidar_offset + r * self.cos
@@ -159,7 +162,7 @@ class Shield:
             hit &= near
         i = np.flatnonzero(pair)
         j = nxt[i]
-        n = np.minimum((np.hypot(x[j] - x[i], y[j] - y[i]) / _FILL).astype(int), 40)
+        n = np.minimum((np.hypot(x[j] - x[i], y[j] - y[i]) / fill).astype(int), 40)
         total = int(n.sum())
         if not total:
             return np.stack([x[hit], y[hit]], axis=1)
@@ -293,22 +296,18 @@ class Shield:
             gap = min(gap, float(self._clearance(poses, self._mover_points(movers, times, pose))[0]))
         return gap > 0.0
 
-    def _no_closer(self, v: np.ndarray, w: np.ndarray, v_now: float, points: np.ndarray, movers: list[Any],
-                   pose: tuple[float, float, float], w_now: float | None) -> np.ndarray:
-        """(C,) True where no pose of the command's sweep is closer to the points and movers
-        than the robot is now (to within 0.1 mm)."""
+    def _close_clear(self, v: np.ndarray, w: np.ndarray, v_now: float, ranges: np.ndarray, movers: list[Any],
+                     pose: tuple[float, float, float], w_now: float | None) -> np.ndarray:
+        """(C,) True where the sweep keeps the bare outline grown by ``close_margin`` off the scan
+        filled in every 1 cm and off the movers: the test for turning in place once inside the margin."""
+        cfg = self.config
         poses, times = self.sweep(v, w, v_now, w_now)
-        here = np.zeros((1, 1, 3))
-        now = float(self._clearance(here, points)[0])
-        if len(points) and math.isfinite(now):  # a point farther than this from every pose is farther than now
-            far = float(np.sqrt((poses[:, :, 0] ** 2 + poses[:, :, 1] ** 2).max())) + self._bare_radius + now + 1e-3
-            points = points[points[:, 0] ** 2 + points[:, 1] ** 2 <= far * far]
-        gap = self._clearance(poses, points)
+        dense = self.points(ranges, within=self._bare_radius + 0.1, fill=0.01)
+        margin = np.full(poses.shape[0], cfg.close_margin)
+        blocked = self._blocked(poses, dense, margin)
         if movers:
-            pts = self._mover_points(movers, times, pose)
-            now = min(now, float(self._clearance(here, pts[:1, :1])[0]))
-            gap = np.minimum(gap, self._clearance(poses, pts))
-        return gap >= now - 1e-4
+            blocked |= self._blocked(poses, self._mover_points(movers, times, pose), margin)
+        return ~blocked
 
     def filter(self, v: float, w: float, v_now: float, ranges: np.ndarray, movers: list[Any] | None = None,
                pose: tuple[float, float, float] = (0.0, 0.0, 0.0), w_now: float | None = None,
@@ -352,8 +351,13 @@ class Shield:
                 best = lo + int(np.argmax(clear))
                 return ShieldDecision(True, float(cand[best, 0]), float(cand[best, 1]), float(change[best]), True)
         # already inside the margin: a turn in place (or the stop) that brings the outline no closer
-        turns = np.flatnonzero((cand[:, 0] == 0.0) & (cand[:, 1] * (stuck or 0.0) >= 0.0))  # stuck: one way only
-        clear = self._no_closer(cand[turns, 0], cand[turns, 1], v_now, points, near, pose, w_now)
+        # (stuck: its own way first, then the other way, then the stop: the robot creeps a few mm
+        # a minute on the spot, so standing still beside a wall is not safe for ever)
+        turns = np.flatnonzero(cand[:, 0] == 0.0)
+        if stuck:
+            turns = turns[np.argsort(cand[turns, 1] * stuck < 0.0, kind="stable")]
+            turns = np.concatenate([turns[cand[turns, 1] != 0.0], turns[cand[turns, 1] == 0.0]])
+        clear = self._close_clear(cand[turns, 0], cand[turns, 1], v_now, ranges, near, pose, w_now)
         if not clear.any():  # the last resort; safe when even its coasting keeps off the bare outline
             stop = int(np.flatnonzero((cand[:, 0] == 0.0) & (cand[:, 1] == 0.0))[0])
             return ShieldDecision(True, 0.0, 0.0, float(change[stop]), self._touch_free(v_now, points, near, pose, w_now))
