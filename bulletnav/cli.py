@@ -153,9 +153,9 @@ def cmd_bench(args: argparse.Namespace) -> int:
     elif args.what == "shield":
         from bulletnav.bench.shield_bench import DEFAULT_ENV, bench_shield
 
-        result = bench_shield(steps=args.steps or 3000, seed=args.seed, env_id=args.env_id or DEFAULT_ENV)
+        result = bench_shield(steps=args.steps or 3000, seed=args.seed, env_id=args.env_id or DEFAULT_ENV, driver=args.driver)
         d, s = result["decision_ms"], result["env_step_ms"]
-        lines = [f"shield decision per step ({result['env_id']}, {result['steps']} steps, forward-pushing driver, "
+        lines = [f"shield decision per step ({result['env_id']}, {result['steps']} steps, driver {result['driver']}, "
                  f"acted on {result['intervention_rate'] * 100:.1f} %):",
                  f"  all      mean {d['mean']:.3f} ms  median {d['median']:.3f} ms  p99 {d['p99']:.3f} ms  max {d['max']:.3f} ms",
                  f"  passed   mean {result['decision_passed_ms']['mean']:.3f} ms   "
@@ -652,6 +652,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--env", dest="env_id", default=None, metavar="ID",
                        help="env: Warehouse-v0 against raw PyBullet, or WarehouseDynamic-v0 against "
                             "WarehouseAisles-v0 (default Warehouse-v0); shield: any env (default WarehouseDynamic-v0)")
+    bench.add_argument("--driver", choices=["ram", "navigator"], default="ram",
+                       help="shield: who drives, a forward-pushing random driver (default) or PID + A*")
     bench.set_defaults(func=cmd_bench)
     return parser
 

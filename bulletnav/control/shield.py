@@ -50,7 +50,7 @@ import numpy as np
 from bulletnav.geometry import RobotGeometry
 
 _BATCH = 8
-"""Fallback commands checked per batch, in order of increasing change."""
+"""Fallback commands checked first (the nearest in change); the rest are checked together."""
 _DISC = np.stack([np.cos(np.arange(12) * math.pi / 6), np.sin(np.arange(12) * math.pi / 6)], axis=1)
 """A worker's footprint: 12 points on its circle (scaled by its radius)."""
 _U = np.linspace(-1.0, 1.0, 5)
@@ -302,7 +302,8 @@ class Shield:
         filled in every 1 cm and off the movers: the test for turning in place once inside the margin."""
         cfg = self.config
         poses, times = self.sweep(v, w, v_now, w_now)
-        dense = self.points(ranges, within=self._bare_radius + 0.1, fill=0.01)
+        travel = float(np.sqrt((poses[:, :, 0] ** 2 + poses[:, :, 1] ** 2).max()))
+        dense = self.points(ranges, within=self._bare_radius + cfg.close_margin + travel, fill=0.01)
         margin = np.full(poses.shape[0], cfg.close_margin)
         blocked = self._blocked(poses, dense, margin)
         if movers:
@@ -343,9 +344,9 @@ class Shield:
             rank[(cand[:, 0] == 0.0) & ((cand[:, 1] == 0.0) | (cand[:, 1] * stuck < 0.0))] = np.inf
         order = np.argsort(rank, kind="stable")
         cand, change = cand[order], change[order]
-        # by increasing change, a batch at a time: the first clear one is the closest safe command
-        for lo in range(0, 0 if inside else len(cand), _BATCH):
-            hi = lo + _BATCH
+        # by increasing change, the nearest few first, then all the rest in one go: the first
+        # clear one is the closest safe command
+        for lo, hi in (() if inside else ((0, _BATCH), (_BATCH, len(cand)))):
             clear = self.check(cand[lo:hi, 0], cand[lo:hi, 1], v_now, points, near, pose, w_now=w_now)
             if clear.any():
                 best = lo + int(np.argmax(clear))
