@@ -1,1 +1,0 @@
-bulletnav navigate --planner astar --episodes 200 --seed 1000000 --shield --json
