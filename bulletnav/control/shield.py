@@ -219,12 +219,7 @@ class Shield:
         n_cmd = poses.shape[0]
         if points.shape[-2] == 0:
             return np.zeros(n_cmd, dtype=bool)
-        if points.ndim == 2:
-            points = points[None, None]
-        px = points[..., 0] - poses[:, :, 0, None]
-        py = points[..., 1] - poses[:, :, 1, None]
-        c, s = np.cos(poses[:, :, 2])[..., None], np.sin(poses[:, :, 2])[..., None]
-        bx, by = c * px + s * py, -s * px + c * py
+        bx, by = _in_pose_frames(poses, points)
         m = np.broadcast_to(np.asarray(margin, dtype=np.float64), (n_cmd,)).reshape((n_cmd,) + (1,) * (bx.ndim - 1))
         hit = np.zeros(bx.shape, dtype=bool)
         for cx, cy, hx, hy in self._outline:
@@ -237,12 +232,7 @@ class Shield:
         n_cmd = poses.shape[0]
         if points.shape[-2] == 0:
             return np.full(n_cmd, np.inf)
-        if points.ndim == 2:
-            points = points[None, None]
-        px = points[..., 0] - poses[:, :, 0, None]
-        py = points[..., 1] - poses[:, :, 1, None]
-        c, s = np.cos(poses[:, :, 2])[..., None], np.sin(poses[:, :, 2])[..., None]
-        bx, by = c * px + s * py, -s * px + c * py
+        bx, by = _in_pose_frames(poses, points)
         dist = np.full(bx.shape, np.inf)
         for cx, cy, hx, hy in self._outline:
             dx = np.maximum(np.abs(bx - cx) - hx, 0.0)
@@ -364,6 +354,17 @@ class Shield:
             return ShieldDecision(True, 0.0, 0.0, float(change[stop]), self._touch_free(v_now, points, near, pose, w_now))
         best = int(turns[np.argmax(clear)])
         return ShieldDecision(True, float(cand[best, 0]), float(cand[best, 1]), float(change[best]), True)
+
+
+def _in_pose_frames(poses: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points ((N, 2), or per pose (C, K, M, 2)) in the frame of each pose (C, K, 3): x and y,
+    (C, K, N) or (C, K, M)."""
+    if points.ndim == 2:
+        points = points[None, None]
+    px = points[..., 0] - poses[:, :, 0, None]
+    py = points[..., 1] - poses[:, :, 1, None]
+    c, s = np.cos(poses[:, :, 2])[..., None], np.sin(poses[:, :, 2])[..., None]
+    return c * px + s * py, -s * px + c * py
 
 
 NO_DECISION = ShieldDecision(False, 0.0, 0.0, 0.0, True)
