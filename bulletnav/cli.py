@@ -30,6 +30,12 @@ def _add_obstacles_arg(parser: argparse.ArgumentParser, default: str = "the env'
                         help=f"obstacles in a procedural warehouse (default: {default})")
 
 
+def _add_shield_arg(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--shield", action="store_true",
+                        help="behind the safety shield: a command whose stopping sweep would touch what the lidar sees or "
+                             "a mover is replaced by the closest safe one (reports how often)")
+
+
 def _add_world_args(parser: argparse.ArgumentParser) -> None:
     _add_env_arg(parser)
     parser.add_argument("--world", metavar="FILE", help="YAML layout (default: procedural warehouse)")
@@ -561,9 +567,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="pose for mapping and steering (default truth)")
     nav.add_argument("--gui", action="store_true", help="watch in the PyBullet GUI (needs a display)")
     nav.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
-    nav.add_argument("--shield", action="store_true",
-                     help="behind the safety shield: a command whose stopping sweep would touch what the lidar sees or "
-                          "a mover is replaced by the closest safe one (reports how often)")
+    _add_shield_arg(nav)
     nav.add_argument("--video", metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
     nav.add_argument("--plot", metavar="PNG", help="write all episodes' paths over their maps")
     nav.set_defaults(func=cmd_navigate)
@@ -600,9 +604,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--seed", type=int, default=1000, help="episode k uses env seed S + k (default 1000)")
     ev.add_argument("--gui", action="store_true", help="watch in the PyBullet GUI (needs a display)")
     ev.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
-    ev.add_argument("--shield", action="store_true",
-                     help="behind the safety shield: a command whose stopping sweep would touch what the lidar sees or "
-                          "a mover is replaced by the closest safe one (reports how often)")
+    _add_shield_arg(ev)
     ev.add_argument("--video", metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
     ev.add_argument("--plot", metavar="PNG", help="write all episodes' paths over their maps")
     ev.set_defaults(func=cmd_evaluate)
@@ -627,9 +629,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--video", metavar="PATH", help="video file (default DIR/episodes.mp4)")
     demo.add_argument("--gui", action="store_true", help="watch live in the PyBullet GUI")
     demo.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
-    demo.add_argument("--shield", action="store_true",
-                     help="behind the safety shield: a command whose stopping sweep would touch what the lidar sees or "
-                          "a mover is replaced by the closest safe one (reports how often)")
+    _add_shield_arg(demo)
     demo.set_defaults(func=cmd_demo, algo=None)
 
     view = add("view", "look at a warehouse in the PyBullet GUI")

@@ -181,7 +181,7 @@ class Shield:
         v = np.atleast_1d(np.asarray(v, dtype=np.float64))[:, None]
         w = np.atleast_1d(np.asarray(w, dtype=np.float64))[:, None]
         drive = v > 0
-        v1 = np.where(drive, np.maximum(v_now, v), max(v_now, 0.0))
+        v1 = _start_speed(v, v_now)
         stop = v1 / cfg.decel  # time to stop driving
         spin = np.where(drive, 0.0, np.abs(w) * self._half_base / cfg.decel)  # a turn in place's time to stop turning
         # times: 0, the end of the control period (where braking starts), then evenly to the horizon
@@ -265,12 +265,10 @@ class Shield:
         """(C,) True where the sweep of command (v, w) is clear of ``points`` (body frame) and
         ``movers`` for the outline grown by the sweep's margin (see :meth:`margin`)."""
         poses, times = self.sweep(v, w, v_now, w_now)
-        v = np.atleast_1d(np.asarray(v, dtype=np.float64))
-        margin = self.margin(np.where(v > 0, np.maximum(v_now, v), max(v_now, 0.0)))
+        margin = self.margin(_start_speed(np.atleast_1d(np.asarray(v, dtype=np.float64)), v_now))
         if len(points):  # only points within the grown outline's reach of some pose can be hit
             m = float(margin.max())
-            far = float(np.sqrt((poses[:, :, 0] ** 2 + poses[:, :, 1] ** 2).max())) + float(
-                np.hypot(self._outline_abs[:, 0] + m, self._outline_abs[:, 1] + m).max())
+            far = _travel(poses) + float(np.hypot(self._outline_abs[:, 0] + m, self._outline_abs[:, 1] + m).max())
             points = points[points[:, 0] ** 2 + points[:, 1] ** 2 <= far * far]
         blocked = self._blocked(poses, points, margin)
         if movers:
@@ -292,8 +290,7 @@ class Shield:
         filled in every 1 cm and off the movers: the test for turning in place once inside the margin."""
         cfg = self.config
         poses, times = self.sweep(v, w, v_now, w_now)
-        travel = float(np.sqrt((poses[:, :, 0] ** 2 + poses[:, :, 1] ** 2).max()))
-        dense = self.points(ranges, within=self._bare_radius + cfg.close_margin + travel, fill=0.01)
+        dense = self.points(ranges, within=self._bare_radius + cfg.close_margin + _travel(poses), fill=0.01)
         margin = np.full(poses.shape[0], cfg.close_margin)
         blocked = self._blocked(poses, dense, margin)
         if movers:
@@ -341,12 +338,12 @@ class Shield:
             if clear.any():
                 best = lo + int(np.argmax(clear))
                 return ShieldDecision(True, float(cand[best, 0]), float(cand[best, 1]), float(change[best]), True)
-        # already inside the margin: a turn in place (or the stop) that brings the outline no closer
-        # (stuck: its own way first, then the other way, then the stop: the robot creeps a few mm
-        # a minute on the spot, so standing still beside a wall is not safe for ever)
+        # already inside the margin: a turn in place (or the stop) that passes the close-range test
+        # (stuck: its own way first, then the other way, then the stop -- the ranks already put
+        # the other way after this one; the robot creeps a few mm a minute on the spot, so
+        # standing still beside a wall is not safe for ever)
         turns = np.flatnonzero(cand[:, 0] == 0.0)
         if stuck:
-            turns = turns[np.argsort(cand[turns, 1] * stuck < 0.0, kind="stable")]
             turns = np.concatenate([turns[cand[turns, 1] != 0.0], turns[cand[turns, 1] == 0.0]])
         clear = self._close_clear(cand[turns, 0], cand[turns, 1], v_now, ranges, near, pose, w_now)
         if not clear.any():  # the last resort; safe when even its coasting keeps off the bare outline
@@ -354,6 +351,17 @@ class Shield:
             return ShieldDecision(True, 0.0, 0.0, float(change[stop]), self._touch_free(v_now, points, near, pose, w_now))
         best = int(turns[np.argmax(clear)])
         return ShieldDecision(True, float(cand[best, 0]), float(cand[best, 1]), float(change[best]), True)
+
+
+def _start_speed(v: np.ndarray, v_now: float) -> np.ndarray:
+    """The speed (m/s) a sweep runs at over the control period: the larger of the current and
+    the commanded forward speed when driving, the current one (coasting) otherwise."""
+    return np.where(v > 0, np.maximum(v_now, v), max(v_now, 0.0))
+
+
+def _travel(poses: np.ndarray) -> float:
+    """The farthest any of the poses (C, K, 3) gets from the start (m)."""
+    return float(np.sqrt((poses[:, :, 0] ** 2 + poses[:, :, 1] ** 2).max()))
 
 
 def _in_pose_frames(poses: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
