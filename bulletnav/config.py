@@ -75,10 +75,20 @@ class RobotConfig:
     """Coulomb friction coefficient between the wheels and the floor."""
     caster_friction: float = 0.0
     """Friction of the passive caster ball; 0 models a free-rolling ball caster."""
+    park_brake_rate: float = 0.05
+    """Parking brake: on a command of exactly (0, 0), once both wheels turn slower than this
+    (rad/s), the motors hold the wheels at their angles and the wheel contacts keep friction
+    anchors, until the next non-zero command. PyBullet's velocity motors and sliding contacts
+    let a robot told to stand still creep ~0.3 mm/s for as long as it stands (15 mm a minute
+    after a turn); braked, it settles within seconds. 0 turns the brake off."""
     footprint_radius: float = 0.2
     """Disc radius (m) standing for the robot in start/goal sampling, reachability, planning
     inflation and the evaluation's shortest path: the outline's farthest corner (0.18 m for
     the shipped URDF) plus 2 cm. Must be at least the outline's (checked at load)."""
+
+    def __post_init__(self) -> None:
+        if not (self.park_brake_rate >= 0.0):
+            raise ValueError(f"RobotConfig.park_brake_rate must be >= 0 rad/s, got {self.park_brake_rate}")
 
     def urdf_path(self) -> Path:
         return Path(self.urdf) if self.urdf else asset_path("diff_drive.urdf")

@@ -91,8 +91,56 @@ def report(request):
     return _report
 
 
+_GUI_CHILD = "BULLETNAV_GUI_TEST_CHILD"
+"""Set in the child process that runs one GUI test (see :func:`pytest_pyfunc_call`); its value
+is the file the child writes its measurements to."""
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_pyfunc_call(pyfuncitem):
+    """Run each test that opens PyBullet's GUI (uses the ``display`` fixture) in a fresh child
+    process. PyBullet allows one in-process GUI at a time, and after several GUI connections and
+    disconnections in one process a connection has been seen to hang for ever (the GUI thread
+    gone, the main thread polling for it) once torch is imported; one GUI session per process,
+    as every user command has, does not. The child's failure fails the test with its output."""
+    import json
+    import os
+    import subprocess
+    import sys
+    import tempfile
+
+    if "display" not in pyfuncitem.fixturenames or os.environ.get(_GUI_CHILD):
+        return None
+    with tempfile.TemporaryDirectory() as tmp:
+        measurements = Path(tmp) / "measurements.json"
+        env = {**os.environ, _GUI_CHILD: str(measurements)}
+        cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--no-header", pyfuncitem.nodeid]
+        try:
+            out = subprocess.run(cmd, env=env, cwd=pyfuncitem.config.rootpath, capture_output=True, text=True,
+                                 timeout=600)
+        except subprocess.TimeoutExpired as exc:
+            pytest.fail(f"GUI test {pyfuncitem.nodeid} did not finish in its child process within {exc.timeout} s")
+        if measurements.exists():
+            _MEASUREMENTS.extend(tuple(m) for m in json.loads(measurements.read_text()))
+    if out.returncode != 0:
+        pytest.fail(f"GUI test failed in its child process (exit {out.returncode}):\n{out.stdout[-6000:]}\n{out.stderr[-2000:]}",
+                    pytrace=False)
+    return True
+
+
+def pytest_sessionfinish(session):
+    import json
+    import os
+
+    path = os.environ.get(_GUI_CHILD)
+    if path:  # a GUI test's child: hand the measurements to the parent
+        Path(path).write_text(json.dumps(_MEASUREMENTS))
+
+
 def pytest_terminal_summary(terminalreporter):
-    if _MEASUREMENTS:
+    import os
+
+    if _MEASUREMENTS and not os.environ.get(_GUI_CHILD):
         terminalreporter.section("measurements")
         for what, value in _MEASUREMENTS:
             terminalreporter.write_line(f"{what} = {value}")

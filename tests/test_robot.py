@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from bulletnav.config import RobotConfig
 from bulletnav.geometry import robot_geometry
 from bulletnav.sim.layout import Layout
 from conftest import drive
@@ -94,3 +95,65 @@ def test_obstacles_meet_the_wheels_true_width(make_sim, face_y, touching):
     edge = max(half_y for _, half_y in robot_geometry().centred_rectangles)
     assert edge == pytest.approx(0.12)
     assert (face_y > -edge) is touching
+
+
+def _spin_then_stand(sim, steps: int) -> list[tuple[float, float, float]]:
+    """Drive a tight arc and a turn in place, then command (0, 0) for ``steps`` control
+    steps; the poses at every step of the standing."""
+    for _ in range(12):
+        sim.step(0.5, -1.5)
+    for _ in range(6):
+        sim.step(0.0, 1.5)
+    poses = []
+    for _ in range(steps):
+        sim.step(0.0, 0.0)
+        poses.append(sim.robot.planar_pose())
+    return poses
+
+
+def _moved(a, b) -> tuple[float, float]:
+    return math.hypot(b[0] - a[0], b[1] - a[1]), abs(b[2] - a[2])
+
+
+def test_a_stopped_robot_stands_still_with_the_park_brake(make_sim, report):
+    # Without the brake PyBullet's velocity motors let a robot told to stand creep for as long
+    # as it stands; with it the robot settles and then does not move at all.
+    free = make_sim(robot=RobotConfig(park_brake_rate=0.0))
+    free.reset(FLAT, (0.0, 0.0, 0.0))
+    poses = _spin_then_stand(free, 960)
+    creep, _ = _moved(poses[240], poses[-1])  # the 30 s after the first 10 s of standing
+    assert not free.robot.braked
+    braked = make_sim()
+    braked.reset(FLAT, (0.0, 0.0, 0.0))
+    poses = _spin_then_stand(braked, 960)
+    assert braked.robot.braked
+    held, turned = _moved(poses[240], poses[-1])
+    report("creep in 30 s standing, brake off / on (mm)", f"{creep * 1e3:.2f} / {held * 1e3:.3f}")
+    assert creep > 3e-3
+    assert held < 1e-4 and turned < 1e-4
+
+
+def test_the_park_brake_waits_for_the_wheels_to_slow_and_lets_go_on_the_next_command(make_sim):
+    sim = make_sim()
+    sim.reset(FLAT, (0.0, 0.0, 0.0))
+    drive(sim, 0.5, 0.0, 1.0)
+    sim.step(0.0, 0.0)  # wheels at 10 rad/s: the motors brake, the brake does not grab
+    assert not sim.robot.braked
+    reference = make_sim(robot=RobotConfig(park_brake_rate=0.0))
+    reference.reset(FLAT, (0.0, 0.0, 0.0))
+    drive(reference, 0.5, 0.0, 1.0)
+    reference.step(0.0, 0.0)
+    for _ in range(47):  # the stopping distance is the velocity motors', brake or no brake
+        sim.step(0.0, 0.0)
+        reference.step(0.0, 0.0)
+    assert sim.robot.braked
+    assert sim.robot.pose()[0] == pytest.approx(reference.robot.pose()[0], abs=2e-3)
+    x0 = sim.robot.pose()[0]
+    drive(sim, 0.3, 0.0, 1.0)  # released: drives on as commanded
+    assert not sim.robot.braked
+    assert sim.robot.pose()[0] - x0 == pytest.approx(0.3, rel=0.1)
+
+
+def test_park_brake_rate_must_not_be_negative():
+    with pytest.raises(ValueError, match="park_brake_rate"):
+        RobotConfig(park_brake_rate=-1.0)

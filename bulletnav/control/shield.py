@@ -32,7 +32,8 @@ forever (a deterministic policy sees the same scan and asks again). After ``pati
 held still the shield is *stuck*: turns in place both ways join the set ahead of the stop,
 and once it has turned one way it keeps to that way while stuck (no dithering: when that way
 is not free it stops, unless already inside the margin, where a turn the other way is still
-preferred to standing: a robot held still creeps by a few millimetres a minute in PyBullet),
+preferred to standing: standing beside a wall is the last resort; the robot's parking brake,
+``RobotConfig.park_brake_rate``, keeps a stopped robot from creeping into it),
 until the controller's command, or a forward one near it, is clear again. (A forward-only
 robot that has come face-first within the margin of a flat wall has no turn that keeps its
 corners off the wall: it stays stopped; only reversing would free it.)
@@ -340,8 +341,7 @@ class Shield:
                 return ShieldDecision(True, float(cand[best, 0]), float(cand[best, 1]), float(change[best]), True)
         # already inside the margin: a turn in place (or the stop) that passes the close-range test
         # (stuck: its own way first, then the other way, then the stop -- the ranks already put
-        # the other way after this one; the robot creeps a few mm a minute on the spot, so
-        # standing still beside a wall is not safe for ever)
+        # the other way after this one; standing beside a wall is the last resort)
         turns = np.flatnonzero(cand[:, 0] == 0.0)
         if stuck:
             turns = np.concatenate([turns[cand[turns, 1] != 0.0], turns[cand[turns, 1] == 0.0]])

@@ -18,6 +18,9 @@ _base_velocity = p.getBaseVelocity
 _joint_states = p.getJointStates
 _matrix = p.getMatrixFromQuaternion
 
+_BRAKE_GAIN = 0.5
+"""Position gain of the parking brake's wheel motors (PyBullet ``positionGains``)."""
+
 REST_HEIGHT = 0.07
 """Height of the base origin above the floor when the robot rests on its wheels (m)."""
 
@@ -64,6 +67,7 @@ class Robot:
         """Distance between the wheel contact points, read from the URDF joints (m)."""
         self._com_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
         self._nominal_mass: tuple[float, tuple[float, ...]] = (0.0, (0.0, 0.0, 0.0))
+        self._held: tuple[float, float] | None = None  # wheel angles the parking brake holds (rad)
         self.state: RobotState | None = None
         """The snapshot taken by the last :meth:`sample`: after every control step and every
         :meth:`reset_pose` (the per-step code of sensors and task reads this one)."""
@@ -115,6 +119,7 @@ class Robot:
         info = p.getDynamicsInfo(self.body, -1, physicsClientId=cid)
         self._nominal_mass = (float(info[0]), tuple(float(v) for v in info[2]))
         self._torques = [self.config.max_wheel_torque] * 2
+        self._held = None  # a new body: no brake, no friction anchors
         self.reset_pose(pose)
 
     def apply_shift(self, mass_scale: float = 1.0, wheel_friction_scale: float = 1.0,
@@ -141,7 +146,8 @@ class Robot:
         p.resetBaseVelocity(self.body, [0, 0, 0], [0, 0, 0], physicsClientId=cid)
         for j in (self.left_joint, self.right_joint):
             p.resetJointState(self.body, j, 0.0, 0.0, physicsClientId=cid)
-        self.stop()
+        self._release_brake()
+        self._drive(0.0, 0.0)  # motors stopped; the brake engages on a later zero command
         self.sample()
 
     # ------------------------------------------------------------------ commands
@@ -149,6 +155,25 @@ class Robot:
         """Command forward speed ``v`` (m/s) and yaw rate ``w`` (rad/s) through the wheel motors."""
         if not (math.isfinite(v) and math.isfinite(w)):
             raise ValueError(f"set_velocity needs finite values, got v={v}, w={w}")
+        if v == 0.0 and w == 0.0 and self.config.park_brake_rate > 0.0:
+            if self._held is None:
+                state = self.state
+                rate = self.config.park_brake_rate
+                if state is not None and abs(state.wheel_rates[0]) < rate and abs(state.wheel_rates[1]) < rate:
+                    self._engage_brake(state.wheel_angles)
+            if self._held is not None:
+                return
+        elif self._held is not None:
+            self._release_brake()
+        self._drive(v, w)
+
+    @property
+    def braked(self) -> bool:
+        """Whether the parking brake holds the wheels (see ``RobotConfig.park_brake_rate``)."""
+        return self._held is not None
+
+    def _drive(self, v: float, w: float) -> None:
+        """The wheel velocity motors for (v, w)."""
         # inverse kinematics: wheel rates (left, right) = (v -+ w L / 2) / r
         half, r = self.wheelbase / 2, self.wheel_radius
         _motors(self.body, self._wheels, p.VELOCITY_CONTROL, targetVelocities=[(v - w * half) / r, (v + w * half) / r],
@@ -156,6 +181,24 @@ class Robot:
 
     def stop(self) -> None:
         self.set_velocity(0.0, 0.0)
+
+    def _engage_brake(self, angles: tuple[float, float]) -> None:
+        """Hold the wheels at ``angles`` with position motors at the torque limit, and anchor
+        the wheels' floor contacts (PyBullet's friction anchors stop the contacts' slow slide)."""
+        cid = self.cid
+        self._held = (float(angles[0]), float(angles[1]))
+        _motors(self.body, self._wheels, p.POSITION_CONTROL, targetPositions=list(self._held),
+                targetVelocities=[0.0, 0.0], forces=self._torques, positionGains=[_BRAKE_GAIN] * 2,
+                velocityGains=[1.0, 1.0], physicsClientId=cid)
+        for wheel in self._wheels:
+            p.changeDynamics(self.body, wheel, frictionAnchor=1, physicsClientId=cid)
+
+    def _release_brake(self) -> None:
+        if self._held is None:
+            return
+        self._held = None
+        for wheel in self._wheels:
+            p.changeDynamics(self.body, wheel, frictionAnchor=0, physicsClientId=self.cid)
 
     # ------------------------------------------------------------------ state
     # Plain floats and tuples below: these run every control step, and NumPy's per-call
