@@ -452,28 +452,30 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     from bulletnav.viz.compare import REACH_SUCCESS, compare_runs
 
-    rows = compare_runs([Path(r) for r in args.runs], Path(args.out))
+    rows = compare_runs([Path(r) for r in args.runs], Path(args.out), group_by=args.group_by)
     if args.json:
         print(_json(rows))
         return 0
     reach = f"first >= {REACH_SUCCESS * 100:.0f} % at (steps, s)"
-    print(f"| algorithm | seed | timesteps | wall time (s) | final success | final collisions | final reward | "
+    head = "algorithm" if args.group_by == "algo" else "hyperparameters"
+    name = (lambda r: r["group"].upper()) if args.group_by == "algo" else (lambda r: r["group"])
+    print(f"| {head} | seed | timesteps | wall time (s) | final success | final collisions | final reward | "
           f"best success (at) | {reach} |")
     print("|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         reached = f"{r['reached_at']}, {r['reached_wall_s']}" if r["reached_at"] is not None else "never"
-        print(f"| {r['algo'].upper()} | {r['seed']} | {r['timesteps']} | {r['wall_time_s']:.0f} | "
+        print(f"| {name(r)} | {r['seed']} | {r['timesteps']} | {r['wall_time_s']:.0f} | "
               f"{r['final_success'] * 100:.0f} % | {r['final_collisions'] * 100:.0f} % | {r['final_reward']:.1f} | "
               f"{r['best_success'] * 100:.0f} % ({r['best_at']}) | {reached} |")
-    by_algo: dict[str, list[dict]] = {}
+    by_group: dict[str, list[dict]] = {}
     for r in rows:
-        by_algo.setdefault(r["algo"], []).append(r)
-    if any(len(v) > 1 for v in by_algo.values()):
-        print("\n| algorithm | seeds | final success, mean (min-max) | wall time (s), mean |")
+        by_group.setdefault(r["group"], []).append(r)
+    if any(len(v) > 1 for v in by_group.values()):
+        print(f"\n| {head} | seeds | final success, mean (min-max) | wall time (s), mean |")
         print("|---|---|---|---|")
-        for algo, rs in by_algo.items():
+        for rs in by_group.values():
             final = [r["final_success"] * 100 for r in rs]
-            print(f"| {algo.upper()} | {len(rs)} | {sum(final) / len(final):.0f} % ({min(final):.0f}-{max(final):.0f} %) | "
+            print(f"| {name(rs[0])} | {len(rs)} | {sum(final) / len(final):.0f} % ({min(final):.0f}-{max(final):.0f} %) | "
                   f"{sum(r['wall_time_s'] for r in rs) / len(rs):.0f} |")
     print(f"\nlearning curves: {args.out}")
     return 0
@@ -613,6 +615,9 @@ def build_parser() -> argparse.ArgumentParser:
     cmp_.add_argument("runs", nargs="+", metavar="RUN_DIR", help="directories written by train")
     cmp_.add_argument("--out", default="docs/algorithms.png", metavar="PNG",
                       help="figure to write (default docs/algorithms.png)")
+    cmp_.add_argument("--group-by", choices=("algo", "hyperparams"), default="algo",
+                      help="colour and summarize runs by algorithm (default) or by hyperparameter file "
+                           "(ablations of one algorithm)")
     cmp_.add_argument("--json", action="store_true", help="print the table as JSON")
     cmp_.set_defaults(func=cmd_compare)
 

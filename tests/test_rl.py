@@ -381,3 +381,15 @@ def test_old_collision_terminal_key_is_upgraded(tmp_path, caplog, flag):
     finally:
         env.close()
     assert (terminated, truncated) == (flag, not flag)
+
+
+def test_compare_groups_runs_by_hyperparameter_file():
+    from bulletnav.viz.compare import run_group
+
+    record = {"algo": "ppo", "command": "bulletnav train --algo ppo --hyperparams 'my dir/ppo_dynamic_both.yml' --seed 1"}
+    assert run_group(record, "algo") == "ppo"
+    assert run_group(record, "hyperparams") == "ppo_dynamic_both"
+    assert run_group({"algo": "sac", "command": "bulletnav train --hyperparams=x/sac_fast.yaml"}, "hyperparams") == "sac_fast"
+    assert run_group({"algo": "sac", "command": "bulletnav train --algo sac"}, "hyperparams") == "sac (default)"
+    with pytest.raises(ValueError, match="group_by must be one of algo, hyperparams"):
+        run_group(record, "arm")

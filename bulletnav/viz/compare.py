@@ -49,11 +49,35 @@ def _steps_label(value: float, _pos: int) -> str:
     return f"{value / 1e3:g}k" if abs(value) >= 1e3 else f"{value:g}"
 
 
-def compare_runs(run_dirs: list[Path], out_png: Path) -> list[dict[str, Any]]:
+GROUPS = ("algo", "hyperparams")
+"""What ``compare_runs`` colours runs by: the algorithm, or the hyperparameter file's name
+(``ppo_dynamic_curriculum`` for ``--hyperparams .../ppo_dynamic_curriculum.yml``; the
+algorithm's default file where ``train`` was given none)."""
+
+
+def run_group(record: dict[str, Any], group_by: str) -> str:
+    """The group a training run's ``run.json`` record belongs to (see :data:`GROUPS`)."""
+    import shlex
+
+    if group_by not in GROUPS:
+        raise ValueError(f"group_by must be one of {', '.join(GROUPS)}, got {group_by!r}")
+    if group_by == "algo":
+        return str(record["algo"])
+    words = shlex.split(record.get("command", ""))
+    for i, word in enumerate(words):
+        if word == "--hyperparams" and i + 1 < len(words):
+            return Path(words[i + 1]).stem
+        if word.startswith("--hyperparams="):
+            return Path(word.split("=", 1)[1]).stem
+    return f"{record['algo']} (default)"
+
+
+def compare_runs(run_dirs: list[Path], out_png: Path, group_by: str = "algo") -> list[dict[str, Any]]:
     """Learning curves of several runs in one PNG (success rate against timesteps and
-    against wall-clock time, mean reward against timesteps; one colour per algorithm, one
-    line per seed) and one summary row per run: final and best evaluation, wall time, and
-    when the in-training evaluation first reached :data:`REACH_SUCCESS`."""
+    against wall-clock time, mean reward against timesteps; one colour per group -- algorithm
+    or hyperparameter file, see :data:`GROUPS` --, one line per seed) and one summary row per
+    run: final and best evaluation, wall time, and when the in-training evaluation first
+    reached :data:`REACH_SUCCESS`."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -62,7 +86,9 @@ def compare_runs(run_dirs: list[Path], out_png: Path) -> list[dict[str, Any]]:
 
     rows = []
     fig, (ax1, ax3, ax2) = plt.subplots(1, 3, figsize=(15, 4), dpi=100)
-    colours: dict[str, Any] = {}  # one colour per algorithm; its seeds share it, each its own line style
+    if group_by not in GROUPS:
+        raise ValueError(f"group_by must be one of {', '.join(GROUPS)}, got {group_by!r}")
+    colours: dict[str, Any] = {}  # one colour per group; its seeds share it, each its own line style
     styles = ("o-", "s--", "^:", "d-.")
     seen: dict[str, int] = {}
     for run in run_dirs:
@@ -71,11 +97,11 @@ def compare_runs(run_dirs: list[Path], out_png: Path) -> list[dict[str, Any]]:
                 raise RunError(f"{run}: not a finished training run (no {name})")
         history = json.loads((run / "eval_history.json").read_text())
         record = json.loads((run / "run.json").read_text())
-        algo = record["algo"]
-        colour = colours.setdefault(algo, f"C{len(colours) % 10}")
-        style = styles[seen.get(algo, 0) % len(styles)]
-        seen[algo] = seen.get(algo, 0) + 1
-        label = f"{algo.upper()} seed {record['seed']}"
+        group = run_group(record, group_by)
+        colour = colours.setdefault(group, f"C{len(colours) % 10}")
+        style = styles[seen.get(group, 0) % len(styles)]
+        seen[group] = seen.get(group, 0) + 1
+        label = f"{group.upper() if group_by == 'algo' else group} seed {record['seed']}"
         steps = [h["timesteps"] for h in history]
         ax1.plot(steps, [h["success_rate"] for h in history], style, color=colour, alpha=0.8, ms=3, label=label)
         ax2.plot(steps, [h["mean_reward"] for h in history], style, color=colour, alpha=0.8, ms=3, label=label)
@@ -84,7 +110,7 @@ def compare_runs(run_dirs: list[Path], out_png: Path) -> list[dict[str, Any]]:
         final = history[-1]
         best = max(history, key=lambda h: h["success_rate"])
         reached = next((h for h in history if h["success_rate"] >= REACH_SUCCESS), None)
-        rows.append({"run": str(run), "algo": record["algo"], "seed": record["seed"],
+        rows.append({"run": str(run), "algo": record["algo"], "group": group, "seed": record["seed"],
                      "timesteps": record["total_timesteps"],
                      # a resumed run's record times only its last part; the history's clock runs from the start
                      "wall_time_s": max([record["wall_time_s"], *(h.get("wall_time", 0.0) for h in history)]),
@@ -104,7 +130,7 @@ def compare_runs(run_dirs: list[Path], out_png: Path) -> list[dict[str, Any]]:
         ax.xaxis.set_major_formatter(FuncFormatter(_steps_label))
     for ax in (ax1, ax3):
         ax.set_ylim(-0.02, 1.02)
-    ax1.legend(loc="upper left")
+    ax1.legend(loc="lower right" if len(run_dirs) > 4 else "upper left", fontsize="small" if len(run_dirs) > 4 else None)
     fig.tight_layout()
     out_png.parent.mkdir(parents=True, exist_ok=True)
     tmp = out_png.with_name(f".{out_png.name}.tmp.png")
