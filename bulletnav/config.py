@@ -75,7 +75,7 @@ class RobotConfig:
     """Coulomb friction coefficient between the wheels and the floor."""
     caster_friction: float = 0.0
     """Friction of the passive caster ball; 0 models a free-rolling ball caster."""
-    park_brake_rate: float = 0.05
+    park_brake_rate: float = 0.25
     """Parking brake: on a command of exactly (0, 0), once both wheels turn slower than this
     (rad/s), the motors hold the wheels at their angles and the wheel contacts keep friction
     anchors, until the next non-zero command. PyBullet's velocity motors and sliding contacts

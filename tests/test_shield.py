@@ -343,3 +343,47 @@ def test_the_veto_becomes_stuck_after_patience_steps_and_forgets_at_reset():
         assert env._veto.held == 0 and env._veto.escape == 0.0
     finally:
         env.close()
+
+
+def _polygon_ranges(vertices: np.ndarray) -> np.ndarray:
+    """Ranges from the lidar to a convex polygon (body frame), ray-cast analytically."""
+    r = np.full(len(ANGLES), 5.0)
+    o = np.array([OX, 0.0])
+    for k, a in enumerate(ANGLES):
+        d = np.array([math.cos(a), math.sin(a)])
+        for p0, p1 in zip(vertices, np.roll(vertices, -1, axis=0)):
+            e = p1 - p0
+            den = d[0] * -e[1] - d[1] * -e[0]
+            if abs(den) < 1e-12:
+                continue
+            w = p0 - o
+            t = (w[0] * -e[1] - w[1] * -e[0]) / den
+            u = (d[0] * w[1] - d[1] * w[0]) / den
+            if t > 0 and 0 <= u <= 1:
+                r[k] = min(r[k], t)
+    return r
+
+
+@pytest.mark.parametrize("bearing_deg, distance", [(5.0, 0.35), (-125.0, 0.25), (93.0, 0.6)])
+def test_a_box_corner_between_two_rays_is_rebuilt(bearing_deg, distance):
+    # A square box (0.5 m) turned so that a corner points at the lidar, between two rays: the
+    # straight join of the two nearest hits cuts the corner off by a centimetre or more; the
+    # rebuilt scan has the corner itself.
+    bearing = math.radians(bearing_deg)
+    u = np.array([math.cos(bearing), math.sin(bearing)])
+    corner = np.array([OX, 0.0]) + distance * u
+    n = np.array([-u[1], u[0]])
+    h = 0.5 / math.sqrt(2)
+    vertices = np.array([corner, corner + h * (u + n), corner + 2 * h * u, corner + h * (u - n)])
+    ranges = _polygon_ranges(vertices)
+    points = _shield().points(ranges, fill=0.01)
+    assert np.hypot(*(points - corner).T).min() < 1e-6
+    # the two hits either side of the corner, and how far their straight join passes from it
+    k = int(np.argmin(np.abs(np.angle(np.exp(1j * (ANGLES - bearing))))))
+    k2 = k + 1 if math.remainder(bearing - ANGLES[k], 2 * math.pi) > 0 else k - 1
+    a_, b_ = (np.array([OX + ranges[i] * math.cos(ANGLES[i]), ranges[i] * math.sin(ANGLES[i])]) for i in (k, k2 % 36))
+    t = np.clip(np.dot(corner - a_, b_ - a_) / np.dot(b_ - a_, b_ - a_), 0, 1)
+    assert np.hypot(*(a_ + t * (b_ - a_) - corner)) > 0.004
+    # every point lies on the box's boundary (none in front of it)
+    centre = corner + h * u
+    assert np.all(np.abs(np.dot(points - centre, u)) + np.abs(np.dot(points - centre, n)) <= h + 1e-6)

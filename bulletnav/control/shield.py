@@ -13,7 +13,9 @@ starting speed from ``margin_min`` at rest to ``margin`` at full speed) is place
   rays filled in every 4 cm when the two hits are within ``join`` of each other (36 rays are
   17 cm apart at 1 m: a box corner could hide between two, and a wall seen at a grazing angle
   has hits far apart in range but close in space; a gap narrower than the robot is no
-  passage, so closing it costs nothing);
+  passage, so closing it costs nothing); where the surfaces either side of a joined gap meet
+  in a convex corner pointing at the robot (a rack's end), the corner is rebuilt from the two
+  surface lines -- the straight join cuts it off by up to ~4 cm at 0.6 m;
 - the movers the scene exposes (``scene.movers``), each moved ahead at its current speed and
   heading to the time of each pose, as points on its footprint.
 
@@ -114,6 +116,10 @@ class ShieldDecision:
         return {"intervened": self.intervened, "v": self.v, "w": self.w, "change": self.change, "safe": self.safe}
 
 
+_SIN_CORNER = math.sin(math.radians(15.0))
+"""Two surfaces meeting at less than this angle are one surface to :meth:`Shield.points`."""
+
+
 class Shield:
     """The decision alone: :meth:`check` a command, :meth:`filter` one (see the module docstring).
 
@@ -142,36 +148,73 @@ class Shield:
         self._outline_abs = np.abs(self._outline[:, :2]) + self._outline[:, 2:]
         self._bare_radius = float(np.hypot(self._outline_abs[:, 0], self._outline_abs[:, 1]).max())
         self._tail = np.linspace(0.0, 1.0, config.samples - 1)[None, 1:]
-        self._next = np.roll(np.arange(len(self.angles)), -1)  # each ray's neighbour
+        self._next = np.roll(np.arange(len(self.angles)), -1)  # each ray's neighbours
+        self._prev = np.roll(np.arange(len(self.angles)), 1)
 
     # ------------------------------------------------------------------ geometry
     def points(self, ranges: np.ndarray, within: float = math.inf, fill: float = 0.04) -> np.ndarray:
         """Lidar hits in the body frame, with joined surfaces filled in every ``fill`` m (N, 2);
-        with ``within``, only the hits and surfaces that come that close to the body centre."""
+        with ``within``, only the hits and surfaces that come that close to the body centre.
+
+        A convex corner between two rays (a box or rack corner pointing at the robot) sticks out
+        of the straight join of the two hits: where the surfaces on both sides of a joined gap
+        are seen by two hits each (within twice ``join`` of each other), the corner is rebuilt as the intersection of the two
+        surface lines (when they meet at 15 degrees or more, inside the gap's wedge, in front
+        of the straight join and within twice its length of both hits), and the two legs to it
+        are filled too."""
         r = np.asarray(ranges, dtype=np.float64)
         hit = r < self.max_range * 0.999
         x = self.geometry.lidar_offset + r * self.cos
         y = r * self.sin
-        nxt = self._next
+        nxt, prv = self._next, self._prev
         span = np.hypot(x[nxt] - x, y[nxt] - y)
         pair = hit & hit[nxt] & (span < self.config.join)
+        d = np.hypot(x, y)
+        # corners: gap (b, c) joined, with hits a and e beyond it on either side, each within
+        # twice the join of its neighbour (one surface is seen on each side)
+        side = hit & hit[nxt] & (span < 2.0 * self.config.join)
+        b = np.flatnonzero(pair & side[prv] & side[nxt])
+        c = nxt[b]
+        a, e = prv[b], nxt[c]
+        d1x, d1y = x[b] - x[a], y[b] - y[a]
+        d2x, d2y = x[e] - x[c], y[e] - y[c]
+        gx, gy = x[c] - x[b], y[c] - y[b]
+        denom = d1x * d2y - d1y * d2x
+        ok = np.abs(denom) > _SIN_CORNER * np.hypot(d1x, d1y) * np.hypot(d2x, d2y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s1 = np.where(ok, (gx * d2y - gy * d2x) / np.where(ok, denom, 1.0), 0.0)
+            s2 = np.where(ok, (gx * d1y - gy * d1x) / np.where(ok, denom, 1.0), 0.0)
+        cx, cy = x[b] + s1 * d1x, y[b] + s1 * d1y
+        # ahead of b along its surface, short of c along the other, on the lidar's side of the join
+        ox = self.geometry.lidar_offset
+        toward = (gx * (cy - y[b]) - gy * (cx - x[b])) * (gx * (0.0 - y[b]) - gy * (ox - x[b])) > 0.0
+        leg = np.maximum(np.hypot(cx - x[b], cy - y[b]), np.hypot(cx - x[c], cy - y[c]))
+        ok &= (s1 > 0.0) & (s2 < 0.0) & toward & (leg < 2.0 * span[b])
+        b, c, cx, cy, leg = b[ok], c[ok], cx[ok], cy[ok], leg[ok]
         if within < math.inf:
-            d = np.hypot(x, y)
             near = d < within
             # a joined surface passes no closer than its nearer end minus half its length
             pair &= np.minimum(d, d[nxt]) - span / 2 < within
+            keep = np.minimum(np.hypot(cx, cy), np.minimum(d[b], d[c])) - leg / 2 < within
+            b, c, cx, cy = b[keep], c[keep], cx[keep], cy[keep]
             hit &= near
         i = np.flatnonzero(pair)
         j = nxt[i]
-        n = np.minimum((np.hypot(x[j] - x[i], y[j] - y[i]) / fill).astype(int), 40)
+        # segments to fill: the joins, and each rebuilt corner's two legs
+        sx = np.concatenate([x[i], x[b], cx])
+        sy = np.concatenate([y[i], y[b], cy])
+        ex = np.concatenate([x[j], cx, x[c]])
+        ey = np.concatenate([y[j], cy, y[c]])
+        n = np.minimum((np.hypot(ex - sx, ey - sy) / fill).astype(int), 40)
         total = int(n.sum())
+        px, py = np.concatenate([x[hit], cx]), np.concatenate([y[hit], cy])
         if not total:
-            return np.stack([x[hit], y[hit]], axis=1)
+            return np.stack([px, py], axis=1)
         start = np.repeat(np.cumsum(n) - n, n)
         t = (np.arange(total) - start + 1) / np.repeat(n + 1, n)
-        ii, jj = np.repeat(i, n), np.repeat(j, n)
-        fx, fy = x[ii] + t * (x[jj] - x[ii]), y[ii] + t * (y[jj] - y[ii])
-        return np.stack([np.concatenate([x[hit], fx]), np.concatenate([y[hit], fy])], axis=1)
+        ssx, ssy, eex, eey = np.repeat(sx, n), np.repeat(sy, n), np.repeat(ex, n), np.repeat(ey, n)
+        fx, fy = ssx + t * (eex - ssx), ssy + t * (eey - ssy)
+        return np.stack([np.concatenate([px, fx]), np.concatenate([py, fy])], axis=1)
 
     def sweep(self, v: float | np.ndarray, w: float | np.ndarray, v_now: float, w_now: float | None = None
               ) -> tuple[np.ndarray, np.ndarray]:
