@@ -182,6 +182,10 @@ def test_resume_continues_from_the_checkpoint(ppo_run, tmp_path):
     record = json.loads((run / "run.json").read_text())
     assert record["resumed_from"] == done and record["total_timesteps"] >= target
     assert record["hyperparams"] == json.loads((ppo_run / "config.json").read_text())["hyperparams"]
+    # the wall clock runs on from the first part's: the total is both parts', the checkpoint keeps it
+    first = json.loads((ppo_run / "checkpoints" / "last.json").read_text())["wall_time"]
+    assert record["wall_time_total_s"] == pytest.approx(first + record["wall_time_s"], abs=2.0)
+    assert json.loads((run / "checkpoints" / "last.json").read_text())["wall_time"] >= record["wall_time_total_s"] - 2.0
 
 
 @pytest.mark.slow  # uses the module's smoke PPO training (14 s), or trains itself

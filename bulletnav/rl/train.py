@@ -111,8 +111,14 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
         model = cls(hp["policy"], venv, seed=cfg.seed, device="cpu", verbose=0,
                     tensorboard_log=str(cfg.out / "tb"), **model_kwargs(hp, venv.action_space.shape[0]))
     vecnorm = venv if isinstance(venv, VecNormalize) else None
+    # the training's wall clock runs on across resumes: from the checkpoint's record, or (older
+    # checkpoints) from the last in-training evaluation's
+    prior = 0.0
+    if cfg.resume:
+        last = json.loads(ckpt.with_suffix(".json").read_text()) if ckpt.with_suffix(".json").is_file() else {}
+        prior = float(last.get("wall_time", history[-1]["wall_time"] if history else 0.0))
     evaluation = EvaluationCallback(cfg.out, cfg.eval_freq, cfg.eval_episodes, env_kwargs, history, env_id=cfg.env_id,
-                                    shield=shield)
+                                    shield=shield, started=time.time() - prior)
     callbacks = [evaluation]
     curriculum = None
     if hp.get("curriculum"):
@@ -123,7 +129,12 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
                 curriculum.curriculum.restore(state)
         curriculum.send_stage(venv)  # before the envs' first reset in learn()
         callbacks.append(curriculum)
-    state = (lambda: {"curriculum": curriculum.curriculum.state()}) if curriculum else None
+    def state() -> dict[str, Any]:
+        extra: dict[str, Any] = {"wall_time": round(time.time() - evaluation.started, 1)}
+        if curriculum:
+            extra["curriculum"] = curriculum.curriculum.state()
+        return extra
+
     checkpoints = CheckpointCallback(cfg.out, cfg.checkpoint_freq, state)
     record: dict[str, Any] = {
         "command": cfg.command, "algo": cfg.algo, "env_id": cfg.env_id, "seed": cfg.seed, "timesteps": cfg.timesteps,
@@ -139,7 +150,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
         model.learn(total_timesteps=remaining, callback=[checkpoints, *callbacks], progress_bar=cfg.progress_bar,
                     reset_num_timesteps=not cfg.resume, tb_log_name=cfg.algo)
     wall = time.time() - t0
-    save_checkpoint(model, cfg.out, vecnorm, state() if state else None)
+    save_checkpoint(model, cfg.out, vecnorm, state())
     final_path = cfg.out / "model.zip"
     atomic_save_model(model, final_path)
     if vecnorm is not None:
@@ -154,7 +165,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
     venv.close()
     if curriculum is not None:
         record["curriculum_final"] = curriculum.curriculum.state()
-    record.update(wall_time_s=round(wall, 1), total_timesteps=int(model.num_timesteps),
+    record.update(wall_time_s=round(wall, 1), wall_time_total_s=round(prior + wall, 1), total_timesteps=int(model.num_timesteps),
                   final_eval=history[-1] if history else None, eval_seeds=f"{EVAL_SEED_BASE}..")
     atomic_write_json(sidecar_path(final_path), {"algo": cfg.algo, "env_id": cfg.env_id, "env_kwargs": env_kwargs,
                                                  "shield": shield,

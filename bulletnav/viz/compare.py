@@ -112,8 +112,10 @@ def compare_runs(run_dirs: list[Path], out_png: Path, group_by: str = "algo") ->
         reached = next((h for h in history if h["success_rate"] >= REACH_SUCCESS), None)
         rows.append({"run": str(run), "algo": record["algo"], "group": group, "seed": record["seed"],
                      "timesteps": record["total_timesteps"],
-                     # a resumed run's record times only its last part; the history's clock runs from the start
-                     "wall_time_s": max([record["wall_time_s"], *(h.get("wall_time", 0.0) for h in history)]),
+                     # a resumed run's wall_time_s times only its last part; wall_time_total_s (newer
+                     # runs) and the history's clock run from the start
+                     "wall_time_s": max([record.get("wall_time_total_s", record["wall_time_s"]),
+                                         *(h.get("wall_time", 0.0) for h in history)]),
                      "final_success": final["success_rate"], "final_collisions": final["collision_rate"],
                      "final_reward": round(final["mean_reward"], 2), "best_success": best["success_rate"],
                      "best_at": best["timesteps"],
