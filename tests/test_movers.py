@@ -359,3 +359,23 @@ def test_lidar_history_stacks_the_earlier_scans_newest_first():
         assert env.observation_space.contains(obs)
     with pytest.raises(ValueError, match="lidar_history"):
         gym.make("bulletnav/Warehouse-v0", lidar_history=0)
+
+
+def test_a_forklift_reversing_beside_the_robot_does_not_sweep_it(tmp_path):
+    """At a route's end a forklift drives back without turning (its heading flips by pi, the
+    box covers the same floor): within the control period its body must not swing through
+    the half-turn in between, which would shove a robot standing beside it."""
+    forklift = {"type": "forklift", "route": [[-4.0, 3.0], [0.0, 3.0]], "speed": 0.8, "yield_to_robot": False}
+    world = _yaml(tmp_path, dynamic=[forklift], start=(0.0, 2.3, 0.0), goal=(4.5, -4.0))
+    env = gym.make("bulletnav/Warehouse-v0", world=world, collision_terminates=True)
+    _, info = env.reset(seed=0)
+    start = np.array(info["pose"])
+    dt = env.unwrapped.scene.control_dt
+    for _ in range(round(8.0 / dt)):  # out to the robot, reverse beside it, drive back
+        _, _, terminated, truncated, info = env.step(STOP)
+        assert not info["collision"], info["pose"]
+        assert terminated is False and truncated is False
+    assert np.abs(np.array(info["pose"]) - start).max() < 2e-3, (info["pose"], start)
+    (mover,) = env.unwrapped.scene.movers
+    assert mover.pose[0] < -1.0  # it did reverse and drive back
+    env.close()

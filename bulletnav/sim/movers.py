@@ -367,7 +367,11 @@ class Movers:
                 self._place(m, after)
                 continue
             x1, y1, a1 = after
-            da = math.remainder(a1 - a0, 2 * math.pi)
+            # modulo pi: a box and a cylinder look the same turned by a half-turn, and a
+            # forklift reversing at its route's end flips its heading by exactly pi; turning
+            # its body through the half-turn within one control period would sweep the
+            # circle around it and shove whatever stands beside it
+            da = math.remainder(a1 - a0, math.pi)
             self._place(m, (x0 + (x1 - x0) * f, y0 + (y1 - y0) * f, a0 + da * f))
 
     def views(self) -> tuple[MoverView, ...]:
