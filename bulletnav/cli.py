@@ -368,7 +368,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         resume=args.resume, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
         checkpoint_freq=args.checkpoint_freq, progress_bar=not args.no_progress, vec_env=args.vec_env,
         hyperparams=Path(args.hyperparams) if args.hyperparams else None, command=command_line(), shield=args.shield,
-        **extra,
+        init_from=Path(args.init_from) if args.init_from else None, **extra,
     )
     record = train(cfg)
     final = record.get("final_eval") or {}
@@ -582,6 +582,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_env_arg(tr)
     tr.add_argument("--out", required=True, metavar="DIR", help="run directory, e.g. runs/ppo")
     tr.add_argument("--resume", action="store_true", help="continue from DIR/checkpoints/last.zip")
+    tr.add_argument("--init-from", metavar="MODEL",
+                    help="fine-tune: start from this model's weights with this run's settings (steps count from 0)")
     tr.add_argument("--eval-freq", type=int, default=25_000, help="evaluate every N timesteps (default 25000)")
     tr.add_argument("--eval-episodes", type=int, default=20, help="unseen episodes per evaluation (default 20)")
     tr.add_argument("--checkpoint-freq", type=int, default=25_000, help="checkpoint every N timesteps (default 25000)")

@@ -9,6 +9,8 @@ import json
 import logging
 import math
 import os
+import pickle
+import re
 import subprocess
 import time
 import zipfile
@@ -186,6 +188,33 @@ def test_resume_continues_from_the_checkpoint(ppo_run, tmp_path):
     first = json.loads((ppo_run / "checkpoints" / "last.json").read_text())["wall_time"]
     assert record["wall_time_total_s"] == pytest.approx(first + record["wall_time_s"], abs=2.0)
     assert json.loads((run / "checkpoints" / "last.json").read_text())["wall_time"] >= record["wall_time_total_s"] - 2.0
+
+
+@pytest.mark.slow  # uses the module's smoke PPO training (14 s), or trains itself
+def test_init_from_starts_a_new_run_from_a_models_weights(ppo_run, tmp_path, capsys):
+    def weights(run: Path) -> dict:
+        return torch.load(zipfile.ZipFile(run / "model.zip").open("policy.pth"), weights_only=True)
+
+    # no steps: the saved model is the one it started from, statistics included
+    copy = _train(tmp_path, "ppo", steps=0, name="copy", extra=("--init-from", str(ppo_run / "model.zip")))
+    a, b = weights(ppo_run), weights(copy)
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    with open(ppo_run / "model_vecnormalize.pkl", "rb") as f1, open(copy / "model_vecnormalize.pkl", "rb") as f2:
+        r1, r2 = pickle.load(f1).ret_rms, pickle.load(f2).ret_rms
+    assert r1.count == r2.count and np.array_equal(r1.var, r2.var)
+    record = json.loads((copy / "run.json").read_text())
+    assert record["init_from"] == str(ppo_run / "model.zip") and record["resumed_from"] is None
+    # one rollout more: it learns on from those weights (not from fresh ones: the module's run
+    # is one rollout of a fresh start with the same seed, and its weights are not these)
+    tuned = _train(tmp_path, "ppo", steps=512, name="tuned", extra=("--init-from", str(ppo_run / "model.zip")))
+    c = weights(tuned)
+    assert any(not torch.equal(c[k], a[k]) for k in a)
+    assert json.loads((tuned / "run.json").read_text())["total_timesteps"] == 1024
+    # a model of other spaces is refused by name
+    capsys.readouterr()
+    assert main(["train", "--timesteps", "0", "--n-envs", "2", "--out", str(tmp_path / "bad"), "--no-progress",
+                 "--init-from", str(ROOT / "models" / "ppo_mission.zip")]) == 2
+    assert re.search(r"ppo_mission\.zip: its observation_space has shape \(62,\), this run's \(43,\)", capsys.readouterr().err)
 
 
 @pytest.mark.slow  # uses the module's smoke PPO training (14 s), or trains itself

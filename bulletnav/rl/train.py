@@ -56,6 +56,10 @@ class TrainConfig:
     """The registered env to train on; its entry in the hyperparameter file is used."""
     shield: bool = False
     """Train (and evaluate during training) behind the safety shield (``ShieldWrapper``)."""
+    init_from: Path | None = None
+    """Fine-tune: start from this model's weights (and its reward-normalisation statistics)
+    instead of fresh ones, with this run's hyperparameters; the step count starts at 0. The
+    model must have been trained with the same algorithm, observation and action spaces."""
 
 
 def _make_vec_env(cfg: TrainConfig, env_kwargs: dict[str, Any], n_envs: int, shield: bool = False):
@@ -106,10 +110,16 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
         if hist_file.is_file():
             history = [row for row in json.loads(hist_file.read_text()) if row["timesteps"] <= start_steps]
     else:
+        if cfg.init_from is not None:
+            _check_spaces(cfg.init_from, venv)
         if normalize:
-            venv = VecNormalize(venv, **normalize)
+            stats = vecnormalize_path(cfg.init_from) if cfg.init_from is not None else None
+            venv = VecNormalize.load(str(stats), venv) if stats is not None and stats.is_file() else VecNormalize(venv, **normalize)
+            venv.training, venv.norm_reward = True, bool(normalize.get("norm_reward", True))
         model = cls(hp["policy"], venv, seed=cfg.seed, device="cpu", verbose=0,
                     tensorboard_log=str(cfg.out / "tb"), **model_kwargs(hp, venv.action_space.shape[0]))
+        if cfg.init_from is not None:
+            _load_weights(model, cfg.init_from)
     vecnorm = venv if isinstance(venv, VecNormalize) else None
     # the training's wall clock runs on across resumes: from the checkpoint's record, or (older
     # checkpoints) from the last in-training evaluation's
@@ -141,6 +151,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
         "n_envs": n_envs, "vec_env": cfg.vec_env, "hyperparams": hp, "env_kwargs": env_kwargs, "shield": shield,
         "git_commit": git_commit(), "machine": machine(), "torch_threads": torch.get_num_threads(),
         "resumed_from": start_steps or None,
+        "init_from": str(cfg.init_from) if cfg.init_from is not None else None,
         "versions": _versions(),
     }
     atomic_write_json(cfg.out / "config.json", record)
@@ -175,6 +186,29 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
     if history:
         plot_learning_curve(history, cfg.out / "learning_curve.png", title=f"{cfg.algo.upper()} seed {cfg.seed}")
     return record
+
+
+def _check_spaces(path: Path, venv) -> None:
+    """A model to fine-tune from must have this run's observation and action spaces."""
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    if not Path(path).is_file():
+        raise ModelError(f"{path}: model file not found (--init-from)")
+    data, _, _ = load_from_zip_file(path, device="cpu")
+    for name in ("observation_space", "action_space"):
+        theirs, ours = (data or {}).get(name), getattr(venv, name)
+        if theirs is not None and (getattr(theirs, "shape", None) != getattr(ours, "shape", None) or theirs != ours):
+            shapes = getattr(theirs, "shape", None), getattr(ours, "shape", None)
+            what = f"has shape {shapes[0]}, this run's {shapes[1]}" if shapes[0] != shapes[1] else "has other bounds than this run's"
+            raise ModelError(f"{path}: its {name} {what} (--init-from needs the same spaces: same env and settings)")
+
+
+def _load_weights(model, path: Path) -> None:
+    """Copy a saved model's network weights (and optimizer state) into ``model``."""
+    try:
+        model.set_parameters(str(path), exact_match=True, device="cpu")
+    except (RuntimeError, ValueError) as e:
+        raise ModelError(f"{path}: its weights do not fit this run's {type(model).__name__} policy: {e}") from e
 
 
 def _versions() -> dict[str, str]:
