@@ -358,6 +358,13 @@ class RewardConfig:
     """Times (proximity_distance - closest lidar range) while the closest range is under it."""
     proximity_distance: float = 0.3
     """Lidar range (m) under which the proximity penalty applies."""
+    mover_proximity: float = 0.0
+    """Times (mover_proximity_distance - gap) while the gap between the robot's outline and
+    the nearest mover (``info["nearest_mover_m"]``, exact) is under it. 0 (default): the term
+    is not computed and not listed (``reward_mover_proximity`` appears only when it is set).
+    The gap is ground truth the policy does not observe: a training signal, like ``collision``."""
+    mover_proximity_distance: float = 0.3
+    """Outline-to-mover gap (m) under which the mover proximity penalty applies."""
     subgoal: float = 10.0
     """Missions (``task_name="mission"``): once per goal reached before the last (the last one
     earns ``goal``)."""

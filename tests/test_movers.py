@@ -379,3 +379,29 @@ def test_a_forklift_reversing_beside_the_robot_does_not_sweep_it(tmp_path):
     (mover,) = env.unwrapped.scene.movers
     assert mover.pose[0] < -1.0  # it did reverse and drive back
     env.close()
+
+
+@pytest.mark.parametrize("env_id", ["bulletnav/Warehouse-v0", "bulletnav/WarehouseMission-v0"])
+def test_mover_proximity_term_prices_the_outline_gap_and_is_off_by_default(tmp_path, env_id):
+    worker = {"type": "worker", "waypoints": [[0.0, -2.0], [0.0, 2.0]], "speed": 0.8, "pause": 0.0, "yield_to_robot": False}
+    world = _yaml(tmp_path, dynamic=[worker], start=(0.0, 1.2, -math.pi / 2), goal=(4.5, 4.0))
+    plain = gym.make(env_id, world=world)
+    _, info = plain.reset(seed=0)
+    assert "reward_mover_proximity" not in info and "mover_proximity" not in plain.unwrapped.task.reward_terms
+    plain.close()
+    env = gym.make(env_id, world=world, reward_mover_proximity=-2.0, reward_mover_proximity_distance=0.4)
+    names = env.unwrapped.task.reward_terms
+    assert names[names.index("proximity") + 1] == "mover_proximity"
+    env.reset(seed=0)
+    priced = 0
+    for _ in range(200):  # the worker walks up to the robot and into it
+        _, reward, terminated, truncated, info = env.step(STOP)
+        gap = info["nearest_mover_m"]
+        expected = -2.0 * (0.4 - gap) if gap < 0.4 else 0.0
+        assert info["reward_mover_proximity"] == pytest.approx(expected, abs=1e-12)
+        assert reward == sum(info[f"reward_{n}"] for n in names)
+        priced += expected != 0.0
+        if terminated or truncated:
+            break
+    assert priced >= 5 and info["collision_with"] == "dynamic"
+    env.close()

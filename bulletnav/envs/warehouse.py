@@ -190,6 +190,7 @@ class WarehouseEnv(gym.Env):
     | heading | +0.1 x (1 - abs(heading error) / pi) while farther than 1 m from the goal |
     | stuck | -0.1 while progress over the last 20 steps is under 0.1 m and the goal is > 1 m away |
     | proximity | -1.0 x (0.3 - closest lidar range) while the closest range is under 0.3 m |
+    | mover_proximity | off (0); set, weight x (0.3 - outline-to-mover gap) while under 0.3 m |
 
     ## Starting State
     Robot at rest at a sampled (or given) start pose with uniform random yaw.

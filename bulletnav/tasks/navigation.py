@@ -43,6 +43,11 @@ class NavigationTask(Task):
         self.reward_weights = w = replace(t.reward, **{f.name: float(getattr(t.reward, f.name))
                                                        for f in fields(t.reward) if f.name != "stuck_window"})
         self._max_speed, self._max_turn_rate, self._distance_scale = t.max_speed, t.max_turn_rate, t.distance_scale
+        self._mover_weight = (w.mover_proximity, w.mover_proximity_distance) if w.mover_proximity else None
+        if self._mover_weight is not None:  # an optional term: listed only when it is on
+            names = type(self).reward_terms  # right after "proximity", where reward() puts it
+            at = names.index("proximity") + 1
+            self.reward_terms = (*names[:at], "mover_proximity", *names[at:])
         self._goal_radius = t.goal_radius
         self.lidar_range = config.sensors.lidar.max_range
         self.num_rays = n = config.sensors.lidar.num_rays
@@ -215,7 +220,7 @@ class NavigationTask(Task):
         closest = min(self._range_list)
         heading = math.remainder(self._guide_heading, 2 * math.pi) if self._guided else self._heading
         stuck = len(recent) == window and sum(recent) < stuck_progress and far
-        return {
+        terms = {
             "progress": wp * progress,
             "goal": wg if success else 0.0,
             "collision": wc if self.collision else 0.0,
@@ -224,6 +229,11 @@ class NavigationTask(Task):
             "stuck": ws if stuck else 0.0,
             "proximity": wx * (near - closest) if closest < near else 0.0,
         }
+        if self._mover_weight is not None:
+            weight, within = self._mover_weight
+            gap = scene.nearest_mover()
+            terms["mover_proximity"] = weight * (within - gap) if gap < within else 0.0
+        return terms
 
     def end(self, scene: Scene) -> tuple[bool, bool, str | None]:
         if self._success:
