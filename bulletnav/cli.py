@@ -11,13 +11,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from bulletnav.errors import BulletnavError
+from bulletnav.rl.envs import EVALUATE_OBSTACLES
 
 DEFAULT_ENV_ID = "bulletnav/Warehouse-v0"
 """The env every subcommand uses unless ``--env`` names another."""
-
-EVALUATE_OBSTACLES = 31
-"""``num_obstacles`` that evaluate and demo use on ``bulletnav/Warehouse-v0`` without
-``--obstacles``, whatever the model was trained with (the benchmark's warehouses)."""
 
 
 def _add_env_arg(parser: argparse.ArgumentParser) -> None:
@@ -487,7 +484,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 DEFAULT_MODEL = "models/ppo_warehouse.zip"
-SHIPPED_MODELS = {"bulletnav/Warehouse-v0": DEFAULT_MODEL, "bulletnav/WarehouseMission-v0": "models/ppo_mission.zip"}
+SHIPPED_MODELS = {"bulletnav/Warehouse-v0": DEFAULT_MODEL, "bulletnav/WarehouseMission-v0": "models/ppo_mission.zip",
+                  "bulletnav/WarehouseDynamic-v0": "models/ppo_dynamic.zip"}
 """The model ``demo`` runs on each env id when ``--model`` is not given (others: ``DEFAULT_MODEL``)."""
 
 
@@ -549,6 +547,55 @@ def cmd_view(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_sweep(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from bulletnav.provenance import command_line
+    from bulletnav.sweep.run import SweepOptions, run_sweep
+    from bulletnav.sweep.spec import SweepSpec
+
+    spec = SweepSpec.from_file(args.file)
+    opts = SweepOptions(out=Path(args.out), address=args.address, storage=args.storage, resume=args.resume,
+                        optimize=args.optimize, num_cpus=args.num_cpus, command=command_line())
+    try:
+        record = run_sweep(spec, opts)
+    except KeyboardInterrupt:  # a second Ctrl-C, while Ray Tune was saving its state
+        print(f"bulletnav sweep: interrupted; continue with: bulletnav sweep {args.file} --out {args.out} --resume",
+              file=sys.stderr)
+        return 130
+    resume_hint = f"bulletnav sweep: interrupted; continue with: bulletnav sweep {args.file} --out {args.out} --resume"
+    if args.json:
+        print(_json(record))
+        if record["interrupted"]:
+            print(resume_hint, file=sys.stderr)
+        return 130 if record["interrupted"] else 0
+    pct = (lambda x: "-" if x is None else f"{x * 100:.1f} %") if spec.metric in ("success_rate", "collision_rate") \
+        else (lambda x: "-" if x is None else f"{x:.3f}")
+    print(f"sweep {spec.name}: {len(record['trials'])} trials, {record['wall_time_s']:.0f} s "
+          f"({spec.metric} on {spec.evaluation_episodes} held-out episodes from seed {spec.evaluation_seed})")
+    print("| trial | config | seed | status | timesteps | " + spec.metric + " | node |")
+    print("|---|---|---|---|---|---|---|")
+    for r in record["trials"]:
+        cfg = ", ".join(f"{k}={v}" for k, v in r["config"].items()) or "base"
+        note = f" ({r['error']})" if r["error"] else ""
+        print(f"| {r['trial']} | {cfg} | {r['seed']} | {r['status']}{note} | {r['timesteps'] or '-'} | "
+              f"{pct(r.get(spec.metric))} | {(r['node'] or '-')[:8]} |")
+    print(f"\n| config | seeds | mean {spec.metric} | 95 % CI (bootstrap) | min | max |")
+    print("|---|---|---|---|---|---|")
+    for s in record["summary"]:
+        ci = f"{pct(s['ci95'][0])} - {pct(s['ci95'][1])}" if s["ci95"] else "- (one seed)"
+        print(f"| {s['label']} | {s['n']} | {pct(s['mean'])} | {ci} | {pct(s['min'])} | {pct(s['max'])} |")
+    if record.get("best"):
+        print(f"\nbest: {record['best']['config']} -> {record['best']['hyperparams']}")
+    for name, path in record["files"].items():
+        print(f"{name + ':':9} {path}")
+    if record["interrupted"]:
+        print(f"{record['interrupted']} trial(s) unfinished", file=sys.stderr)
+        print(resume_hint, file=sys.stderr)
+        return 130
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="bulletnav",
@@ -576,7 +623,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     tr = add("train", "train an SB3 agent (hyperparameters from rl/hyperparams/<algo>.yml)")
     tr.add_argument("--algo", choices=["ppo", "sac", "td3", "a2c"], default="ppo", help="algorithm (default ppo)")
-    tr.add_argument("--timesteps", type=int, default=500_000, help="total environment steps (default 500000)")
+    tr.add_argument("--timesteps", type=int, default=None,
+                    help="total environment steps (default: the hyperparameter file's n_timesteps, else 500000)")
     tr.add_argument("--n-envs", type=int, default=None, help="parallel envs (default: the hyperparameter file's, 4)")
     tr.add_argument("--seed", type=int, default=0, help="random seed of the run (default 0)")
     _add_env_arg(tr)
@@ -595,6 +643,22 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--shield", action="store_true",
                     help="train (and evaluate during training) behind the safety shield, so the policy learns with it")
     tr.set_defaults(func=cmd_train)
+
+    sw = add("sweep", "train a sweep file's trials (grid x seeds, or --optimize N) on Ray Tune, locally or on a cluster")
+    sw.add_argument("file", metavar="SWEEP.yaml", help="sweep file (see docs/sweeps/ and bulletnav/sweep/spec.py)")
+    sw.add_argument("--out", default="runs/sweeps", metavar="DIR",
+                    help="results: DIR/<name>/ gets the tables, plot and (without --storage) the trials (default runs/sweeps)")
+    sw.add_argument("--resume", action="store_true",
+                    help="continue the interrupted sweep: finished trials are kept, unfinished ones resume")
+    sw.add_argument("--optimize", type=int, metavar="N",
+                    help="N trials of Optuna's TPE over the file's search: block, bad ones stopped early")
+    sw.add_argument("--address", metavar="HOST:PORT",
+                    help="join this Ray cluster (default: RAY_ADDRESS if set, else a local Ray on this machine's cores)")
+    sw.add_argument("--storage", metavar="PATH|URI",
+                    help="where trials and their checkpoints live, reachable from every node (default --out)")
+    sw.add_argument("--num-cpus", type=int, metavar="N", help="CPUs of the local Ray (default: all)")
+    sw.add_argument("--json", action="store_true", help="print the results record as JSON")
+    sw.set_defaults(func=cmd_sweep)
 
     ev = add("evaluate", "evaluate a trained model (deterministic actions)")
     ev.add_argument("--model", required=True, metavar="PATH", help="model zip written by train")
@@ -625,7 +689,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     demo = add("demo", "the main job: the shipped PPO policy, report, video and trajectory plot")
     demo.add_argument("--model", help=f"model zip (default: the shipped model for --env, {DEFAULT_MODEL} on "
-                      "Warehouse-v0, models/ppo_mission.zip on WarehouseMission-v0)")
+                      "Warehouse-v0, models/ppo_mission.zip on WarehouseMission-v0, models/ppo_dynamic.zip on "
+                      "WarehouseDynamic-v0)")
     demo.add_argument("--episodes", type=int, default=5, help="episodes to run (default 5)")
     demo.add_argument("--seed", type=int, default=2024, help="episode k uses env seed S + k (default 2024)")
     _add_env_arg(demo)

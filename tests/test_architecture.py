@@ -39,7 +39,7 @@ def _rel(path: Path) -> str:
 
 CONSUMERS = sorted({
     *PKG.glob("control/*.py"), PKG / "evaluation.py", PKG / "policy.py", *PKG.glob("viz/*.py"), PKG / "cli.py",
-    *PKG.glob("rl/*.py"), *PKG.glob("bench/*.py"),
+    *PKG.glob("rl/*.py"), *PKG.glob("bench/*.py"), *PKG.glob("sweep/*.py"),
 })
 """Every module that drives or reads an env from outside it."""
 

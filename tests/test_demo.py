@@ -70,3 +70,22 @@ def test_demo_prints_the_report_and_leaves_video_and_plot(tmp_path, capsys):
 def test_demo_without_a_model_says_so(tmp_path, capsys):
     assert main(["demo", "--model", str(tmp_path / "none.zip"), "--out", str(tmp_path / "d")]) == 2
     assert "model file not found" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_demo_runs_the_shipped_dynamic_policy_and_reproduces_its_card(tmp_path, capsys):
+    """``demo --env bulletnav/WarehouseDynamic-v0`` picks models/ppo_dynamic.zip, and its episode
+    is, to the bit, the first of the model card's 200-episode evaluation."""
+    import json
+
+    card = ROOT / "docs" / "results" / "issue17" / "shipped" / "ppo_dynamic_nominal.json"
+    out = tmp_path / "demo"
+    assert main(["demo", "--env", "bulletnav/WarehouseDynamic-v0", "--episodes", "1", "--seed", "1000", "--json",
+                 "--out", str(out)]) == 0
+    got = json.loads(capsys.readouterr().out.split("\ndemo finished")[0])
+    assert got["model"].endswith("models/ppo_dynamic.zip") and got["env_id"] == "bulletnav/WarehouseDynamic-v0"
+    want = json.loads(card.read_text())["per_episode"][:1]
+    for g, w in zip(got["per_episode"], want, strict=True):
+        assert (g["seed"], g["steps"], g["success"], g["collision"]) == (w["seed"], w["steps"], w["success"], w["collision"])
+        assert g["reward"] == w["reward"] and g["path_length"] == w["path_length"]
+    assert (out / "episodes.mp4").stat().st_size > 10_000

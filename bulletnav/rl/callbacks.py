@@ -77,12 +77,14 @@ class EvaluationCallback(BaseCallback):
         started: ``time.time()`` when the run (or its first part) began; rows record the
             wall time since.
         shield: evaluate behind the safety shield (a run trained with ``--shield``).
+        on_row: called with each new row (a sweep reports it to Ray Tune).
     """
 
     def __init__(self, out: Path, every: int, episodes: int, env_kwargs: dict[str, Any],
                  history: list[dict[str, Any]], env_id: str = ENV_ID, started: float | None = None,
-                 shield: bool = False) -> None:
+                 shield: bool = False, on_row: Callable[[dict[str, Any]], None] | None = None) -> None:
         super().__init__()
+        self.on_row = on_row
         self.out = out
         self.every = every
         self.episodes = episodes
@@ -125,6 +127,8 @@ class EvaluationCallback(BaseCallback):
         atomic_write_json(self.out / "eval_history.json", self.history)
         log.info("eval at %d: success %.2f collisions %.2f reward %.1f", row["timesteps"],
                  row["success_rate"], row["collision_rate"], row["mean_reward"])
+        if self.on_row is not None:
+            self.on_row(dict(row))
         return row
 
     def close(self) -> None:

@@ -13,6 +13,11 @@ EVAL_SEED_BASE = 10_000_000
 """Evaluation during training uses seeds from here up: training only seeds its first resets
 with ``seed + rank`` (small numbers), so these episodes are never trained on."""
 
+EVALUATE_OBSTACLES = 31
+"""``num_obstacles`` that evaluation (``evaluate``, ``demo``, a sweep's held-out score) uses on
+``bulletnav/Warehouse-v0`` unless told otherwise, whatever the model was trained with (the
+benchmark's warehouses)."""
+
 TRAINING_ONLY_KWARGS = ("collision_terminates", "randomize")
 """Env options that shape learning, not the benchmark: evaluation leaves them out (a shift to
 evaluate under is chosen with ``--perturb``)."""

@@ -18,8 +18,13 @@ from bulletnav.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
-ENV_KEYS = frozenset({"policy", "n_envs", "env_kwargs", "normalize", "action_noise", "randomize", "curriculum"})
-"""Keys of a hyperparameter entry that set up the envs, not the algorithm."""
+ENV_KEYS = frozenset({"policy", "n_envs", "n_timesteps", "env_kwargs", "normalize", "action_noise", "noise_type",
+                      "noise_std", "randomize", "curriculum"})
+"""Keys of a hyperparameter entry that set up the envs and the run, not the algorithm's
+constructor. ``n_timesteps``, ``noise_type``/``noise_std`` and a dotted ``policy`` are RL Zoo's
+(one file serves ``bulletnav train`` and ``python -m rl_zoo3.train``); ``randomize`` and
+``curriculum`` are this project's (RL Zoo would hand them to the algorithm: files that use
+them are for ``bulletnav train`` only)."""
 
 
 def load_hyperparams(algo: str, env_id: str = ENV_ID, path: str | Path | None = None) -> dict[str, Any]:
@@ -98,11 +103,43 @@ def model_kwargs(hp: dict[str, Any], n_actions: int) -> dict[str, Any]:
         if isinstance(policy_kwargs.get(key), str):  # "package.module.Name" in the YAML file
             policy_kwargs[key] = import_name(policy_kwargs[key])
     noise = hp.get("action_noise")
-    if noise:
+    sigma = float(noise["sigma"]) if noise else None
+    if hp.get("noise_type") is not None:  # RL Zoo's form: noise_type: normal, noise_std: 0.2
+        if hp["noise_type"] != "normal":
+            raise ConfigError(f"hyperparameters: noise_type {hp['noise_type']!r} is not supported (only 'normal')")
+        sigma = float(hp.get("noise_std", 0.1))
+    if sigma:
         from stable_baselines3.common.noise import NormalActionNoise
 
-        kwargs["action_noise"] = NormalActionNoise(np.zeros(n_actions), float(noise["sigma"]) * np.ones(n_actions))
+        kwargs["action_noise"] = NormalActionNoise(np.zeros(n_actions), sigma * np.ones(n_actions))
     return kwargs
+
+
+def policy_class(hp: dict[str, Any]) -> Any:
+    """The entry's ``policy``: an SB3 alias (``"MlpPolicy"``) as is, a dotted name
+    (``"bulletnav.rl.policies.ClearanceActorCriticPolicy"``, RL Zoo's form) imported."""
+    policy = hp.get("policy", "MlpPolicy")
+    return import_name(policy) if isinstance(policy, str) and "." in policy else policy
+
+
+def apply_overrides(hp: dict[str, Any], overrides: dict[str, Any] | None, where: str = "overrides") -> dict[str, Any]:
+    """A copy of ``hp`` with ``overrides`` set; a dotted key reaches into a mapping
+    (``"env_kwargs.reward_collision"``, ``"policy_kwargs.log_std_init"``).
+
+    Raises:
+        ConfigError: a dotted key goes through something that is not a mapping.
+    """
+    out = copy.deepcopy(hp)
+    for key, value in (overrides or {}).items():
+        *parents, leaf = str(key).split(".")
+        node = out
+        for part in parents:
+            child = node.setdefault(part, {})
+            if not isinstance(child, dict):
+                raise ConfigError(f"{where}: {key!r}: {part!r} is {child!r}, not a mapping")
+            node = child
+        node[leaf] = copy.deepcopy(value)
+    return out
 
 
 def import_name(dotted: str) -> Any:

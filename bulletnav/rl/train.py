@@ -7,6 +7,7 @@ import json
 import logging
 import platform
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -19,7 +20,7 @@ from bulletnav.provenance import git_commit, machine
 from bulletnav.rl.algos import algo_class
 from bulletnav.rl.callbacks import CheckpointCallback, EvaluationCallback, save_checkpoint
 from bulletnav.rl.envs import EVAL_SEED_BASE, make_env_fn
-from bulletnav.rl.hyperparams import load_hyperparams, model_kwargs, upgrade_hyperparams
+from bulletnav.rl.hyperparams import apply_overrides, load_hyperparams, model_kwargs, policy_class, upgrade_hyperparams
 from bulletnav.rl.io import (
     atomic_save_model,
     atomic_save_vecnormalize,
@@ -34,7 +35,9 @@ log = logging.getLogger(__name__)
 @dataclass(frozen=True)
 class TrainConfig:
     algo: str
-    timesteps: int
+    timesteps: int | None
+    """Total environment steps; None takes the hyperparameter file's ``n_timesteps`` (RL
+    Zoo's key), else 500,000."""
     out: Path
     seed: int = 0
     n_envs: int | None = None
@@ -60,6 +63,12 @@ class TrainConfig:
     """Fine-tune: start from this model's weights (and its reward-normalisation statistics)
     instead of fresh ones, with this run's hyperparameters; the step count starts at 0. The
     model must have been trained with the same algorithm, observation and action spaces."""
+    overrides: dict[str, Any] | None = None
+    """Hyperparameters set on top of the file's (a sweep's trial); a dotted key reaches into a
+    mapping, e.g. ``{"learning_rate": 1e-4, "env_kwargs.reward_collision": -40.0}``."""
+    on_evaluation: Callable[[dict[str, Any]], None] | None = None
+    """Called with every evaluation row (timesteps, wall_time, success_rate, ...) as it is
+    recorded; a sweep reports them to Ray Tune for early stopping."""
 
 
 def _make_vec_env(cfg: TrainConfig, env_kwargs: dict[str, Any], n_envs: int, shield: bool = False):
@@ -80,7 +89,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
     from bulletnav.viz.compare import plot_learning_curve
 
     torch.set_num_threads(1)  # 2 cores: more threads slow PPO down and starve the env workers
-    hp = load_hyperparams(cfg.algo, env_id=cfg.env_id, path=cfg.hyperparams)
+    hp = apply_overrides(load_hyperparams(cfg.algo, env_id=cfg.env_id, path=cfg.hyperparams), cfg.overrides)
     env_kwargs = {**hp.get("env_kwargs", {}), **(cfg.env_overrides or {})}
     if hp.get("randomize"):  # domain randomization: the hyperparameter file's randomize: block
         env_kwargs.setdefault("randomize", hp["randomize"])
@@ -92,6 +101,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
         env_kwargs = {**hp.get("env_kwargs", {}), **original["env_kwargs"]}
         shield = bool(original.get("shield", False))
     n_envs = int(cfg.n_envs or hp.get("n_envs", 4))
+    timesteps = int(cfg.timesteps if cfg.timesteps is not None else hp.get("n_timesteps", 500_000))
     cfg.out.mkdir(parents=True, exist_ok=True)
     venv = _make_vec_env(cfg, env_kwargs, n_envs, shield)
     normalize = hp.get("normalize") or None
@@ -116,7 +126,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
             stats = vecnormalize_path(cfg.init_from) if cfg.init_from is not None else None
             venv = VecNormalize.load(str(stats), venv) if stats is not None and stats.is_file() else VecNormalize(venv, **normalize)
             venv.training, venv.norm_reward = True, bool(normalize.get("norm_reward", True))
-        model = cls(hp["policy"], venv, seed=cfg.seed, device="cpu", verbose=0,
+        model = cls(policy_class(hp), venv, seed=cfg.seed, device="cpu", verbose=0,
                     tensorboard_log=str(cfg.out / "tb"), **model_kwargs(hp, venv.action_space.shape[0]))
         if cfg.init_from is not None:
             _load_weights(model, cfg.init_from)
@@ -128,7 +138,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
         last = json.loads(ckpt.with_suffix(".json").read_text()) if ckpt.with_suffix(".json").is_file() else {}
         prior = float(last.get("wall_time", history[-1]["wall_time"] if history else 0.0))
     evaluation = EvaluationCallback(cfg.out, cfg.eval_freq, cfg.eval_episodes, env_kwargs, history, env_id=cfg.env_id,
-                                    shield=shield, started=time.time() - prior)
+                                    shield=shield, started=time.time() - prior, on_row=cfg.on_evaluation)
     callbacks = [evaluation]
     curriculum = None
     if hp.get("curriculum"):
@@ -147,7 +157,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
 
     checkpoints = CheckpointCallback(cfg.out, cfg.checkpoint_freq, state)
     record: dict[str, Any] = {
-        "command": cfg.command, "algo": cfg.algo, "env_id": cfg.env_id, "seed": cfg.seed, "timesteps": cfg.timesteps,
+        "command": cfg.command, "algo": cfg.algo, "env_id": cfg.env_id, "seed": cfg.seed, "timesteps": timesteps,
         "n_envs": n_envs, "vec_env": cfg.vec_env, "hyperparams": hp, "env_kwargs": env_kwargs, "shield": shield,
         "git_commit": git_commit(), "machine": machine(), "torch_threads": torch.get_num_threads(),
         "resumed_from": start_steps or None,
@@ -156,7 +166,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
     }
     atomic_write_json(cfg.out / "config.json", record)
     t0 = time.time()
-    remaining = max(cfg.timesteps - start_steps, 0)
+    remaining = max(timesteps - start_steps, 0)
     if remaining:
         model.learn(total_timesteps=remaining, callback=[checkpoints, *callbacks], progress_bar=cfg.progress_bar,
                     reset_num_timesteps=not cfg.resume, tb_log_name=cfg.algo)
