@@ -49,6 +49,7 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from numba import njit
 
 from bulletnav.geometry import RobotGeometry
 
@@ -148,8 +149,14 @@ class Shield:
         self._outline_abs = np.abs(self._outline[:, :2]) + self._outline[:, 2:]
         self._bare_radius = float(np.hypot(self._outline_abs[:, 0], self._outline_abs[:, 1]).max())
         self._tail = np.linspace(0.0, 1.0, config.samples - 1)[None, 1:]
+        # the compiled kernels load (or compile) now, not inside an episode's first decision
+        one, grid = np.zeros(1), np.zeros((1, 1))
+        _blocked_points(one, one, grid, grid, grid, grid, one, self._outline)
         self._next = np.roll(np.arange(len(self.angles)), -1)  # each ray's neighbours
         self._prev = np.roll(np.arange(len(self.angles)), 1)
+        self.sweep(0.0, 0.0, 0.0)
+        self.sweep(0.0, 0.0, 0.0, 0.0)
+        self.points(np.full(len(self.angles), max_range))
 
     # ------------------------------------------------------------------ geometry
     def points(self, ranges: np.ndarray, within: float = math.inf, fill: float = 0.04) -> np.ndarray:
@@ -162,59 +169,8 @@ class Shield:
         surface lines (when they meet at 15 degrees or more, inside the gap's wedge, in front
         of the straight join and within twice its length of both hits), and the two legs to it
         are filled too."""
-        r = np.asarray(ranges, dtype=np.float64)
-        hit = r < self.max_range * 0.999
-        x = self.geometry.lidar_offset + r * self.cos
-        y = r * self.sin
-        nxt, prv = self._next, self._prev
-        span = np.hypot(x[nxt] - x, y[nxt] - y)
-        pair = hit & hit[nxt] & (span < self.config.join)
-        d = np.hypot(x, y)
-        # corners: gap (b, c) joined, with hits a and e beyond it on either side, each within
-        # twice the join of its neighbour (one surface is seen on each side)
-        side = hit & hit[nxt] & (span < 2.0 * self.config.join)
-        b = np.flatnonzero(pair & side[prv] & side[nxt])
-        c = nxt[b]
-        a, e = prv[b], nxt[c]
-        d1x, d1y = x[b] - x[a], y[b] - y[a]
-        d2x, d2y = x[e] - x[c], y[e] - y[c]
-        gx, gy = x[c] - x[b], y[c] - y[b]
-        denom = d1x * d2y - d1y * d2x
-        ok = np.abs(denom) > _SIN_CORNER * np.hypot(d1x, d1y) * np.hypot(d2x, d2y)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            s1 = np.where(ok, (gx * d2y - gy * d2x) / np.where(ok, denom, 1.0), 0.0)
-            s2 = np.where(ok, (gx * d1y - gy * d1x) / np.where(ok, denom, 1.0), 0.0)
-        cx, cy = x[b] + s1 * d1x, y[b] + s1 * d1y
-        # ahead of b along its surface, short of c along the other, on the lidar's side of the join
-        ox = self.geometry.lidar_offset
-        toward = (gx * (cy - y[b]) - gy * (cx - x[b])) * (gx * (0.0 - y[b]) - gy * (ox - x[b])) > 0.0
-        leg = np.maximum(np.hypot(cx - x[b], cy - y[b]), np.hypot(cx - x[c], cy - y[c]))
-        ok &= (s1 > 0.0) & (s2 < 0.0) & toward & (leg < 2.0 * span[b])
-        b, c, cx, cy, leg = b[ok], c[ok], cx[ok], cy[ok], leg[ok]
-        if within < math.inf:
-            near = d < within
-            # a joined surface passes no closer than its nearer end minus half its length
-            pair &= np.minimum(d, d[nxt]) - span / 2 < within
-            keep = np.minimum(np.hypot(cx, cy), np.minimum(d[b], d[c])) - leg / 2 < within
-            b, c, cx, cy = b[keep], c[keep], cx[keep], cy[keep]
-            hit &= near
-        i = np.flatnonzero(pair)
-        j = nxt[i]
-        # segments to fill: the joins, and each rebuilt corner's two legs
-        sx = np.concatenate([x[i], x[b], cx])
-        sy = np.concatenate([y[i], y[b], cy])
-        ex = np.concatenate([x[j], cx, x[c]])
-        ey = np.concatenate([y[j], cy, y[c]])
-        n = np.minimum((np.hypot(ex - sx, ey - sy) / fill).astype(int), 40)
-        total = int(n.sum())
-        px, py = np.concatenate([x[hit], cx]), np.concatenate([y[hit], cy])
-        if not total:
-            return np.stack([px, py], axis=1)
-        start = np.repeat(np.cumsum(n) - n, n)
-        t = (np.arange(total) - start + 1) / np.repeat(n + 1, n)
-        ssx, ssy, eex, eey = np.repeat(sx, n), np.repeat(sy, n), np.repeat(ex, n), np.repeat(ey, n)
-        fx, fy = ssx + t * (eex - ssx), ssy + t * (eey - ssy)
-        return np.stack([np.concatenate([px, fx]), np.concatenate([py, fy])], axis=1)
+        return _scan_points(np.asarray(ranges, dtype=np.float64), self.cos, self.sin, self.geometry.lidar_offset,
+                            self.max_range, self.config.join, within, fill, _SIN_CORNER)
 
     def sweep(self, v: float | np.ndarray, w: float | np.ndarray, v_now: float, w_now: float | None = None
               ) -> tuple[np.ndarray, np.ndarray]:
@@ -222,32 +178,12 @@ class Shield:
         (scalars give C = 1), and their times (C, K). With ``w_now`` the yaw rate moves from it
         to the command's over the first control period (the motors need that long)."""
         cfg = self.config
-        v = np.atleast_1d(np.asarray(v, dtype=np.float64))[:, None]
-        w = np.atleast_1d(np.asarray(w, dtype=np.float64))[:, None]
-        drive = v > 0
-        v1 = _start_speed(v, v_now)
-        stop = v1 / cfg.decel  # time to stop driving
-        spin = np.where(drive, 0.0, np.abs(w) * self._half_base / cfg.decel)  # a turn in place's time to stop turning
-        # times: 0, the end of the control period (where braking starts), then evenly to the horizon
-        after = np.empty((v.shape[0], cfg.samples))
-        after[:, :2] = 0.0
-        after[:, 2:] = self._tail * np.maximum(stop, spin)  # time since the end of the period
-        t = after + self.dt
-        t[:, 0] = 0.0
-        braking = np.minimum(after, stop)
-        speed = v1 - cfg.decel * braking
-        travelled = v1 * np.minimum(t, self.dt) + braking * (v1 - 0.5 * cfg.decel * braking)  # exact
-        # the commanded curvature while driving; a turn in place slows at the rim deceleration
-        rate = np.where(drive, w * speed / np.maximum(v1, 1e-9), w * np.maximum(1.0 - after / np.maximum(spin, 1e-9), 0.0))
-        if w_now is not None:  # the yaw rate moves from w_now to the command's over the period
-            rate[:, 0] = w_now
-        # yaw by the trapezoid rule (exact where the rate is linear between samples), position
-        # by the distance travelled in each interval along the interval's mean heading
+        v = np.atleast_1d(np.asarray(v, dtype=np.float64))
+        w = np.atleast_1d(np.asarray(w, dtype=np.float64))
         out = np.zeros((v.shape[0], cfg.samples, 3))
-        yaw = out[:, :, 2]
-        np.cumsum((rate[:, 1:] + rate[:, :-1]) * (0.5 * np.diff(t, axis=1)), axis=1, out=yaw[:, 1:])
-        mid = 0.5 * (yaw[:, 1:] + yaw[:, :-1])
-        ds = np.diff(travelled, axis=1)
+        t, mid, ds = _sweep_profile(v, w, float(v_now), np.nan if w_now is None else float(w_now), self._tail[0],
+                                    self.dt, cfg.decel, self._half_base, out)
+        # position by the distance travelled in each interval along the interval's mean heading
         np.cumsum(ds * np.cos(mid), axis=1, out=out[:, 1:, 0])
         np.cumsum(ds * np.sin(mid), axis=1, out=out[:, 1:, 1])
         return out, t
@@ -263,6 +199,11 @@ class Shield:
         n_cmd = poses.shape[0]
         if points.shape[-2] == 0:
             return np.zeros(n_cmd, dtype=bool)
+        if points.ndim == 2:  # one point set for every pose: the compiled loop, which stops at a command's first hit
+            m = np.array(np.broadcast_to(np.asarray(margin, dtype=np.float64), (n_cmd,)))  # a writable copy: one signature
+            return _blocked_points(np.ascontiguousarray(points[:, 0]), np.ascontiguousarray(points[:, 1]),
+                                   np.ascontiguousarray(poses[:, :, 0]), np.ascontiguousarray(poses[:, :, 1]),
+                                   np.cos(poses[:, :, 2]), np.sin(poses[:, :, 2]), m, self._outline)
         bx, by = _in_pose_frames(poses, points)
         m = np.broadcast_to(np.asarray(margin, dtype=np.float64), (n_cmd,)).reshape((n_cmd,) + (1,) * (bx.ndim - 1))
         hit = np.zeros(bx.shape, dtype=bool)
@@ -394,6 +335,201 @@ class Shield:
             return ShieldDecision(True, 0.0, 0.0, float(change[stop]), self._touch_free(v_now, points, near, pose, w_now))
         best = int(turns[np.argmax(clear)])
         return ShieldDecision(True, float(cand[best, 0]), float(cand[best, 1]), float(change[best]), True)
+
+
+@njit(cache=True, nogil=True)
+def _sweep_profile(v, w, v_now, w_now, tail, dt, decel, half_base, out):  # pragma: no cover  (compiled)
+    """Times (C, K), mid-interval headings (C, K-1) and distances travelled per interval (C, K-1)
+    of the stopping sweeps of commands (``v``, ``w``: (C,)), yaws written into ``out[:, :, 2]``
+    (see :meth:`Shield.sweep`; ``w_now`` NaN: no yaw-rate transient). Each value is computed by
+    the formula, and in the order, of the array expressions it replaced (numpy's ``maximum`` /
+    ``minimum`` and sequential ``cumsum``), so the sweeps are the same bit for bit; the headings'
+    cosines and sines stay numpy's."""
+    n_cmd, n = out.shape[0], out.shape[1]
+    t = np.zeros((n_cmd, n))
+    mid = np.zeros((n_cmd, n - 1))
+    ds = np.zeros((n_cmd, n - 1))
+    after = np.zeros(n)
+    rate = np.zeros(n)
+    travelled = np.zeros(n)
+    for c in range(n_cmd):
+        vc, wc = v[c], w[c]
+        drive = vc > 0
+        if drive:
+            v1 = v_now if v_now >= vc else vc
+        else:
+            v1 = v_now if v_now >= 0.0 else 0.0
+        stop = v1 / decel
+        spin = 0.0 if drive else abs(wc) * half_base / decel
+        longest = stop if stop >= spin else spin
+        after[0] = 0.0
+        after[1] = 0.0
+        for k in range(2, n):
+            after[k] = tail[k - 2] * longest
+        for k in range(n):
+            t[c, k] = after[k] + dt
+        t[c, 0] = 0.0
+        for k in range(n):
+            braking = after[k] if after[k] <= stop else stop
+            speed = v1 - decel * braking
+            tk = t[c, k] if t[c, k] <= dt else dt
+            travelled[k] = v1 * tk + braking * (v1 - 0.5 * decel * braking)
+            if drive:
+                rate[k] = wc * speed / (v1 if v1 >= 1e-9 else 1e-9)
+            else:
+                left = 1.0 - after[k] / (spin if spin >= 1e-9 else 1e-9)
+                rate[k] = wc * (left if left >= 0.0 else 0.0)
+        if not np.isnan(w_now):
+            rate[0] = w_now
+        # yaw by the trapezoid rule (exact where the rate is linear between samples), summed as cumsum does
+        out[c, 0, 2] = 0.0
+        for k in range(n - 1):
+            step = (rate[k + 1] + rate[k]) * (0.5 * (t[c, k + 1] - t[c, k]))
+            out[c, k + 1, 2] = step if k == 0 else out[c, k, 2] + step
+        for k in range(n - 1):
+            mid[c, k] = 0.5 * (out[c, k + 1, 2] + out[c, k, 2])
+            ds[c, k] = travelled[k + 1] - travelled[k]
+    return t, mid, ds
+
+
+@njit(cache=True, nogil=True)
+def _scan_points(r, cos, sin, lidar_x, max_range, join, within, fill, sin_corner):  # pragma: no cover  (compiled)
+    """:meth:`Shield.points` (see there): the hits, the rebuilt corners, then the points filling
+    each joined gap and each corner's two legs, in that order. Every value is computed by the
+    formula, and in the order, of the array version it replaced (``hypot`` is the C library's in
+    both), so the points are the same bit for bit."""
+    n = r.shape[0]
+    x = np.empty(n)
+    y = np.empty(n)
+    hit = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        hit[i] = r[i] < max_range * 0.999
+        x[i] = lidar_x + r[i] * cos[i]
+        y[i] = r[i] * sin[i]
+    span = np.empty(n)
+    d = np.empty(n)
+    pair = np.empty(n, dtype=np.bool_)
+    side = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        j = (i + 1) % n
+        span[i] = math.hypot(x[j] - x[i], y[j] - y[i])
+        pair[i] = hit[i] and hit[j] and span[i] < join
+        side[i] = hit[i] and hit[j] and span[i] < 2.0 * join
+        d[i] = math.hypot(x[i], y[i])
+    # corners: gap (b, c) joined, one surface seen on each side (hits a and e)
+    cb = np.empty(n, dtype=np.int64)
+    cc = np.empty(n, dtype=np.int64)
+    cxs = np.empty(n)
+    cys = np.empty(n)
+    nc = 0
+    for b in range(n):
+        if not (pair[b] and side[(b - 1) % n] and side[(b + 1) % n]):
+            continue
+        c = (b + 1) % n
+        a = (b - 1) % n
+        e = (c + 1) % n
+        d1x, d1y = x[b] - x[a], y[b] - y[a]
+        d2x, d2y = x[e] - x[c], y[e] - y[c]
+        gx, gy = x[c] - x[b], y[c] - y[b]
+        denom = d1x * d2y - d1y * d2x
+        if not abs(denom) > sin_corner * math.hypot(d1x, d1y) * math.hypot(d2x, d2y):
+            continue
+        s1 = (gx * d2y - gy * d2x) / denom
+        s2 = (gx * d1y - gy * d1x) / denom
+        cx = x[b] + s1 * d1x
+        cy = y[b] + s1 * d1y
+        toward = (gx * (cy - y[b]) - gy * (cx - x[b])) * (gx * (0.0 - y[b]) - gy * (lidar_x - x[b])) > 0.0
+        l1 = math.hypot(cx - x[b], cy - y[b])
+        l2 = math.hypot(cx - x[c], cy - y[c])
+        leg = l1 if l1 >= l2 else l2
+        if not (s1 > 0.0 and s2 < 0.0 and toward and leg < 2.0 * span[b]):
+            continue
+        if within < math.inf:
+            dc = math.hypot(cx, cy)
+            dbc = d[b] if d[b] <= d[c] else d[c]
+            if not (dc if dc <= dbc else dbc) - leg / 2 < within:
+                continue
+        cb[nc], cc[nc], cxs[nc], cys[nc] = b, c, cx, cy
+        nc += 1
+    if within < math.inf:
+        for i in range(n):
+            j = (i + 1) % n
+            dmin = d[i] if d[i] <= d[j] else d[j]
+            pair[i] = pair[i] and dmin - span[i] / 2 < within
+            hit[i] = hit[i] and d[i] < within
+    # segments: the joins, then every corner's first legs, then its second legs
+    ns = 0
+    sx = np.empty(n + 2 * nc)
+    sy = np.empty(n + 2 * nc)
+    ex = np.empty(n + 2 * nc)
+    ey = np.empty(n + 2 * nc)
+    for i in range(n):
+        if pair[i]:
+            j = (i + 1) % n
+            sx[ns], sy[ns], ex[ns], ey[ns] = x[i], y[i], x[j], y[j]
+            ns += 1
+    for q in range(nc):
+        sx[ns], sy[ns], ex[ns], ey[ns] = x[cb[q]], y[cb[q]], cxs[q], cys[q]
+        ns += 1
+    for q in range(nc):
+        sx[ns], sy[ns], ex[ns], ey[ns] = cxs[q], cys[q], x[cc[q]], y[cc[q]]
+        ns += 1
+    counts = np.empty(ns, dtype=np.int64)
+    total = 0
+    for q in range(ns):
+        k = int(math.hypot(ex[q] - sx[q], ey[q] - sy[q]) / fill)
+        counts[q] = k if k <= 40 else 40
+        total += counts[q]
+    nh = 0
+    for i in range(n):
+        nh += hit[i]
+    pts = np.empty((nh + nc + total, 2))
+    p = 0
+    for i in range(n):
+        if hit[i]:
+            pts[p, 0], pts[p, 1] = x[i], y[i]
+            p += 1
+    for q in range(nc):
+        pts[p, 0], pts[p, 1] = cxs[q], cys[q]
+        p += 1
+    for q in range(ns):
+        k = counts[q]
+        for m in range(1, k + 1):
+            tq = m / (k + 1)
+            pts[p, 0] = sx[q] + tq * (ex[q] - sx[q])
+            pts[p, 1] = sy[q] + tq * (ey[q] - sy[q])
+            p += 1
+    return pts
+
+
+@njit(cache=True, nogil=True)
+def _blocked_points(px, py, x0, y0, cos, sin, margin, outline):  # pragma: no cover  (compiled)
+    """(C,) True where a point (``px``, ``py``: (N,)) lies in the outline (rectangles ``outline``
+    (R, 4): centre x, y, half sizes) grown by ``margin[c]`` at one of command c's poses (``x0``,
+    ``y0``, ``cos``, ``sin`` of the yaw: (C, K)). The same arithmetic, in the same order, as
+    :func:`_in_pose_frames` and the rectangle test (no fused multiply-add: numba compiles
+    without fastmath), so the answers are those of the array version bit for bit; it stops at a
+    command's first hit."""
+    n_cmd, n_pose = cos.shape
+    out = np.zeros(n_cmd, dtype=np.bool_)
+    for c in range(n_cmd):
+        m = margin[c]
+        for k in range(n_pose):
+            co, si, xk, yk = cos[c, k], sin[c, k], x0[c, k], y0[c, k]
+            for n in range(px.shape[0]):
+                dx = px[n] - xk
+                dy = py[n] - yk
+                bx = co * dx + si * dy
+                by = -si * dx + co * dy
+                for r in range(outline.shape[0]):
+                    if abs(bx - outline[r, 0]) <= outline[r, 2] + m and abs(by - outline[r, 1]) <= outline[r, 3] + m:
+                        out[c] = True
+                        break
+                if out[c]:
+                    break
+            if out[c]:
+                break
+    return out
 
 
 def _start_speed(v: np.ndarray, v_now: float) -> np.ndarray:
