@@ -215,7 +215,9 @@ def test_sweep_interrupted_with_ctrl_c_resumes_without_rerunning_finished_trials
                 first = done[0]
                 break
             time.sleep(0.1)
-        assert first is not None, "the sweep never reached the point to interrupt"
+        if first is None:
+            proc.kill()
+            pytest.fail("the sweep never reached the point to interrupt:\n" + proc.communicate(timeout=60)[0][-3000:])
         proc.send_signal(signal.SIGINT)
         out_text, _ = proc.communicate(timeout=120)
     finally:

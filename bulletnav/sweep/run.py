@@ -96,7 +96,10 @@ def run_sweep(spec: SweepSpec, opts: SweepOptions) -> dict[str, Any]:
         if address:
             ray.init(address=address, log_to_driver=False)
         else:
-            ray.init(num_cpus=opts.num_cpus or os.cpu_count(), include_dashboard=False, log_to_driver=False)
+            # "local": a new embedded Ray even when another one runs on this machine (plain
+            # ray.init() would join the newest local cluster, someone else's sweep included)
+            ray.init(address="local", num_cpus=opts.num_cpus or os.cpu_count(), include_dashboard=False,
+                     log_to_driver=False)
     _STARTED.clear()
     _ENDED.clear()
     try:
