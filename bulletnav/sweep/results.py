@@ -91,7 +91,7 @@ def plot_summary(summary: list[dict[str, Any]], path: Path, title: str = "sweep"
     import matplotlib.pyplot as plt
 
     shown = [s for s in summary if s["n"]]
-    fig, ax = plt.subplots(figsize=(max(4.0, 1.2 * len(shown) + 2.0), 3.6))
+    fig, ax = plt.subplots(figsize=(max(4.5, 1.2 * len(shown) + 2.0), 3.6))
     for i, s in enumerate(shown):
         ax.bar(i, s["mean"], color="#8fb3d9", width=0.6)
         if s["ci95"]:
@@ -99,8 +99,9 @@ def plot_summary(summary: list[dict[str, Any]], path: Path, title: str = "sweep"
             ax.errorbar(i, s["mean"], yerr=[[s["mean"] - lo], [hi - s["mean"]]], color="black", capsize=5)
         ax.scatter(np.full(s["n"], i) + np.linspace(-0.15, 0.15, s["n"]), s["values"], color="#1f4e79", s=14, zorder=3)
     ax.set_xticks(range(len(shown)), [s["label"] for s in shown], rotation=20, ha="right", fontsize=8)
+    ax.set_xlim(-0.8, max(len(shown), 1) - 0.2)
     ax.set_ylabel(shown[0]["metric"] if shown else "metric")
-    ax.set_title(f"{title}: mean, 95 % bootstrap CI, seeds")
+    ax.set_title(f"{title}\nbars: mean; whiskers: 95 % bootstrap CI; dots: seeds", fontsize=9)
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)

@@ -89,7 +89,7 @@ def run_sweep(spec: SweepSpec, opts: SweepOptions) -> dict[str, Any]:
                        "(or give it another name or --out)")
     if opts.resume and not exists:
         raise RunError(f"{experiment}: no sweep to resume")
-    started = time.time()
+    started, commit = time.time(), git_commit()  # the code the sweep starts with (trials record their own)
     own_ray = not ray.is_initialized()
     if own_ray:
         address = opts.address or os.environ.get("RAY_ADDRESS")
@@ -128,7 +128,7 @@ def run_sweep(spec: SweepSpec, opts: SweepOptions) -> dict[str, Any]:
     record: dict[str, Any] = {
         "name": spec.name, "command": opts.command, "spec": spec.to_dict(), "experiment": experiment,
         "address": opts.address or os.environ.get("RAY_ADDRESS") or "local", "optimize": opts.optimize,
-        "resumed": opts.resume, "interrupted": interrupted, "git_commit": git_commit(), "machine": machine(), "ray": ray.__version__,
+        "resumed": opts.resume, "interrupted": interrupted, "git_commit": commit, "machine": machine(), "ray": ray.__version__,
         "wall_time_s": round(time.time() - started, 1),
     }
     if opts.optimize is not None:
