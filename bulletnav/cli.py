@@ -551,6 +551,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from bulletnav.provenance import command_line
+    from bulletnav.sweep.results import config_label
     from bulletnav.sweep.run import SweepOptions, run_sweep
     from bulletnav.sweep.spec import SweepSpec
 
@@ -576,14 +577,14 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     print("| trial | config | seed | status | timesteps | " + spec.metric + " | node |")
     print("|---|---|---|---|---|---|---|")
     for r in record["trials"]:
-        cfg = ", ".join(f"{k}={v}" for k, v in r["config"].items()) or "base"
+        cfg = config_label(r["config"])
         note = f" ({r['error']})" if r["error"] else ""
         print(f"| {r['trial']} | {cfg} | {r['seed']} | {r['status']}{note} | {r['timesteps'] or '-'} | "
               f"{pct(r.get(spec.metric))} | {(r['node'] or '-')[:8]} |")
     print(f"\n| config | seeds | mean {spec.metric} | 95 % CI (bootstrap) | min | max |")
     print("|---|---|---|---|---|---|")
     for s in record["summary"]:
-        ci = f"{pct(s['ci95'][0])} - {pct(s['ci95'][1])}" if s["ci95"] else "- (one seed)"
+        ci = f"{pct(s['ci95'][0])} - {pct(s['ci95'][1])}" if s["ci95"] else ("- (one seed)" if s["n"] == 1 else "-")
         print(f"| {s['label']} | {s['n']} | {pct(s['mean'])} | {ci} | {pct(s['min'])} | {pct(s['max'])} |")
     if record.get("best"):
         print(f"\nbest: {record['best']['config']} -> {record['best']['hyperparams']}")

@@ -19,8 +19,9 @@ TRIAL_COLUMNS = ("trial", "config", "seed", "status", "timesteps", "wall_time_s"
 
 
 def config_label(config: dict[str, Any]) -> str:
-    """``learning_rate=0.0003, env_kwargs.reward_collision=-40.0`` (``base`` for no changes)."""
-    return ", ".join(f"{k}={v}" for k, v in config.items()) or "base"
+    """``learning_rate=0.0003, env_kwargs.reward_collision=-40`` (``base`` for no changes;
+    floats to 4 significant digits: a label, the exact values are in ``config``)."""
+    return ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in config.items()) or "base"
 
 
 def bootstrap_ci(values: Any, level: float = 0.95, resamples: int = 10_000, seed: int = 0) -> tuple[float, float]:
