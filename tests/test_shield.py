@@ -19,6 +19,7 @@ from bulletnav.control.shield import SafetyShield, Shield, ShieldConfig, ShieldW
 from bulletnav.evaluation import run_episodes, summarize
 from bulletnav.geometry import robot_geometry
 from bulletnav.sensors.lidar import ray_angles
+from bulletnav.sim.movers import MoverView
 
 ANGLES = ray_angles(36, 360.0)
 GEOMETRY = robot_geometry()
@@ -315,6 +316,82 @@ def test_a_stop_always_passes_and_a_blocked_command_held_for_long_gets_turns_not
     assert stuck.intervened and stuck.v == 0.0 and stuck.w != 0.0 and stuck.safe
     assert shield.filter(0.5, 0.0, 0.0, ranges, stuck=-1.0).w < 0  # kept to the way it took
     assert shield.filter(0.5, 0.0, 0.0, ranges, stuck=1.0).w > 0
+
+
+def _passage(worker: tuple[float, float], wall_y: float, radius: float = 0.25) -> np.ndarray:
+    """Ranges to a wall y = ``wall_y`` on the left and a worker's cylinder (centre ``worker``,
+    body frame) on the right, ray-cast analytically."""
+    r = np.full(len(ANGLES), 5.0)
+    o = np.array([OX, 0.0])
+    c = np.asarray(worker)
+    for k, a in enumerate(ANGLES):
+        d = np.array([math.cos(a), math.sin(a)])
+        if d[1] > 1e-9:
+            r[k] = min(r[k], wall_y / d[1])
+        b = float(np.dot(d, o - c))
+        disc = b * b - float(np.dot(o - c, o - c)) + radius**2
+        if disc >= 0 and -b - math.sqrt(disc) > 0:
+            r[k] = min(r[k], -b - math.sqrt(disc))
+    return r
+
+
+def _worker(x: float, y: float, yielding: bool) -> MoverView:
+    return MoverView("worker", (x, y, 0.0), 0.0, (0.5, 0.5, 1.7), ((x, y), (x + 5.0, y)), yielding, -1)
+
+
+def _gap_to(poses: np.ndarray, worker: tuple[float, float], wall_y: float, radius: float = 0.25) -> float:
+    """The smallest distance (m) from the robot's collision rectangles at ``poses`` (K, 3) to
+    the wall and the worker's circle, by closed form (point-to-rectangle, not the shield's code)."""
+    gap = math.inf
+    for x, y, yaw in poses:
+        c, s = math.cos(yaw), math.sin(yaw)
+        # the worker's centre in the pose's frame: distance to each rectangle, less the radius
+        dx, dy = worker[0] - x, worker[1] - y
+        bx, by = c * dx + s * dy, -s * dx + c * dy
+        for r in GEOMETRY.rectangles:
+            ex = max(abs(bx - r.cx) - r.half_x, 0.0)
+            ey = max(abs(by - r.cy) - r.half_y, 0.0)
+            gap = min(gap, math.hypot(ex, ey) - radius)
+            # the wall: the rectangle's highest corner
+            top = max(y + s * (r.cx + sx * r.half_x) + c * (r.cy + sy * r.half_y) for sx in (-1, 1) for sy in (-1, 1))
+            gap = min(gap, wall_y - top)
+    return gap
+
+
+@pytest.mark.parametrize("side", [0.149, 0.145])
+def test_stuck_beside_a_waiting_worker_it_creeps_through_the_gap_without_coming_closer(side):
+    """A passage 2.9 cm (or 2.5 cm) wider than the robot's wheels on each side: a wall on
+    the left, a worker yielding to the robot on the right. A worker that yields waits while the
+    robot stands near, so standing is a deadlock; stuck, the shield lets the forward command
+    pass at the creep speed, and its sweep comes no closer to either side (closed-form
+    distances) than the robot already is. The same worker walking on (not
+    yielding): no creep, the shield holds the robot."""
+    shield = _shield()
+    worker = (0.0, -(side + 0.25))  # its surface as far right of the wheels as the wall is left of them
+    ranges = _passage(worker, side)
+    now = _gap_to(np.zeros((1, 3)), worker, side)
+    assert 0.02 < now < 0.03  # inside the at-rest margin: nothing normal is clear
+    for stuck in (None, 0.0):  # not yet stuck, or stuck beside a worker that walks on: no creep
+        d = shield.filter(0.5, 0.0, 0.0, ranges, [_worker(*worker, yielding=stuck is None)], stuck=stuck)
+        assert d.intervened and d.v == 0.0 and not d.creep
+    d = shield.filter(0.5, 0.0, 0.0, ranges, [_worker(*worker, yielding=True)], stuck=0.0)
+    assert d.intervened and d.creep and d.safe and d.v == ShieldConfig().creep_speed
+    poses, _ = shield.sweep(d.v, d.w, 0.0, 0.0)
+    assert _gap_to(poses[0], worker, side) >= now - 1e-4  # no closer to either side than it was
+    assert ShieldConfig(creep_speed=0.0).creep_speed == 0.0
+    off = Shield(GEOMETRY, ANGLES, 5.0, 1 / 24, 0.5, 1.5, ShieldConfig(creep_speed=0.0))
+    assert not off.filter(0.5, 0.0, 0.0, ranges, [_worker(*worker, yielding=True)], stuck=0.0).creep
+
+
+@pytest.mark.parametrize("ahead", [0.028, 0.015])
+def test_it_never_creeps_toward_a_waiting_worker_dead_ahead(ahead):
+    """The worker 2.8 cm (1.5 cm) ahead of the front face: every forward creep would come
+    closer to it than the robot is, so none is taken (a turn in place or the stop)."""
+    shield = _shield()
+    worker = (0.15 + ahead + 0.25, 0.0)
+    ranges = _passage(worker, 5.0)
+    d = shield.filter(0.5, 0.0, 0.0, ranges, [_worker(*worker, yielding=True)], stuck=0.0)
+    assert d.intervened and d.v == 0.0
 
 
 def test_the_veto_becomes_stuck_after_patience_steps_and_forgets_at_reset():

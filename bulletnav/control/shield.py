@@ -39,6 +39,17 @@ preferred to standing: standing beside a wall is the last resort; the robot's pa
 until the controller's command, or a forward one near it, is clear again. (A forward-only
 robot that has come face-first within the margin of a flat wall has no turn that keeps its
 corners off the wall: it stays stopped; only reversing would free it.)
+
+**Beside a mover that waits for it.** A forklift or worker that yields stands still for as
+long as the robot is near, so a robot the shield holds beside it would wait forever (a tight
+gap between a yielding worker and a rack, say). Stuck there (``patience`` steps held, a
+yielding mover in reach), the controller's forward command may also pass at
+``creep_speed`` with the yaw rates around it, and turns in place its way, where no pose of
+the sweep brings the bare outline closer to the scan filled in every 1 cm or to a mover than
+the robot already is: a gap that is there is passed, slowly, instead of given up, and the
+clearance never shrinks while it creeps, so it cannot wedge itself in. Creeping counts as
+held, so it stays stuck until the command is clear again. Static worlds never creep (no
+mover yields).
 """
 
 from __future__ import annotations
@@ -93,10 +104,18 @@ class ShieldConfig:
     close_margin: float = 0.02
     """Inside the margin, a turn in place may pass where the bare outline grown by this much
     (m) stays off the scan filled in every 1 cm (a corner pokes at most 5 mm between points)."""
+    creep_speed: float = 0.1
+    """Stuck beside a mover that is yielding to the robot, the controller's forward command may
+    pass at this speed (m/s, or the commanded one when slower) where no pose of its sweep
+    brings the bare outline closer to the finely filled scan or to a mover than it already is:
+    the mover waits for as long as the robot stands near it, so standing would be a deadlock.
+    0 turns creeping off."""
 
     def __post_init__(self) -> None:
-        if not 0 <= self.margin_min <= self.margin or self.decel <= 0 or self.samples < 3 or self.join < 0 or self.patience < 1:
-            raise ValueError(f"shield needs 0 <= margin_min <= margin, decel > 0, samples >= 3, join >= 0, patience >= 1; got {self}")
+        if (not 0 <= self.margin_min <= self.margin or self.decel <= 0 or self.samples < 3 or self.join < 0
+                or self.patience < 1 or self.creep_speed < 0):
+            raise ValueError("shield needs 0 <= margin_min <= margin, decel > 0, samples >= 3, join >= 0, patience >= 1, "
+                             f"creep_speed >= 0; got {self}")
 
 
 @dataclass(frozen=True)
@@ -112,11 +131,16 @@ class ShieldDecision:
     """Change in wheel rim speeds, |dv_left| + |dv_right| (m/s); 0 when it passed the command."""
     safe: bool
     """False when no candidate was clear (the shield stopped)."""
+    creep: bool = False
+    """True when it let the robot creep past a mover that waits for it (see ``ShieldConfig.creep_speed``)."""
 
     def as_info(self) -> dict[str, Any]:
-        return {"intervened": self.intervened, "v": self.v, "w": self.w, "change": self.change, "safe": self.safe}
+        return {"intervened": self.intervened, "v": self.v, "w": self.w, "change": self.change, "safe": self.safe,
+                "creep": self.creep}
 
 
+_CREEP_SLACK = 1e-5
+"""How much closer (m) than it already is a creep may bring the robot (the arithmetic's rounding)."""
 _SIN_CORNER = math.sin(math.radians(15.0))
 """Two surfaces meeting at less than this angle are one surface to :meth:`Shield.points`."""
 
@@ -282,6 +306,21 @@ class Shield:
             blocked |= self._blocked(poses, self._mover_points(movers, times, pose), margin)
         return ~blocked
 
+    def _creep_clear(self, v: np.ndarray, w: np.ndarray, v_now: float, ranges: np.ndarray, movers: list[Any],
+                     pose: tuple[float, float, float], w_now: float | None) -> np.ndarray:
+        """(C,) True where no pose of the sweep brings the bare outline closer to the scan
+        (filled in every 1 cm) or to a mover than the robot already is: the test for creeping
+        past a mover that waits for the robot. The clearance never shrinks while it creeps, so
+        a creep can pass a gap that is there but never wedge the robot in tighter."""
+        poses, times = self.sweep(v, w, v_now, w_now)
+        dense = self.points(ranges, within=self._reach + _travel(poses), fill=0.01)  # all within the margin of a pose
+        gap = self._clearance(poses, dense)
+        now = self._clearance(poses[:1, :1], dense)[0]
+        if movers:
+            gap = np.minimum(gap, self._clearance(poses, self._mover_points(movers, times, pose)))
+            now = min(now, float(self._clearance(poses[:1, :1], self._mover_points(movers, times[:1, :1], pose))[0]))
+        return gap >= now - _CREEP_SLACK
+
     def filter(self, v: float, w: float, v_now: float, ranges: np.ndarray, movers: list[Any] | None = None,
                pose: tuple[float, float, float] = (0.0, 0.0, 0.0), w_now: float | None = None,
                stuck: float | None = None) -> ShieldDecision:
@@ -315,10 +354,34 @@ class Shield:
         if stuck is not None:  # anything that moves comes before the stop; turns the other way after it
             rank[(cand[:, 0] == 0.0) & ((cand[:, 1] == 0.0) | (cand[:, 1] * stuck < 0.0))] = np.inf
         order = np.argsort(rank, kind="stable")
-        cand, change = cand[order], change[order]
+        cand, change, rank = cand[order], change[order], rank[order]
+        # stuck beside a mover that waits for the robot: creeping past it (close-range test)
+        # ranks among the others by its change, ahead of the turns in place and the stop
+        creep = (stuck is not None and v > 0.0 and cfg.creep_speed > 0.0
+                 and any(getattr(m, "yielding", False) for m in near))
+        if creep:
+            slow = min(cfg.creep_speed, v)
+            crawl = np.array([(slow, min(max(w + dw, -self.w_max), self.w_max)) for dw in cfg.turn_offsets]
+                             + [(0.0, sign * min(rate, self.w_max)) for rate in cfg.escape_rates for sign in (1.0, -1.0)
+                                if sign * stuck >= 0.0])  # turns in place: only the way it took, once it took one
+            crawl_change = (np.abs((crawl[:, 0] - crawl[:, 1] * hb) - (v - w * hb))
+                            + np.abs((crawl[:, 0] + crawl[:, 1] * hb) - (v + w * hb)))
+            split = int(np.searchsorted(rank, crawl_change.min(), side="right"))
+        else:
+            split = len(cand)
         # by increasing change, the nearest few first, then all the rest in one go: the first
         # clear one is the closest safe command
-        for lo, hi in (() if inside else ((0, _BATCH), (_BATCH, len(cand)))):
+        batches = ((0, min(_BATCH, split)), (min(_BATCH, split), split), (split, len(cand)))
+        for i, (lo, hi) in enumerate(batches):
+            if i == 2 and creep:
+                by = np.argsort(crawl_change, kind="stable")
+                clear = self._creep_clear(crawl[by, 0], crawl[by, 1], v_now, ranges, near, pose, w_now)
+                if clear.any():
+                    best = int(by[np.argmax(clear)])
+                    return ShieldDecision(True, float(crawl[best, 0]), float(crawl[best, 1]), float(crawl_change[best]),
+                                          True, creep=True)
+            if inside or hi <= lo:
+                continue
             clear = self.check(cand[lo:hi, 0], cand[lo:hi, 1], v_now, points, near, pose, w_now=w_now)
             if clear.any():
                 best = lo + int(np.argmax(clear))
@@ -590,9 +653,9 @@ class Veto:
         stuck = self.held >= self.shield.config.patience
         d = self.shield.filter(v, w, float(odometry[3]), ranges, movers, tuple(scene.pose), w_now=float(odometry[4]),
                                stuck=self.escape if stuck else None)
-        if d.intervened and d.v == 0.0:
+        if d.intervened and (d.v == 0.0 or d.creep):  # creeping past a waiting mover stays stuck
             self.held += 1
-            if stuck and d.w != 0.0 and not self.escape:
+            if stuck and d.v == 0.0 and d.w != 0.0 and not self.escape:
                 self.escape = math.copysign(1.0, d.w)
         else:
             self.held, self.escape = 0, 0.0
