@@ -1,0 +1,1 @@
+bulletnav navigate --env bulletnav/WarehouseDynamic-v0 --planner astar --episodes 200 --seed 1000 --shield --json

@@ -1,0 +1,1 @@
+bulletnav evaluate --env bulletnav/WarehouseDynamic-v0 --model models/ppo_warehouse.zip --episodes 200 --seed 1000 --shield --json
