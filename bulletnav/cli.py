@@ -156,13 +156,15 @@ def cmd_bench(args: argparse.Namespace) -> int:
     elif args.what == "shield":
         from bulletnav.bench.shield_bench import DEFAULT_ENV, bench_shield
 
-        result = bench_shield(steps=args.steps or 3000, seed=args.seed, env_id=args.env_id or DEFAULT_ENV, driver=args.driver)
+        result = bench_shield(steps=args.steps or 3000, seed=args.seed, env_id=args.env_id or DEFAULT_ENV, driver=args.driver,
+                              model=args.model)
         d, s = result["decision_ms"], result["env_step_ms"]
         lines = [f"shield decision per step ({result['env_id']}, {result['steps']} steps, driver {result['driver']}, "
                  f"acted on {result['intervention_rate'] * 100:.1f} %):",
                  f"  all      mean {d['mean']:.3f} ms  median {d['median']:.3f} ms  p99 {d['p99']:.3f} ms  max {d['max']:.3f} ms",
                  f"  passed   mean {result['decision_passed_ms']['mean']:.3f} ms   "
-                 f"replaced mean {result['decision_vetoed_ms']['mean']:.3f} ms",
+                 f"replaced mean {result['decision_vetoed_ms']['mean']:.3f} ms   "
+                 f"crept ({result['decision_creep_ms']['n']} steps) mean {result['decision_creep_ms']['mean']:.3f} ms",
                  f"  env step mean {s['mean']:.3f} ms; decision / env step {result['ratio_decision_to_env_step']:.3f}; "
                  f"target mean < 1 ms: {'met' if result['meets_target'] else 'NOT met'}; "
                  f"collisions {result['collisions']} in {result['episodes']} episodes"]
@@ -725,8 +727,10 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--env", dest="env_id", default=None, metavar="ID",
                        help="env: Warehouse-v0 against raw PyBullet, or WarehouseDynamic-v0 against "
                             "WarehouseAisles-v0 (default Warehouse-v0); shield: any env (default WarehouseDynamic-v0)")
-    bench.add_argument("--driver", choices=["ram", "navigator"], default="ram",
-                       help="shield: who drives, a forward-pushing random driver (default) or PID + A*")
+    bench.add_argument("--driver", choices=["ram", "navigator", "policy"], default="ram",
+                       help="shield: who drives, a forward-pushing random driver (default), PID + A*, or a trained "
+                            "model (--model)")
+    bench.add_argument("--model", default=None, metavar="PATH", help="shield: the model --driver policy drives with")
     bench.set_defaults(func=cmd_bench)
     return parser
 

@@ -273,6 +273,16 @@ def test_bench_shield_prints_json_with_the_decision_time(capsys):
     assert result["ratio_decision_to_env_step"] > 0 and result["collisions"] == 0
 
 
+def test_bench_shield_drives_with_a_trained_model_and_times_its_creeps_apart(capsys):
+    model = str(asset_path("..", "..", "models", "ppo_dynamic.zip"))
+    assert main(["bench", "shield", "--driver", "policy", "--model", model, "--steps", "100", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["driver"] == "policy" and result["model"] == model and result["decision_ms"]["n"] == 100
+    assert result["decision_creep_ms"]["n"] <= result["decision_vetoed_ms"]["n"]
+    with pytest.raises(ValueError, match="--driver policy needs --model"):
+        main(["bench", "shield", "--driver", "policy", "--steps", "10"])
+
+
 @pytest.mark.gui
 def test_dashboard_shows_the_shields_share_of_steps_in_a_static_world(display, monkeypatch):
     import pybullet

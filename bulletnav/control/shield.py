@@ -176,6 +176,7 @@ class Shield:
         # the compiled kernels load (or compile) now, not inside an episode's first decision
         one, grid = np.zeros(1), np.zeros((1, 1))
         _blocked_points(one, one, grid, grid, grid, grid, one, self._outline)
+        _pose_gaps(one, one, grid, grid, grid, grid, self._outline)
         self._next = np.roll(np.arange(len(self.angles)), -1)  # each ray's neighbours
         self._prev = np.roll(np.arange(len(self.angles)), 1)
         self.sweep(0.0, 0.0, 0.0)
@@ -314,12 +315,17 @@ class Shield:
         a creep can pass a gap that is there but never wedge the robot in tighter."""
         poses, times = self.sweep(v, w, v_now, w_now)
         dense = self.points(ranges, within=self._reach + _travel(poses), fill=0.01)  # all within the margin of a pose
-        gap = self._clearance(poses, dense)
-        now = self._clearance(poses[:1, :1], dense)[0]
+        gaps = _pose_gaps(np.ascontiguousarray(dense[:, 0]), np.ascontiguousarray(dense[:, 1]),
+                          np.ascontiguousarray(poses[:, :, 0]), np.ascontiguousarray(poses[:, :, 1]),
+                          np.cos(poses[:, :, 2]), np.sin(poses[:, :, 2]), self._outline)
         if movers:
-            gap = np.minimum(gap, self._clearance(poses, self._mover_points(movers, times, pose)))
-            now = min(now, float(self._clearance(poses[:1, :1], self._mover_points(movers, times[:1, :1], pose))[0]))
-        return gap >= now - _CREEP_SLACK
+            bx, by = _in_pose_frames(poses, self._mover_points(movers, times, pose))
+            for cx, cy, hx, hy in self._outline:
+                dx = np.maximum(np.abs(bx - cx) - hx, 0.0)
+                dy = np.maximum(np.abs(by - cy) - hy, 0.0)
+                gaps = np.minimum(gaps, np.hypot(dx, dy).min(axis=2))
+        # every sweep's first pose is where the robot stands: its gap is the clearance now
+        return gaps.min(axis=1) >= gaps[0, 0] - _CREEP_SLACK
 
     def filter(self, v: float, w: float, v_now: float, ranges: np.ndarray, movers: list[Any] | None = None,
                pose: tuple[float, float, float] = (0.0, 0.0, 0.0), w_now: float | None = None,
@@ -592,6 +598,33 @@ def _blocked_points(px, py, x0, y0, cos, sin, margin, outline):  # pragma: no co
                     break
             if out[c]:
                 break
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _pose_gaps(px, py, x0, y0, cos, sin, outline):  # pragma: no cover  (compiled)
+    """(C, K) the smallest distance (m) from a point (``px``, ``py``: (N,)) to the bare outline
+    (rectangles ``outline`` (R, 4)) at each pose (``x0``, ``y0``, ``cos``, ``sin`` of the
+    yaw: (C, K)); inf without points. The arithmetic of :func:`_in_pose_frames` and
+    :meth:`Shield._clearance`, in their order."""
+    n_cmd, n_pose = cos.shape
+    out = np.full((n_cmd, n_pose), np.inf)
+    for c in range(n_cmd):
+        for k in range(n_pose):
+            co, si, xk, yk = cos[c, k], sin[c, k], x0[c, k], y0[c, k]
+            best = np.inf
+            for n in range(px.shape[0]):
+                dx = px[n] - xk
+                dy = py[n] - yk
+                bx = co * dx + si * dy
+                by = -si * dx + co * dy
+                for r in range(outline.shape[0]):
+                    ex = abs(bx - outline[r, 0]) - outline[r, 2]
+                    ey = abs(by - outline[r, 1]) - outline[r, 3]
+                    d = math.hypot(ex if ex > 0.0 else 0.0, ey if ey > 0.0 else 0.0)
+                    if d < best:
+                        best = d
+            out[c, k] = best
     return out
 
 
