@@ -1,0 +1,1 @@
+bulletnav evaluate --model models/ppo_dynamic.zip --episodes 100 --seed 0 --world bulletnav/assets/worlds/hall.yaml --json

@@ -1,0 +1,1 @@
+bulletnav evaluate --model models/ppo_dynamic.zip --episodes 200 --seed 1000000 --obstacles 40 --shield --json

@@ -1,0 +1,1 @@
+bulletnav evaluate --env bulletnav/WarehouseAisles-v0 --model models/ppo_dynamic.zip --episodes 200 --seed 1000 --shield --json
