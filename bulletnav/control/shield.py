@@ -361,8 +361,9 @@ class Shield:
             rank[(cand[:, 0] == 0.0) & ((cand[:, 1] == 0.0) | (cand[:, 1] * stuck < 0.0))] = np.inf
         order = np.argsort(rank, kind="stable")
         cand, change, rank = cand[order], change[order], rank[order]
-        # stuck beside a mover that waits for the robot: creeping past it (close-range test)
-        # ranks among the others by its change, ahead of the turns in place and the stop
+        # stuck beside a mover that waits for the robot: creeping past it (where it comes no
+        # closer to anything, see _creep_clear) ranks among the others by its change, ahead of
+        # the turns in place and the stop
         creep = (stuck is not None and v > 0.0 and cfg.creep_speed > 0.0
                  and any(getattr(m, "yielding", False) for m in near))
         if creep:
