@@ -6,7 +6,7 @@ on 80 % of steps, random yaw rates), so the shield meets walls, racks and movers
 replaces most commands and is stuck much of the time; ``navigator`` is PID + A*, a
 controller that mostly drives where it is safe; ``policy`` is a trained model (``model``),
 which among movers gets the shield stuck beside movers that wait for the robot, its slowest
-path (every fallback checked, then the creep's close-range test; timed apart as
+path (every fallback checked, then the creep's no-closer test; timed apart as
 ``decision_creep_ms``). Each step's decision (read the scan, odometry and
 movers, sweep, pick) and each ``env.step`` are timed apart with ``perf_counter``; the ratio
 decision / env step is the machine-independent figure, the milliseconds the absolute one

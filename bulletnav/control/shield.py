@@ -239,16 +239,19 @@ class Shield:
     def _clearance(self, poses: np.ndarray, points: np.ndarray) -> np.ndarray:
         """(C,) the smallest distance (m) over the poses (C, K, 3) from a point ((N, 2), or per
         pose (C, K, M, 2)) to the bare outline (its collision rectangles); inf without points."""
-        n_cmd = poses.shape[0]
+        return self._pose_clearance(poses, points).min(axis=1)
+
+    def _pose_clearance(self, poses: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """(C, K) :meth:`_clearance` at each pose."""
         if points.shape[-2] == 0:
-            return np.full(n_cmd, np.inf)
+            return np.full(poses.shape[:2], np.inf)
         bx, by = _in_pose_frames(poses, points)
         dist = np.full(bx.shape, np.inf)
         for cx, cy, hx, hy in self._outline:
             dx = np.maximum(np.abs(bx - cx) - hx, 0.0)
             dy = np.maximum(np.abs(by - cy) - hy, 0.0)
             dist = np.minimum(dist, np.hypot(dx, dy))
-        return dist.reshape(n_cmd, -1).min(axis=1)
+        return dist.min(axis=2)
 
     def _mover_points(self, movers: list[Any], times: np.ndarray, pose: tuple[float, float, float]) -> np.ndarray:
         """Footprint points of every mover at each time (C, K), in the robot's body frame (C, K, M, 2)."""
@@ -319,11 +322,7 @@ class Shield:
                           np.ascontiguousarray(poses[:, :, 0]), np.ascontiguousarray(poses[:, :, 1]),
                           np.cos(poses[:, :, 2]), np.sin(poses[:, :, 2]), self._outline)
         if movers:
-            bx, by = _in_pose_frames(poses, self._mover_points(movers, times, pose))
-            for cx, cy, hx, hy in self._outline:
-                dx = np.maximum(np.abs(bx - cx) - hx, 0.0)
-                dy = np.maximum(np.abs(by - cy) - hy, 0.0)
-                gaps = np.minimum(gaps, np.hypot(dx, dy).min(axis=2))
+            gaps = np.minimum(gaps, self._pose_clearance(poses, self._mover_points(movers, times, pose)))
         # every sweep's first pose is where the robot stands: its gap is the clearance now
         return gaps.min(axis=1) >= gaps[0, 0] - _CREEP_SLACK
 
@@ -607,7 +606,7 @@ def _pose_gaps(px, py, x0, y0, cos, sin, outline):  # pragma: no cover  (compile
     """(C, K) the smallest distance (m) from a point (``px``, ``py``: (N,)) to the bare outline
     (rectangles ``outline`` (R, 4)) at each pose (``x0``, ``y0``, ``cos``, ``sin`` of the
     yaw: (C, K)); inf without points. The arithmetic of :func:`_in_pose_frames` and
-    :meth:`Shield._clearance`, in their order."""
+    :meth:`Shield._pose_clearance`, in their order."""
     n_cmd, n_pose = cos.shape
     out = np.full((n_cmd, n_pose), np.inf)
     for c in range(n_cmd):
