@@ -102,7 +102,11 @@ def pytest_pyfunc_call(pyfuncitem):
     process. PyBullet allows one in-process GUI at a time, and after several GUI connections and
     disconnections in one process a connection has been seen to hang for ever (the GUI thread
     gone, the main thread polling for it) once torch is imported; one GUI session per process,
-    as every user command has, does not. The child's failure fails the test with its output."""
+    as every user command has, does not. The child's failure fails the test with its output.
+    A child that hangs (PyBullet's GUI connection has, rarely, hung in a fresh process under
+    Xvfb too: once in a clean-clone `make test` of 2026-11-24, the test passing in 13 s on each
+    of four reruns) is killed and the test run once more in a new child: the same 600 s in
+    all, split in two; a hang both times fails the test, and a verdict is never retried."""
     import json
     import os
     import subprocess
@@ -115,11 +119,15 @@ def pytest_pyfunc_call(pyfuncitem):
         measurements = Path(tmp) / "measurements.json"
         env = {**os.environ, _GUI_CHILD: str(measurements)}
         cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--no-header", pyfuncitem.nodeid]
-        try:
-            out = subprocess.run(cmd, env=env, cwd=pyfuncitem.config.rootpath, capture_output=True, text=True,
-                                 timeout=600)
-        except subprocess.TimeoutExpired as exc:
-            pytest.fail(f"GUI test {pyfuncitem.nodeid} did not finish in its child process within {exc.timeout} s")
+        for attempt in (1, 2):
+            try:
+                out = subprocess.run(cmd, env=env, cwd=pyfuncitem.config.rootpath, capture_output=True, text=True,
+                                     timeout=300)
+                break
+            except subprocess.TimeoutExpired as exc:
+                if attempt == 2:
+                    pytest.fail(f"GUI test {pyfuncitem.nodeid} hung in two child processes ({exc.timeout} s each)")
+                pyfuncitem.warn(pytest.PytestWarning(f"its GUI child hung for {exc.timeout} s; run once more in a new one"))
         if measurements.exists():
             _MEASUREMENTS.extend(tuple(m) for m in json.loads(measurements.read_text()))
     if out.returncode != 0:
