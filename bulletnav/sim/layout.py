@@ -35,6 +35,7 @@ import yaml
 
 from bulletnav.config import WorldConfig
 from bulletnav.errors import LayoutError
+from bulletnav.sim.kernels import BOX, CYLINDER, any_within, mark_within
 
 if TYPE_CHECKING:
     from bulletnav.sim.events import EventSpec
@@ -77,6 +78,14 @@ class Obstacle:
         lx = np.abs(c * dx + s * dy) - self.size[0] / 2
         ly = np.abs(-s * dx + c * dy) - self.size[1] / 2
         return np.hypot(np.maximum(lx, 0.0), np.maximum(ly, 0.0))
+
+    def footprint(self) -> tuple[int, float, float, float, float, float, float, float]:
+        """The footprint as the numbers :mod:`bulletnav.sim.kernels` takes (kind, centre, cos and
+        sin of yaw, half sizes, radius), for the compiled form of :meth:`distance`."""
+        if self.kind == "cylinder":
+            return CYLINDER, self.center[0], self.center[1], 1.0, 0.0, 0.0, 0.0, self.radius
+        return BOX, self.center[0], self.center[1], math.cos(self.yaw), math.sin(self.yaw), self.size[0] / 2, \
+            self.size[1] / 2, 0.0
 
     def bounding_radius(self) -> float:
         """Radius of the smallest centred circle that holds the footprint (m)."""
@@ -132,8 +141,35 @@ class Layout:
         Cell (0, 0) is centred at ``(-size_x/2 + res/2, -size_y/2 + res/2)``.
         """
         xs, ys = self.grid_axes(resolution)
-        gx, gy = np.meshgrid(xs, ys, indexing="ij")
-        return self.clearance(gx, gy) <= inflate
+        return self.within(xs, ys, inflate)
+
+    def within(self, xs: np.ndarray, ys: np.ndarray, distance: float) -> np.ndarray:
+        """Boolean grid ``[ix, iy]`` over the points (``xs[ix]``, ``ys[iy]``): True where
+        :meth:`clearance` is ``<= distance`` (m), bit for bit.
+
+        The same per-point arithmetic as :meth:`clearance` (compiled, :mod:`bulletnav.sim.kernels`),
+        but each obstacle is measured only
+        on the window of cells its footprint grown by ``distance`` can reach (a cell farther than
+        its bounding circle plus ``distance`` plus a cell's margin cannot be within ``distance``),
+        so the cost follows the obstacles' area, not floor area times obstacle count.
+        """
+        hx, hy = self.half_extents
+        xs = np.ascontiguousarray(xs, dtype=np.float64)
+        ys = np.ascontiguousarray(ys, dtype=np.float64)
+        gx = xs[:, None]
+        gy = ys[None, :]
+        out = np.minimum(np.minimum(hx - gx, hx + gx), np.minimum(hy - gy, hy + gy)) <= distance
+        if not self.obstacles:
+            return out
+        # cell spacing (grids are uniform; a single point has none) widens the window conservatively
+        margin = float(max(np.max(np.diff(xs), initial=0.0), np.max(np.diff(ys), initial=0.0))) + 1e-6
+        for obs in self.obstacles:
+            reach = obs.bounding_radius() + distance + margin
+            i0, i1 = np.searchsorted(xs, (obs.center[0] - reach, obs.center[0] + reach))
+            j0, j1 = np.searchsorted(ys, (obs.center[1] - reach, obs.center[1] + reach))
+            if i0 < i1 and j0 < j1:
+                mark_within(out, xs[i0:i1], ys[j0:j1], int(i0), int(j0), *obs.footprint(), distance)
+        return out
 
 
 # --------------------------------------------------------------------------- YAML
@@ -495,26 +531,26 @@ class _Raster:
         self.res = res
         self.hx, self.hy = size[0] / 2, size[1] / 2
         self.grid = np.zeros((int(math.ceil(size[0] / res)), int(math.ceil(size[1] / res))), dtype=bool)
+        # cell centres, computed as the array code always did: -h + res * (index + 0.5)
+        self.xs = -self.hx + self.res * (np.arange(self.grid.shape[0]) + 0.5)
+        self.ys = -self.hy + self.res * (np.arange(self.grid.shape[1]) + 0.5)
 
-    def _window(self, o: Obstacle, pad: float) -> tuple[slice, slice, np.ndarray]:
+    def _bounds(self, o: Obstacle, pad: float) -> tuple[slice, slice]:
         r = o.bounding_radius() + pad
         i0 = max(int((o.center[0] - r + self.hx) / self.res), 0)
         i1 = min(int((o.center[0] + r + self.hx) / self.res) + 1, self.grid.shape[0])
         j0 = max(int((o.center[1] - r + self.hy) / self.res), 0)
         j1 = min(int((o.center[1] + r + self.hy) / self.res) + 1, self.grid.shape[1])
-        xs = -self.hx + self.res * (np.arange(i0, i1) + 0.5)
-        ys = -self.hy + self.res * (np.arange(j0, j1) + 0.5)
-        inside = o.distance(xs[:, None], ys[None, :]) <= pad
-        return slice(i0, i1), slice(j0, j1), inside
+        return slice(i0, i1), slice(j0, j1)
 
     def any(self, o: Obstacle, pad: float) -> bool:
         ci = min(int((o.center[0] + self.hx) / self.res), self.grid.shape[0] - 1)
         cj = min(int((o.center[1] + self.hy) / self.res), self.grid.shape[1] - 1)
         if self.grid[ci, cj]:  # the centre itself is taken: most rejections end here, cheaply
             return True
-        sx, sy, inside = self._window(o, pad)
-        return bool(np.any(self.grid[sx, sy] & inside))
+        sx, sy = self._bounds(o, pad)
+        return any_within(self.grid, self.xs[sx], self.ys[sy], sx.start, sy.start, *o.footprint(), pad)
 
     def mark(self, o: Obstacle, pad: float) -> None:
-        sx, sy, inside = self._window(o, pad)
-        self.grid[sx, sy] |= inside
+        sx, sy = self._bounds(o, pad)
+        mark_within(self.grid, self.xs[sx], self.ys[sy], sx.start, sy.start, *o.footprint(), pad)

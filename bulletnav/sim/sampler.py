@@ -39,10 +39,9 @@ class FreeSpace:
     def build(cls, layout: Layout, config: SamplerConfig, radius: float) -> FreeSpace:
         """Grids of ``layout`` for a robot disc of ``radius`` (m; ``RobotGeometry.radius``)."""
         xs, ys = layout.grid_axes(config.grid_resolution)
-        gx, gy = np.meshgrid(xs, ys, indexing="ij")
-        dist = layout.clearance(gx, gy)
-        clear = dist > config.clearance
-        passable = dist > radius
+        # clearance > d is the negation of clearance <= d, bit for bit (distances are never NaN)
+        clear = ~layout.within(xs, ys, config.clearance)
+        passable = ~layout.within(xs, ys, radius)
         component, _ = ndimage.label(passable, structure=np.ones((3, 3), dtype=bool))
         return cls(layout, config.grid_resolution, xs, ys, clear, component)
 
