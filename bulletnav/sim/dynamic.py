@@ -19,6 +19,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from bulletnav.config import DynamicConfig
+from bulletnav.sim.kernels import line_clear
 from bulletnav.sim.layout import Layout
 from bulletnav.sim.movers import ForkliftSpec, MoverSpec, WorkerSpec
 
@@ -52,12 +53,12 @@ class ClearanceMap:
         return float(self.xs[cell[0]]), float(self.ys[cell[1]])
 
     def line_clear(self, a, b, need: float) -> bool:
+        """True when every sample of segment ``a``-``b`` (every half cell) lies in a cell with
+        clearance >= ``need`` (m)."""
         n = max(2, int(math.dist(a, b) / (self.resolution / 2)) + 1)
-        t = np.linspace(0.0, 1.0, n)
         hx, hy = self.layout.half_extents
-        ix = np.clip(((a[0] + (b[0] - a[0]) * t + hx) / self.resolution).astype(int), 0, self.clearance.shape[0] - 1)
-        iy = np.clip(((a[1] + (b[1] - a[1]) * t + hy) / self.resolution).astype(int), 0, self.clearance.shape[1] - 1)
-        return bool(np.all(self.clearance[ix, iy] >= need))
+        return line_clear(self.clearance, float(a[0]), float(a[1]), float(b[0]), float(b[1]), n, need, hx, hy,
+                          self.resolution)
 
     def graph(self, need: float):
         """8-connected graph of the cells with clearance >= ``need`` (cached)."""

@@ -200,8 +200,17 @@ def _planning_pairs(free: FreeSpace, config: SamplerConfig, blockers: list[Obsta
     keep = ok.copy()
     if config.blocked_by:
         crossed = np.zeros(len(points), dtype=bool)
+        start = points[i]
+        reach = config.max_goal_distance + 1.0  # every candidate lies within max_goal_distance of the start
         for obstacle in blockers:
-            crossed[keep] |= segments_cross(obstacle, points[i], points[keep])
+            # an obstacle out of every candidate segment's reach, or candidates already crossed,
+            # cannot change ``crossed``: test only the rest (each segment's test is its own)
+            if math.hypot(obstacle.center[0] - start[0], obstacle.center[1] - start[1]) > reach + obstacle.bounding_radius():
+                continue
+            todo = np.flatnonzero(keep & ~crossed)
+            if len(todo) == 0:
+                break
+            crossed[todo] = segments_cross(obstacle, start, points[todo])
         keep &= crossed
     if config.min_detour > 1.0 and keep.any():
         lengths = free.path_lengths((int(cells[i, 0]), int(cells[i, 1])))[cells[:, 0], cells[:, 1]]
