@@ -110,11 +110,30 @@ def _safety_line(s: dict) -> str:
 
 def cmd_bench(args: argparse.Namespace) -> int:
     """Run a benchmark and print its JSON (``--json``) or a short table."""
-    if args.what == "env":
-        from bulletnav.bench.env_bench import bench_env
+    if args.what == "env" and args.vec:
+        from bulletnav.bench.reset_bench import bench_vec
 
-        result = bench_env(steps=args.steps or 6000, seed=args.seed, env_id=args.env_id or DEFAULT_ENV_ID)
-        if result["benchmark"] == "env_pair":
+        result = bench_vec(env_id=args.env_id or DEFAULT_ENV_ID, steps=args.steps or 1000, seed=args.seed)
+        kinds = ("sync", "async", "sb3_dummy", "sb3_subproc")
+        lines = [f"{result['env_id']}: env steps/s, {result['vector_steps']} vector steps each, resets included",
+                 f"{'envs':>5s} " + " ".join(f"{k:>12s}" for k in kinds)]
+        lines += [f"{row['num_envs']:5d} " + " ".join(f"{row[f'{k}_steps_per_s']:12.1f}" for k in kinds)
+                  for row in result["rows"]]
+    elif args.what == "env":
+        from bulletnav.bench.env_bench import STATIC_REFERENCE, bench_env
+        from bulletnav.bench.reset_bench import REGISTERED, bench_ids
+
+        env_id = args.env_id or DEFAULT_ENV_ID
+        if env_id == DEFAULT_ENV_ID or env_id in STATIC_REFERENCE:  # the step-cost ratio, then resets
+            result = bench_env(steps=args.steps or 6000, seed=args.seed, env_id=env_id)
+        else:
+            check_env_id(env_id)
+            result = {"benchmark": "env_resets", "env_id": env_id}
+        result["ids"] = bench_ids((args.env_id,) if args.env_id else REGISTERED, resets=args.resets,
+                                  steps=args.steps or 6000, seed=args.seed)
+        if result["benchmark"] == "env_resets":
+            lines = []
+        elif result["benchmark"] == "env_pair":
             lines = [
                 f"{result['env_id']:32s} {result['env_steps_per_s']:8.1f} steps/s  (reset {result['reset_ms_mean']:.1f} ms)",
                 f"{result['reference_id']:32s} {result['reference_steps_per_s']:8.1f} steps/s  "
@@ -128,9 +147,12 @@ def cmd_bench(args: argparse.Namespace) -> int:
                 f"raw  {result['raw_steps_per_s']:8.1f} steps/s   (same physics, rays and state queries, plain PyBullet)",
                 f"lean {result['physics_and_rays_steps_per_s']:8.1f} steps/s   (physics and rays only; "
                 f"ratio {result['ratio_physics_and_rays']:.3f})",
-                f"ratio env/raw {result['ratio']:.3f} (median over {result['steps'] // result['block']} blocks), "
-                f"overhead {result['env_overhead_us_per_step']:.1f} us/step, reset {result['reset_ms_mean']:.2f} ms",
+                f"ratio env/raw {result['ratio']:.3f} (median over {result['steps'] // result['block']} blocks; "
+                f"regression guard >= {result['ratio_guard']}), overhead {result['env_overhead_us_per_step']:.1f} us/step",
             ]
+        lines.append(f"{'id':32s} {'reset ms':>9s} {'raw ms':>7s} {'steps/s with resets':>20s} {'in reset':>9s}")
+        lines += [f"{env_id:32s} {r['reset_ms']:9.2f} {r['raw_reset_ms']:7.2f} {r['steps_per_s_with_resets']:20.1f} "
+                  f"{r['reset_share'] * 100:8.1f}%" for env_id, r in result["ids"].items()]
     elif args.what == "physics":
         from bulletnav.bench.physics_bench import bench_physics
 
@@ -727,6 +749,9 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--env", dest="env_id", default=None, metavar="ID",
                        help="env: Warehouse-v0 against raw PyBullet, or WarehouseDynamic-v0 against "
                             "WarehouseAisles-v0 (default Warehouse-v0); shield: any env (default WarehouseDynamic-v0)")
+    bench.add_argument("--resets", type=int, default=200, help="env: resets timed per id (default 200)")
+    bench.add_argument("--vec", action="store_true",
+                       help="env: vectorised steps/s at 1, 2 and 4 envs (make_vec sync/async, SB3 Dummy/SubprocVecEnv)")
     bench.add_argument("--driver", choices=["ram", "navigator", "policy"], default="ram",
                        help="shield: who drives, a forward-pushing random driver (default), PID + A*, or a trained "
                             "model (--model)")

@@ -83,6 +83,11 @@ class _RawLoop:
         return p.getBasePositionAndOrientation(self.body, physicsClientId=self.cid)[0]
 
 
+RATIO_GUARD = 0.85
+"""Regression guard on the env/raw step ratio: a benchmark result below it (``ratio_ok`` false)
+means the env's own Python per step has grown. A guard in the benchmark's JSON, never a test:
+timings are too noisy on shared machines to fail a build on."""
+
 STATIC_REFERENCE = {"bulletnav/WarehouseDynamic-v0": "bulletnav/WarehouseAisles-v0"}
 """Env ids benchmarked against another id rather than the raw loop: the same worlds without movers."""
 
@@ -157,6 +162,8 @@ def bench_env(steps: int = 6000, block: int = 100, seed: int = 0, config: EnvCon
         "env_steps_per_s": round(steps / env_time, 1),
         "raw_steps_per_s": round(steps / raw_time, 1),
         "ratio": round(float(np.median(block_ratios)), 4),
+        "ratio_guard": RATIO_GUARD,
+        "ratio_ok": bool(np.median(block_ratios) >= RATIO_GUARD),
         "ratio_of_totals": round(raw_time / env_time, 4),
         "ratio_physics_and_rays": round(float(np.median(lean_ratios)), 4),
         "physics_and_rays_steps_per_s": round(steps / lean_time, 1),
