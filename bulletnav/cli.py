@@ -395,6 +395,10 @@ def cmd_train(args: argparse.Namespace) -> int:
     final = record.get("final_eval") or {}
     print(f"trained {args.algo.upper()} for {record['total_timesteps']} timesteps in {record['wall_time_s']:.0f} s "
           f"({record['n_envs']} envs, seed {args.seed})")
+    if record.get("throughput"):
+        t = record["throughput"]
+        print(f"throughput     {t['env_steps_per_s']:.0f} env steps/s; wall time in env {t['env_share'] * 100:.0f} %, "
+              f"learner {t['learner_share'] * 100:.0f} %, evaluation {t['eval_share'] * 100:.0f} %")
     if final:
         print(f"final evaluation ({args.eval_episodes} unseen episodes): success {final['success_rate'] * 100:.0f} %, "
               f"collisions {final['collision_rate'] * 100:.0f} %, mean reward {final['mean_reward']:.1f}")
@@ -660,8 +664,9 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--eval-freq", type=int, default=25_000, help="evaluate every N timesteps (default 25000)")
     tr.add_argument("--eval-episodes", type=int, default=20, help="unseen episodes per evaluation (default 20)")
     tr.add_argument("--checkpoint-freq", type=int, default=25_000, help="checkpoint every N timesteps (default 25000)")
-    tr.add_argument("--vec-env", choices=["subproc", "dummy"], default="subproc",
-                    help="one process per env (subproc) or all in this one (dummy)")
+    tr.add_argument("--vec-env", choices=["auto", "subproc", "dummy"], default="auto",
+                    help="one process per env (subproc), all in this one (dummy), or auto (default): subprocesses "
+                         "for several envs on a machine with more than one core")
     tr.add_argument("--hyperparams", metavar="YAML",
                     help="hyperparameter file to use instead of the packaged rl/hyperparams/<algo>.yml (same format)")
     tr.add_argument("--no-progress", action="store_true", help="no progress bar")

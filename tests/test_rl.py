@@ -426,3 +426,27 @@ def test_compare_groups_runs_by_hyperparameter_file():
     assert run_group({"algo": "sac", "command": "bulletnav train --algo sac"}, "hyperparams") == "sac (default)"
     with pytest.raises(ValueError, match="group_by must be one of algo, hyperparams"):
         run_group(record, "arm")
+
+
+def test_run_record_says_where_the_time_went(ppo_run):
+    """``run.json``'s throughput: env steps per second of the training's wall time and the
+    shares of that time in the envs, in evaluation and in the learner (they add up to 1), and
+    the vector env 'auto' chose (2 envs on this machine's cores)."""
+    import os
+
+    record = json.loads((ppo_run / "run.json").read_text())
+    t = record["throughput"]
+    assert t["env_share"] + t["eval_share"] + t["learner_share"] == pytest.approx(1.0, abs=2e-4)
+    assert 0 < t["env_share"] < 1 and 0 < t["eval_share"] < 1 and 0 < t["learner_share"] < 1
+    # steps over the learn() wall time, which the record's wall time (learn() alone) bounds from below
+    assert t["env_steps_per_s"] == pytest.approx(record["total_timesteps"] / record["wall_time_s"], rel=0.1)
+    assert record["vec_env"] == ("subproc" if (os.cpu_count() or 1) > 1 else "dummy")
+
+
+def test_vec_env_choice():
+    from bulletnav.rl.train import resolve_vec_env
+
+    assert resolve_vec_env("subproc", 1) == resolve_vec_env("auto", 1) == "dummy"
+    assert resolve_vec_env("dummy", 4) == "dummy" and resolve_vec_env("subproc", 4) == "subproc"
+    with pytest.raises(ValueError, match="vec_env must be"):
+        resolve_vec_env("threads", 4)

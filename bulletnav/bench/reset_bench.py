@@ -84,7 +84,7 @@ def bench_resets(env_id: str, resets: int = 200, seed: int = 0) -> dict[str, Any
     env.reset(seed=seed)  # compiles the kernels, loads the caches: not timed
     env.reset()
     unwrapped = env.unwrapped
-    cid, robot = unwrapped.scene.client, unwrapped.scene.robot_body
+    cid = unwrapped.scene.client
     times, worlds = [], []
     clock = time.perf_counter
     for _ in range(resets):
@@ -185,8 +185,9 @@ def bench_vec(env_id: str = "bulletnav/Warehouse-v0", counts: tuple[int, ...] = 
     """Env steps/s of ``env_id`` at each number of envs: Gymnasium ``make_vec`` sync / async,
     SB3 ``DummyVecEnv`` / ``SubprocVecEnv`` (one torch-free process per env), ``steps`` vector
     steps each, resets included. Kinds are interleaved per count so machine drift hits all."""
-    import bulletnav  # noqa: F401
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+    import bulletnav  # noqa: F401
 
     def make(n: int, kind: str):
         if kind in ("sync", "async"):

@@ -10,6 +10,7 @@ from typing import Any
 
 import gymnasium as gym
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.vec_env import VecEnvWrapper
 
 from bulletnav import ENV_ID
 from bulletnav.evaluation import run_episodes, summarize
@@ -95,6 +96,8 @@ class EvaluationCallback(BaseCallback):
         self.started = time.time() if started is None else started
         self.next_at = 0
         self.eval_env: gym.Env | None = None
+        self.seconds = 0.0
+        """Wall time spent evaluating (s), for the run's time budget."""
 
     def _on_training_start(self) -> None:
         self.next_at = (self.num_timesteps // self.every + 1) * self.every
@@ -107,6 +110,13 @@ class EvaluationCallback(BaseCallback):
 
     def evaluate(self, model: Any) -> dict[str, Any]:
         """Evaluate ``model`` now and record the row (also callable after training)."""
+        t0 = time.perf_counter()
+        try:
+            return self._evaluate(model)
+        finally:
+            self.seconds += time.perf_counter() - t0
+
+    def _evaluate(self, model: Any) -> dict[str, Any]:
         if self.eval_env is None:
             import bulletnav  # noqa: F401
 
@@ -135,3 +145,74 @@ class EvaluationCallback(BaseCallback):
         if self.eval_env is not None:
             self.eval_env.close()
             self.eval_env = None
+
+
+class ThroughputCallback(BaseCallback):
+    """Where a run's time goes: at every rollout's end, logs to SB3's logger (TensorBoard, beside
+    SB3's own ``time/fps``) ``time/env_steps_per_s`` (env steps per second of wall time),
+    ``time/env_share`` (share of wall time inside the vector env's ``reset``/``step``, i.e. the
+    simulation: :class:`TimedVecEnv`), ``time/eval_share`` (in-training
+    evaluations) and ``time/learner_share`` (the rest: policy inference and gradient updates).
+
+    Args:
+        timer: the :class:`TimedVecEnv` under the run's vector env.
+        evaluation: the run's evaluation callback (its ``seconds``), or None.
+    """
+
+    def __init__(self, timer: Any, evaluation: EvaluationCallback | None = None) -> None:
+        super().__init__()
+        self.timer = timer
+        self.evaluation = evaluation
+        self._t0 = 0.0
+        self._steps0 = 0
+
+    def _on_training_start(self) -> None:
+        self._t0 = time.perf_counter()
+        self._steps0 = self.num_timesteps
+        self.timer.seconds = 0.0
+        if self.evaluation is not None:
+            self.evaluation.seconds = 0.0
+
+    def _on_step(self) -> bool:
+        return True
+
+    def summary(self) -> dict[str, float]:
+        """Shares of the wall time since training started and env steps per second."""
+        wall = max(time.perf_counter() - self._t0, 1e-9)
+        env = self.timer.seconds
+        evaluation = self.evaluation.seconds if self.evaluation is not None else 0.0
+        return {"env_steps_per_s": round((self.num_timesteps - self._steps0) / wall, 1),
+                "env_share": round(env / wall, 4), "eval_share": round(evaluation / wall, 4),
+                "learner_share": round(max(wall - env - evaluation, 0.0) / wall, 4)}
+
+    def _on_rollout_end(self) -> None:
+        for key, value in self.summary().items():
+            self.logger.record(f"time/{key}", value)
+
+
+class TimedVecEnv(VecEnvWrapper):
+    """A transparent vector-env wrapper that adds up the wall time spent in ``reset`` and
+    ``step`` (for subprocess envs: waiting for the workers) in :attr:`seconds`."""
+
+    def __init__(self, venv: Any) -> None:
+        super().__init__(venv)
+        self.seconds = 0.0
+
+    def reset(self):
+        t0 = time.perf_counter()
+        try:
+            return self.venv.reset()
+        finally:
+            self.seconds += time.perf_counter() - t0
+
+    def step_async(self, actions) -> None:
+        t0 = time.perf_counter()
+        self.venv.step_async(actions)
+        self.seconds += time.perf_counter() - t0
+
+    def step_wait(self):
+        t0 = time.perf_counter()
+        try:
+            return self.venv.step_wait()
+        finally:
+            self.seconds += time.perf_counter() - t0

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import platform
 import time
 from collections.abc import Callable
@@ -18,7 +19,7 @@ from bulletnav import ENV_ID
 from bulletnav.errors import ModelError
 from bulletnav.provenance import git_commit, machine
 from bulletnav.rl.algos import algo_class
-from bulletnav.rl.callbacks import CheckpointCallback, EvaluationCallback, save_checkpoint
+from bulletnav.rl.callbacks import CheckpointCallback, EvaluationCallback, ThroughputCallback, TimedVecEnv, save_checkpoint
 from bulletnav.rl.envs import EVAL_SEED_BASE, make_env_fn
 from bulletnav.rl.hyperparams import apply_overrides, load_hyperparams, model_kwargs, policy_class, upgrade_hyperparams
 from bulletnav.rl.io import (
@@ -48,8 +49,10 @@ class TrainConfig:
     eval_episodes: int = 20
     checkpoint_freq: int = 25_000
     progress_bar: bool = True
-    vec_env: str = "subproc"
-    """'subproc' (one process per env) or 'dummy' (all in this process)."""
+    vec_env: str = "auto"
+    """'subproc' (one process per env), 'dummy' (all in this process) or 'auto': subprocesses
+    when there are several envs and more than one CPU core (they step in parallel; measured
+    with ``bulletnav bench env --vec``), else this process."""
     env_overrides: dict | None = None
     """Extra env keyword arguments on top of the hyperparameter file's."""
     hyperparams: Path | None = None
@@ -71,13 +74,36 @@ class TrainConfig:
     recorded; a sweep reports them to Ray Tune for early stopping."""
 
 
+def resolve_vec_env(vec_env: str, n_envs: int) -> str:
+    """The vector env a run uses: ``"subproc"`` or ``"dummy"`` (see :attr:`TrainConfig.vec_env`).
+
+    Raises:
+        ValueError: ``vec_env`` is not 'auto', 'subproc' or 'dummy'.
+    """
+    if vec_env not in ("auto", "subproc", "dummy"):
+        raise ValueError(f"vec_env must be 'auto', 'subproc' or 'dummy', got {vec_env!r}")
+    if n_envs < 2:
+        return "dummy"  # one env gains nothing from a process of its own
+    if vec_env == "auto":
+        return "subproc" if (os.cpu_count() or 1) > 1 else "dummy"
+    return vec_env
+
+
 def _make_vec_env(cfg: TrainConfig, env_kwargs: dict[str, Any], n_envs: int, shield: bool = False):
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
 
     fns = [make_env_fn(env_kwargs, cfg.env_id, shield) for _ in range(n_envs)]
-    venv = SubprocVecEnv(fns, start_method="forkserver") if cfg.vec_env == "subproc" and n_envs > 1 else DummyVecEnv(fns)
+    venv = SubprocVecEnv(fns, start_method="forkserver") if resolve_vec_env(cfg.vec_env, n_envs) == "subproc" \
+        else DummyVecEnv(fns)
     venv.seed(cfg.seed)
-    return VecMonitor(venv)
+    return VecMonitor(TimedVecEnv(venv))
+
+
+def _timer(venv: Any) -> TimedVecEnv:
+    """The :class:`TimedVecEnv` under the run's wrappers (VecNormalize, VecMonitor)."""
+    while not isinstance(venv, TimedVecEnv):
+        venv = venv.venv
+    return venv
 
 
 def train(cfg: TrainConfig) -> dict[str, Any]:
@@ -139,7 +165,8 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
         prior = float(last.get("wall_time", history[-1]["wall_time"] if history else 0.0))
     evaluation = EvaluationCallback(cfg.out, cfg.eval_freq, cfg.eval_episodes, env_kwargs, history, env_id=cfg.env_id,
                                     shield=shield, started=time.time() - prior, on_row=cfg.on_evaluation)
-    callbacks = [evaluation]
+    throughput = ThroughputCallback(_timer(venv), evaluation)
+    callbacks = [evaluation, throughput]
     curriculum = None
     if hp.get("curriculum"):
         curriculum = CurriculumCallback(Curriculum.from_spec(hp["curriculum"], where=f"{cfg.algo} {cfg.env_id} curriculum"))
@@ -158,7 +185,8 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
     checkpoints = CheckpointCallback(cfg.out, cfg.checkpoint_freq, state)
     record: dict[str, Any] = {
         "command": cfg.command, "algo": cfg.algo, "env_id": cfg.env_id, "seed": cfg.seed, "timesteps": timesteps,
-        "n_envs": n_envs, "vec_env": cfg.vec_env, "hyperparams": hp, "env_kwargs": env_kwargs, "shield": shield,
+        "n_envs": n_envs, "vec_env": resolve_vec_env(cfg.vec_env, n_envs), "hyperparams": hp,
+        "env_kwargs": env_kwargs, "shield": shield,
         "git_commit": git_commit(), "machine": machine(), "torch_threads": torch.get_num_threads(),
         "resumed_from": start_steps or None,
         "init_from": str(cfg.init_from) if cfg.init_from is not None else None,
@@ -171,6 +199,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
         model.learn(total_timesteps=remaining, callback=[checkpoints, *callbacks], progress_bar=cfg.progress_bar,
                     reset_num_timesteps=not cfg.resume, tb_log_name=cfg.algo)
     wall = time.time() - t0
+    timing = throughput.summary() if remaining else None
     save_checkpoint(model, cfg.out, vecnorm, state())
     final_path = cfg.out / "model.zip"
     atomic_save_model(model, final_path)
@@ -186,6 +215,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
     venv.close()
     if curriculum is not None:
         record["curriculum_final"] = curriculum.curriculum.state()
+    record.update(throughput=timing)
     record.update(wall_time_s=round(wall, 1), wall_time_total_s=round(prior + wall, 1), total_timesteps=int(model.num_timesteps),
                   final_eval=history[-1] if history else None, eval_seeds=f"{EVAL_SEED_BASE}..")
     atomic_write_json(sidecar_path(final_path), {"algo": cfg.algo, "env_id": cfg.env_id, "env_kwargs": env_kwargs,
