@@ -110,7 +110,17 @@ def _safety_line(s: dict) -> str:
 
 def cmd_bench(args: argparse.Namespace) -> int:
     """Run a benchmark and print its JSON (``--json``) or a short table."""
-    if args.what == "env" and args.vec:
+    if args.what == "env" and args.against:
+        from bulletnav.bench.reset_bench import REGISTERED, bench_against
+
+        result = bench_against(args.against, (args.env_id,) if args.env_id else REGISTERED, rounds=args.rounds,
+                               resets=args.resets, steps=args.steps or 6000, seed=args.seed)
+        lines = [f"{'id':32s} {'reset ms before':>16s} {'after':>7s} {'steps/s with resets before':>27s} {'after':>8s} "
+                 f"{'speed-up':>9s}"]
+        lines += [f"{env_id:32s} {r['before']['reset_ms']:16.2f} {r['after']['reset_ms']:7.2f} "
+                  f"{r['before']['steps_per_s_with_resets']:27.1f} {r['after']['steps_per_s_with_resets']:8.1f} "
+                  f"{r['speedup']['steps_per_s_with_resets']:8.3f}x" for env_id, r in result["ids"].items()]
+    elif args.what == "env" and args.vec:
         from bulletnav.bench.reset_bench import bench_vec
 
         result = bench_vec(env_id=args.env_id or DEFAULT_ENV_ID, steps=args.steps or 1000, seed=args.seed)
@@ -755,6 +765,10 @@ def build_parser() -> argparse.ArgumentParser:
                        help="env: Warehouse-v0 against raw PyBullet, or WarehouseDynamic-v0 against "
                             "WarehouseAisles-v0 (default Warehouse-v0); shield: any env (default WarehouseDynamic-v0)")
     bench.add_argument("--resets", type=int, default=200, help="env: resets timed per id (default 200)")
+    bench.add_argument("--against", metavar="COMMIT",
+                       help="env: the same reset and throughput measurements of COMMIT's code, interleaved with this "
+                            "checkout's in one run (before/after)")
+    bench.add_argument("--rounds", type=int, default=3, help="env --against: rounds of both sides (default 3)")
     bench.add_argument("--vec", action="store_true",
                        help="env: vectorised steps/s at 1, 2 and 4 envs (make_vec sync/async, SB3 Dummy/SubprocVecEnv)")
     bench.add_argument("--driver", choices=["ram", "navigator", "policy"], default="ram",

@@ -205,3 +205,62 @@ def bench_vec(env_id: str = "bulletnav/Warehouse-v0", counts: tuple[int, ...] = 
     single = rows[0]["sync_steps_per_s"] if rows and rows[0]["num_envs"] == 1 else None
     return {"benchmark": "env_vec", "env_id": env_id, "vector_steps": steps, "rows": rows,
             "reference_single_env_steps_per_s": single}
+
+
+def bench_against(commit: str, env_ids: tuple[str, ...] = REGISTERED, rounds: int = 3, resets: int = 200,
+                  steps: int = 6000, seed: int = 0, repo: str | None = None) -> dict[str, Any]:
+    """:func:`bench_ids` of this checkout and of ``commit``, interleaved in one run.
+
+    ``commit``'s tree is exported (``git archive``) to a temporary directory and given this
+    checkout's copy of this module, so both sides are measured by the same code; each round
+    runs both sides in fresh processes, in alternating order, so machine drift hits both alike.
+    Per id, ``before`` and ``after`` hold the medians over rounds, ``speedup`` the median of the
+    per-round ratios (after over before for steps/s, before over after for reset times).
+
+    Raises:
+        RuntimeError: ``commit`` cannot be exported (not a commit of ``repo``, no git).
+    """
+    import json
+    import os
+    import shutil
+    import subprocess
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    here = Path(__file__).resolve()
+    root = Path(repo) if repo else here.parents[2]
+    tmp = Path(tempfile.mkdtemp(prefix="bulletnav-before-"))
+    try:
+        archive = subprocess.run(["git", "-C", str(root), "archive", commit], capture_output=True)
+        if archive.returncode != 0:
+            raise RuntimeError(f"cannot export commit {commit!r} of {root}: {archive.stderr.decode().strip()}")
+        subprocess.run(["tar", "-x", "-C", str(tmp)], input=archive.stdout, check=True)
+        shutil.copy(here, tmp / "bulletnav" / "bench" / "reset_bench.py")
+        code = ("import json, sys; from bulletnav.bench.reset_bench import bench_ids; "
+                f"print(json.dumps(bench_ids({tuple(env_ids)!r}, {resets}, {steps}, {seed})))")
+        sides = {"before": tmp, "after": root}
+        runs: dict[str, list[dict]] = {"before": [], "after": []}
+        for r in range(rounds):
+            for side in (("before", "after") if r % 2 == 0 else ("after", "before")):
+                env = {**os.environ, "PYTHONPATH": str(sides[side])}
+                out = subprocess.run([sys.executable, "-c", code], cwd=sides[side], env=env, capture_output=True,
+                                     text=True, check=True)
+                runs[side].append(json.loads(out.stdout.strip().splitlines()[-1]))
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    result: dict[str, Any] = {"benchmark": "env_against", "before_commit": commit, "rounds": rounds, "resets": resets,
+                              "steps": steps, "ids": {}}
+    for env_id in env_ids:
+        per = {side: [run[env_id] for run in runs[side]] for side in runs}
+        row: dict[str, Any] = {}
+        for side in ("before", "after"):
+            row[side] = {key: round(float(np.median([r[key] for r in per[side]])), 2)
+                         for key in ("reset_ms", "raw_reset_ms", "steps_per_s_with_resets", "reset_share")}
+        row["speedup"] = {
+            "steps_per_s_with_resets": round(float(np.median(
+                [a["steps_per_s_with_resets"] / b["steps_per_s_with_resets"] for a, b in zip(per["after"], per["before"])])), 3),
+            "reset": round(float(np.median([b["reset_ms"] / a["reset_ms"] for a, b in zip(per["after"], per["before"])])), 3),
+        }
+        result["ids"][env_id] = row
+    return result

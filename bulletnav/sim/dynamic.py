@@ -39,7 +39,7 @@ class ClearanceMap:
         self.xs, self.ys = xs, ys
         hx, hy = layout.half_extents
         # walls: cells near the border are no further from a wall than from their border distance
-        gx, gy = np.meshgrid(xs, ys, indexing="ij")
+        gx, gy = xs[:, None], ys[None, :]
         self.clearance = np.minimum(self.clearance, np.minimum(hx - np.abs(gx), hy - np.abs(gy)))
         self._graphs: dict[float, tuple] = {}
 
