@@ -19,6 +19,7 @@ from bulletnav.config import EnvConfig, ShiftConfig
 from bulletnav.geometry import RobotGeometry, robot_geometry
 from bulletnav.planning.grid import OccupancyGrid
 from bulletnav.sensors.suite import SensorSuite
+from bulletnav.sim.dynamic import RESOLUTION as CLEARANCE_RESOLUTION
 from bulletnav.sim.dynamic import ClearanceMap, draw_movers
 from bulletnav.sim.events import Events
 from bulletnav.sim.layout import Layout
@@ -98,8 +99,24 @@ class Scene:
         if self.layout is None:
             raise RuntimeError("the scene has no layout yet: reset the env first")
         if self._free is None:
-            self._free = FreeSpace.build(self.layout, self.config.sampler, self.geometry.radius)
+            self._share_grids()
         return self._free
+
+    def _share_grids(self) -> None:
+        """The layout's occupancy at the sampler's resolution, grown by the sampler's clearance,
+        by the robot's radius and not at all, in one pass: the free space is built from the
+        first two, and the last two serve :meth:`occupancy` (the events' inflated map and the
+        movers' clearance map ask for them), so no grid is computed twice."""
+        layout, sampler, radius = self.layout, self.config.sampler, self.geometry.radius
+        res = sampler.grid_resolution
+        xs, ys = layout.grid_axes(res)
+        near = layout.within_levels(xs, ys, (sampler.clearance, radius, 0.0))
+        self._free = FreeSpace.from_occupancy(layout, sampler, near[0], near[1])
+        for inflate, occ in ((radius, near[1]), (0.0, near[2])):
+            key = (float(res), float(inflate))
+            if key not in self._grids:
+                occ.flags.writeable = False
+                self._grids[key] = OccupancyGrid(occ, res, (float(xs[0]), float(ys[0])))
 
     def place_robot(self, start: tuple[float, float, float], rng: np.random.Generator,
                     goals: tuple[tuple[float, float], ...] = ()) -> None:
@@ -125,7 +142,7 @@ class Scene:
         specs = layout.dynamic
         if dyn.forklifts[1] > 0 or dyn.workers[1] > 0:
             if self._cmap is None:
-                self._cmap = ClearanceMap(layout)
+                self._cmap = ClearanceMap(layout, occupied=self.occupancy(CLEARANCE_RESOLUTION).occupied)
             avoid = (self.start[:2], *self.goals)
             specs = specs + draw_movers(layout, rng, dyn, self.geometry.radius, avoid, self._cmap)
         if self.shift.mover_speed_scale != 1.0:

@@ -30,10 +30,12 @@ RESOLUTION = 0.1
 class ClearanceMap:
     """Distance (m) from each cell centre to the nearest obstacle or wall, for one layout."""
 
-    def __init__(self, layout: Layout, resolution: float = RESOLUTION) -> None:
+    def __init__(self, layout: Layout, resolution: float = RESOLUTION, occupied: np.ndarray | None = None) -> None:
+        """``occupied``: the layout's occupancy at ``resolution`` (``layout.occupancy(resolution)``)
+        when the caller has it already."""
         self.layout = layout
         self.resolution = resolution
-        occ = layout.occupancy(resolution)
+        occ = layout.occupancy(resolution) if occupied is None else occupied
         self.clearance = ndimage.distance_transform_edt(~occ) * resolution
         xs, ys = layout.grid_axes(resolution)
         self.xs, self.ys = xs, ys

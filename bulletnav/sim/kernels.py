@@ -4,6 +4,7 @@ NumPy code it replaces, in the same order, so results are bit for bit the same
 
 - :func:`mark_within`: OR into a grid window the cells whose centre lies within ``pad`` of an
   obstacle footprint (:meth:`bulletnav.sim.layout.Obstacle.distance` ``<= pad``);
+- :func:`mark_levels`: the same for several distances at once, one distance per grid;
 - :func:`any_within`: whether any marked cell of a window lies within ``pad`` of a footprint;
 - :func:`line_clear`: :meth:`bulletnav.sim.dynamic.ClearanceMap.line_clear`'s sampled
   line-of-sight test on a clearance grid.
@@ -44,6 +45,20 @@ def mark_within(out: np.ndarray, xs: np.ndarray, ys: np.ndarray, i0: int, j0: in
         for b in range(ys.shape[0]):
             if _distance(kind, cx, cy, c, s, half_x, half_y, radius, x, ys[b]) <= pad:
                 out[i0 + a, j0 + b] = True
+
+
+@njit(cache=True, nogil=True)
+def mark_levels(out: np.ndarray, xs: np.ndarray, ys: np.ndarray, i0: int, j0: int, kind: int, cx: float, cy: float,
+                c: float, s: float, half_x: float, half_y: float, radius: float, levels: np.ndarray) -> None:
+    """``out[q, i0 + a, j0 + b] |= distance(xs[a], ys[b]) <= levels[q]`` for every level ``q``:
+    :func:`mark_within` for several distances, each point's distance computed once."""
+    for a in range(xs.shape[0]):
+        x = xs[a]
+        for b in range(ys.shape[0]):
+            d = _distance(kind, cx, cy, c, s, half_x, half_y, radius, x, ys[b])
+            for q in range(levels.shape[0]):
+                if d <= levels[q]:
+                    out[q, i0 + a, j0 + b] = True
 
 
 @njit(cache=True, nogil=True)

@@ -35,7 +35,7 @@ import yaml
 
 from bulletnav.config import WorldConfig
 from bulletnav.errors import LayoutError
-from bulletnav.sim.kernels import BOX, CYLINDER, any_within, mark_within
+from bulletnav.sim.kernels import BOX, CYLINDER, any_within, mark_levels, mark_within
 
 if TYPE_CHECKING:
     from bulletnav.sim.events import EventSpec
@@ -145,30 +145,38 @@ class Layout:
 
     def within(self, xs: np.ndarray, ys: np.ndarray, distance: float) -> np.ndarray:
         """Boolean grid ``[ix, iy]`` over the points (``xs[ix]``, ``ys[iy]``): True where
-        :meth:`clearance` is ``<= distance`` (m), bit for bit.
+        :meth:`clearance` is ``<= distance`` (m), bit for bit (:meth:`within_levels` for one distance)."""
+        return self.within_levels(xs, ys, (distance,))[0]
+
+    def within_levels(self, xs: np.ndarray, ys: np.ndarray, distances: tuple[float, ...]) -> np.ndarray:
+        """Boolean grids ``[k, ix, iy]``: True where :meth:`clearance` at (``xs[ix]``, ``ys[iy]``)
+        is ``<= distances[k]`` (m), bit for bit, all distances in one pass.
 
         The same per-point arithmetic as :meth:`clearance` (compiled, :mod:`bulletnav.sim.kernels`),
-        but each obstacle is measured only
-        on the window of cells its footprint grown by ``distance`` can reach (a cell farther than
-        its bounding circle plus ``distance`` plus a cell's margin cannot be within ``distance``),
-        so the cost follows the obstacles' area, not floor area times obstacle count.
+        but each obstacle is measured only on the window of cells its footprint grown by the
+        largest distance can reach (a cell farther than its bounding circle plus that distance plus
+        a cell's margin cannot be within it), so the cost follows the obstacles' area, not floor
+        area times obstacle count.
         """
         hx, hy = self.half_extents
         xs = np.ascontiguousarray(xs, dtype=np.float64)
         ys = np.ascontiguousarray(ys, dtype=np.float64)
+        levels = np.asarray(distances, dtype=np.float64)
         gx = xs[:, None]
         gy = ys[None, :]
-        out = np.minimum(np.minimum(hx - gx, hx + gx), np.minimum(hy - gy, hy + gy)) <= distance
+        walls = np.minimum(np.minimum(hx - gx, hx + gx), np.minimum(hy - gy, hy + gy))
+        out = walls[None, :, :] <= levels[:, None, None]
         if not self.obstacles:
             return out
         # cell spacing (grids are uniform; a single point has none) widens the window conservatively
         margin = float(max(np.max(np.diff(xs), initial=0.0), np.max(np.diff(ys), initial=0.0))) + 1e-6
+        farthest = float(levels.max())
         for obs in self.obstacles:
-            reach = obs.bounding_radius() + distance + margin
+            reach = obs.bounding_radius() + farthest + margin
             i0, i1 = np.searchsorted(xs, (obs.center[0] - reach, obs.center[0] + reach))
             j0, j1 = np.searchsorted(ys, (obs.center[1] - reach, obs.center[1] + reach))
             if i0 < i1 and j0 < j1:
-                mark_within(out, xs[i0:i1], ys[j0:j1], int(i0), int(j0), *obs.footprint(), distance)
+                mark_levels(out, xs[i0:i1], ys[j0:j1], int(i0), int(j0), *obs.footprint(), levels)
         return out
 
 

@@ -39,9 +39,18 @@ class FreeSpace:
     def build(cls, layout: Layout, config: SamplerConfig, radius: float) -> FreeSpace:
         """Grids of ``layout`` for a robot disc of ``radius`` (m; ``RobotGeometry.radius``)."""
         xs, ys = layout.grid_axes(config.grid_resolution)
+        near = layout.within_levels(xs, ys, (config.clearance, radius))
+        return cls.from_occupancy(layout, config, near[0], near[1])
+
+    @classmethod
+    def from_occupancy(cls, layout: Layout, config: SamplerConfig, within_clearance: np.ndarray,
+                       within_radius: np.ndarray) -> FreeSpace:
+        """Grids from the layout's occupancy at ``config.grid_resolution``, obstacles grown by
+        ``config.clearance`` and by the robot's radius (:meth:`Layout.within_levels`), for
+        callers that computed them already (the scene shares them with the movers and events)."""
+        xs, ys = layout.grid_axes(config.grid_resolution)
         # clearance > d is the negation of clearance <= d, bit for bit (distances are never NaN)
-        clear = ~layout.within(xs, ys, config.clearance)
-        passable = ~layout.within(xs, ys, radius)
+        clear, passable = ~within_clearance, ~within_radius
         component, _ = ndimage.label(passable, structure=np.ones((3, 3), dtype=bool))
         return cls(layout, config.grid_resolution, xs, ys, clear, component)
 
