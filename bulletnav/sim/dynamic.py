@@ -44,6 +44,13 @@ class ClearanceMap:
         gx, gy = xs[:, None], ys[None, :]
         self.clearance = np.minimum(self.clearance, np.minimum(hx - np.abs(gx), hy - np.abs(gy)))
         self._graphs: dict[float, tuple] = {}
+        self._cells: dict[float, np.ndarray] = {}
+
+    def cells(self, need: float) -> np.ndarray:
+        """Indices (n, 2) of the cells with clearance >= ``need`` (m), row-major (cached)."""
+        if need not in self._cells:
+            self._cells[need] = np.argwhere(self.clearance >= need)
+        return self._cells[need]
 
     def cell(self, xy) -> tuple[int, int]:
         hx, hy = self.layout.half_extents
@@ -91,7 +98,7 @@ def forklift_route(cmap: ClearanceMap, rng: np.random.Generator, need: float, av
                    min_length: float = 4.0, tries: int = 30) -> tuple[tuple[float, float], ...] | None:
     """A patrol route between two cells >= ``min_length`` apart, or None if none fits."""
     g, ok = cmap.graph(need)
-    cells = np.argwhere(ok)
+    cells = cmap.cells(need)
     if len(cells) < 2:
         return None
     ny = ok.shape[1]
@@ -125,8 +132,7 @@ def forklift_route(cmap: ClearanceMap, rng: np.random.Generator, need: float, av
 def worker_walk(cmap: ClearanceMap, rng: np.random.Generator, need: float, avoid, keep_clear: float,
                 tries: int = 40) -> tuple[tuple[float, float], ...] | None:
     """2-4 waypoints joined by clear straight legs of 2-6 m, none within ``keep_clear`` of ``avoid``."""
-    ok = cmap.clearance >= need
-    cells = np.argwhere(ok)
+    cells = cmap.cells(need)
     if len(cells) == 0:
         return None
     want = int(rng.integers(2, 5))
