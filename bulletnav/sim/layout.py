@@ -465,17 +465,21 @@ def _category_counts(n: int) -> dict[str, int]:
     return counts
 
 
-def _draw_obstacle(kind: str, rng: np.random.Generator, aisle_yaw: float, center: tuple[float, float]) -> Obstacle:
+def _draw_shape(kind: str, random, rng: np.random.Generator, aisle_yaw: float
+                ) -> tuple[str, tuple[float, float, float], float, float, float]:
+    """Draw one obstacle's shape: (geometry, size, radius, height, yaw). ``random`` is
+    ``rng.random``: ``lo + (hi - lo) * random()`` is ``rng.uniform(lo, hi)`` bit for bit (NumPy
+    computes it so), without the call's overhead."""
     if kind == "rack":  # shelving rack: long, shallow, tall, aligned with the aisles
-        return Obstacle("box", center, size=(float(rng.uniform(2.0, 3.5)), 0.6, 2.0), yaw=aisle_yaw, label="rack")
+        return "box", (2.0 + (3.5 - 2.0) * random(), 0.6, 2.0), 0.0, 0.0, aisle_yaw
     if kind == "column":
-        return Obstacle("cylinder", center, radius=float(rng.uniform(0.15, 0.25)), height=3.0, label="column")
+        return "cylinder", (0.0, 0.0, 0.0), 0.15 + (0.25 - 0.15) * random(), 3.0, 0.0
     if kind == "pallet":  # loaded pallet, 1.2 x 0.8 m, tall enough for the lidar plane to see it
         yaw = aisle_yaw + float(rng.choice([0.0, math.pi / 2])) + float(rng.normal(0.0, 0.05))
-        return Obstacle("box", center, size=(1.2, 0.8, float(rng.uniform(0.4, 1.2))), yaw=yaw, label="pallet")
-    side = float(rng.uniform(0.3, 0.7))
-    return Obstacle("box", center, size=(side, side, float(rng.uniform(0.3, 0.8))),
-                    yaw=float(rng.uniform(-math.pi, math.pi)), label="box")
+        return "box", (1.2, 0.8, 0.4 + (1.2 - 0.4) * random()), 0.0, 0.0, yaw
+    side = 0.3 + (0.7 - 0.3) * random()
+    height = 0.3 + (0.8 - 0.3) * random()
+    return "box", (side, side, height), 0.0, 0.0, -math.pi + (math.pi - -math.pi) * random()
 
 
 def generate_warehouse(rng: np.random.Generator, config: WorldConfig = WorldConfig()) -> Layout:
@@ -494,14 +498,15 @@ def generate_warehouse(rng: np.random.Generator, config: WorldConfig = WorldConf
     claimed = _Raster(config.size, _RASTER)
     placed: list[Obstacle] = []
     gap = config.min_gap
+    lo_x, lo_y = -hx + gap, -hy + gap
+    random = rng.random
     for kind in ("rack", "pallet", "column", "box"):  # big things first: they are hardest to fit
         for _ in range(counts[kind]):
             for _try in range(config.max_placement_tries):
-                probe = _draw_obstacle(kind, rng, aisle_yaw, (0.0, 0.0))
-                r = probe.bounding_radius()
-                lo_x, lo_y = -hx + gap, -hy + gap
-                center = (float(rng.uniform(lo_x, -lo_x)), float(rng.uniform(lo_y, -lo_y)))
-                cand = Obstacle(probe.kind, center, probe.size, probe.radius, probe.height, probe.yaw, probe.label)
+                geometry, size, radius, height, yaw = _draw_shape(kind, random, rng, aisle_yaw)
+                r = radius if geometry == "cylinder" else 0.5 * math.hypot(size[0], size[1])  # bounding_radius()
+                center = (lo_x + (-lo_x - lo_x) * random(), lo_y + (-lo_y - lo_y) * random())  # rng.uniform(lo, -lo)
+                cand = Obstacle(geometry, center, size, radius, height, yaw, kind)
                 if abs(center[0]) + r > hx - gap or abs(center[1]) + r > hy - gap:
                     if not _inside(cand, hx - gap, hy - gap):
                         continue
