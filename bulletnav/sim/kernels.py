@@ -39,11 +39,12 @@ def _distance(kind: int, cx: float, cy: float, c: float, s: float, half_x: float
 @njit(cache=True, nogil=True)
 def mark_within(out: np.ndarray, xs: np.ndarray, ys: np.ndarray, i0: int, j0: int, kind: int, cx: float, cy: float,
                 c: float, s: float, half_x: float, half_y: float, radius: float, pad: float) -> None:
-    """``out[i0 + a, j0 + b] |= distance(xs[a], ys[b]) <= pad`` for every point of the window."""
+    """``out[i0 + a, j0 + b] |= distance(xs[a], ys[b]) <= pad`` for every point of the window
+    (a point already set is not measured again)."""
     for a in range(xs.shape[0]):
         x = xs[a]
         for b in range(ys.shape[0]):
-            if _distance(kind, cx, cy, c, s, half_x, half_y, radius, x, ys[b]) <= pad:
+            if not out[i0 + a, j0 + b] and _distance(kind, cx, cy, c, s, half_x, half_y, radius, x, ys[b]) <= pad:
                 out[i0 + a, j0 + b] = True
 
 
