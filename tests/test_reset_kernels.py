@@ -1,0 +1,89 @@
+"""The reset path's compiled kernels give the array code's results bit for bit: footprint
+distances, occupancy at any resolution and inflation, several levels in one pass, and the
+movers' sampled line of sight (independent references: the NumPy expressions they replace)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bulletnav.config import WorldConfig
+from bulletnav.sim import kernels
+from bulletnav.sim.aisles import generate_aisles
+from bulletnav.sim.dynamic import ClearanceMap
+from bulletnav.sim.layout import Layout, Obstacle, generate_warehouse
+
+
+def _random_obstacle(rng: np.random.Generator) -> Obstacle:
+    center = tuple(rng.uniform(-8, 8, 2))
+    if rng.random() < 0.5:
+        return Obstacle("box", center, size=(rng.uniform(0.1, 5), rng.uniform(0.1, 2), 1.0), yaw=rng.uniform(-4, 4))
+    return Obstacle("cylinder", center, radius=rng.uniform(0.05, 0.5), height=1.0)
+
+
+def test_compiled_footprint_distance_is_the_array_codes_to_the_bit():
+    rng = np.random.default_rng(1)
+    for _ in range(300):
+        o = _random_obstacle(rng)
+        xs, ys = np.sort(rng.uniform(-10, 10, 23)), np.sort(rng.uniform(-10, 10, 17))
+        reference = o.distance(xs[:, None], ys[None, :])
+        got = np.array([[kernels._distance(*o.footprint(), x, y) for y in ys] for x in xs])
+        np.testing.assert_array_equal(got, reference)
+        pad = float(rng.uniform(0, 1.5))
+        out = np.zeros((len(xs), len(ys)), dtype=bool)
+        kernels.mark_within(out, xs, ys, 0, 0, *o.footprint(), pad)
+        np.testing.assert_array_equal(out, reference <= pad)
+        grid = rng.random((len(xs), len(ys))) < 0.1
+        assert kernels.any_within(grid, xs, ys, 0, 0, *o.footprint(), pad) == bool(np.any(grid & (reference <= pad)))
+
+
+@pytest.mark.parametrize("style", ["scattered", "aisles", "handmade"])
+def test_occupancy_and_levels_equal_the_full_clearance_grid(style):
+    rng = np.random.default_rng(2)
+    for _ in range(6):
+        if style == "scattered":
+            layout = generate_warehouse(rng, WorldConfig(num_obstacles=int(rng.integers(0, 45))))
+        elif style == "aisles":
+            layout = generate_aisles(rng, WorldConfig(style="aisles", size=(20.0, 16.0)))
+        else:  # obstacles touching and overlapping the walls' reach, odd resolutions
+            layout = Layout((9.0, 7.0), tuple(_random_obstacle(rng) for _ in range(8)))
+        for res in (0.05, 0.1, 0.13):
+            xs, ys = layout.grid_axes(res)
+            gx, gy = np.meshgrid(xs, ys, indexing="ij")
+            clearance = layout.clearance(gx, gy)
+            levels = (0.0, 0.2, 0.4, float(rng.uniform(0, 1)))
+            stacked = layout.within_levels(xs, ys, levels)
+            for q, level in enumerate(levels):
+                np.testing.assert_array_equal(stacked[q], clearance <= level)
+                np.testing.assert_array_equal(layout.occupancy(res, inflate=level), clearance <= level)
+
+
+def _line_clear_reference(cmap: ClearanceMap, a, b, need: float) -> bool:
+    """The array code the kernel replaced."""
+    n = max(2, int(math.dist(a, b) / (cmap.resolution / 2)) + 1)
+    t = np.linspace(0.0, 1.0, n)
+    hx, hy = cmap.layout.half_extents
+    ix = np.clip(((a[0] + (b[0] - a[0]) * t + hx) / cmap.resolution).astype(int), 0, cmap.clearance.shape[0] - 1)
+    iy = np.clip(((a[1] + (b[1] - a[1]) * t + hy) / cmap.resolution).astype(int), 0, cmap.clearance.shape[1] - 1)
+    return bool(np.all(cmap.clearance[ix, iy] >= need))
+
+
+def test_compiled_line_of_sight_is_the_array_codes():
+    rng = np.random.default_rng(3)
+    cmap = ClearanceMap(generate_aisles(rng, WorldConfig(style="aisles", size=(20.0, 16.0))))
+    cells = np.argwhere(cmap.clearance > 0.3)
+    seen = set()
+    for k in range(3000):
+        a = cmap.point(tuple(cells[rng.integers(len(cells))]))
+        b = cmap.point(tuple(cells[rng.integers(len(cells))]))
+        if k % 3 == 0:
+            b = (a[0], b[1])  # axis-aligned: sample points land exactly on cell edges
+        if k % 5 == 0:
+            a = (float(rng.uniform(-11, 11)), float(rng.uniform(-9, 9)))  # off-grid, even off the floor
+        need = float(rng.choice([0.4, 0.9, rng.uniform(0, 1)]))
+        expected = _line_clear_reference(cmap, a, b, need)
+        assert cmap.line_clear(a, b, need) == expected, (a, b, need)
+        seen.add(expected)
+    assert seen == {True, False}
