@@ -585,6 +585,56 @@ def cmd_view(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_benchmark(args: argparse.Namespace) -> int:
+    """Every controller of a suite on the same seeded episodes of every world: results.json + report.html."""
+    from pathlib import Path
+
+    from tqdm import tqdm
+
+    from bulletnav.benchmark.report import best_controllers, write_report
+    from bulletnav.benchmark.runner import run_suite
+    from bulletnav.benchmark.suite import load_suite
+
+    suite = load_suite(args.suite)
+    out = Path(args.out or f"runs/benchmark/{suite.name}")
+    bar = None
+
+    def progress(done: int, total: int) -> None:
+        nonlocal bar
+        if args.json:
+            return
+        if bar is None:
+            bar = tqdm(total=total, initial=done, unit="episode", desc=f"benchmark {suite.name}", file=sys.stderr)
+        bar.update(done - bar.n)
+
+    try:
+        results = run_suite(suite, out, workers=args.workers, address=args.address, resume=args.resume, progress=progress)
+    finally:
+        if bar is not None:
+            bar.close()
+    report = write_report(results, out / "report.html")
+    if args.json:
+        print(_json(results))
+        return 0
+    controllers = [c["name"] for c in results["suite"]["controllers"]]
+    cells = {(c["world"], c["controller"]): c["summary"] for c in results["cells"]}
+    best = best_controllers(results)
+    print(f"\nbenchmark {suite.name}: {suite.total} episodes in {results['provenance']['wall_time_s']:.0f} s "
+          f"({args.workers} workers); success / collisions / SPL per world and controller")
+    print("| world | " + " | ".join(controllers) + " |")
+    print("|---" * (len(controllers) + 1) + "|")
+    for w in results["suite"]["worlds"]:
+        row = []
+        for c in controllers:
+            s = cells[(w["name"], c)]
+            mark = " **best**" if best.get(w["name"]) == c else ""
+            row.append(f"{s['success']['mean'] * 100:.1f} % / {s['collision']['mean'] * 100:.1f} % / "
+                       f"{s['spl']['mean']:.3f}{mark}")
+        print(f"| {w['name']} | " + " | ".join(row) + " |")
+    print(f"results: {out / 'results.json'}\nreport:  {report}")
+    return 0
+
+
 def cmd_sweep(args: argparse.Namespace) -> int:
     from pathlib import Path
 
@@ -751,6 +801,16 @@ def build_parser() -> argparse.ArgumentParser:
     view.add_argument("--seed", type=int, default=0, help="warehouse seed (default 0)")
     view.add_argument("--seconds", type=float, default=30.0, help="how long to show it (default 30)")
     view.set_defaults(func=cmd_view)
+
+    bm = add("benchmark", "every controller of a suite on the same seeded episodes of every world: results.json + report.html")
+    bm.add_argument("suite", nargs="?", default="quick", metavar="SUITE",
+                    help="a shipped suite (quick, standard) or a suite YAML file (default quick)")
+    bm.add_argument("--out", metavar="DIR", help="output directory (default runs/benchmark/<suite name>)")
+    bm.add_argument("--workers", type=int, default=1, help="local worker processes (default 1); rows are the same for any count")
+    bm.add_argument("--address", metavar="HOST:PORT", help="run the episodes as tasks on this Ray cluster")
+    bm.add_argument("--resume", action="store_true", help="go on with an interrupted run in DIR (finished episodes are kept)")
+    bm.add_argument("--json", action="store_true", help="print the results record as JSON")
+    bm.set_defaults(func=cmd_benchmark)
 
     bench = add("bench", "benchmarks (print JSON with --json)")
     bench.add_argument("what", choices=["env", "physics", "planners", "gui", "shield"],

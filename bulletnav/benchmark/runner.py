@@ -1,0 +1,340 @@
+"""Running a suite: every controller on the same seeded episodes of every world, in parallel,
+resumable, with the same rows whatever the number of workers.
+
+Work is cut into chunks of episodes of one (world, controller) cell. A worker (this process,
+a local process pool, or Ray tasks on a cluster) keeps one env and one controller per cell it
+has seen. Episode ``k`` of a world is ``env.reset(seed=suite.seed + k)``, which rebuilds the
+scene from scratch, and every controller resets per episode (RRT draws from a generator
+seeded by the episode), so an episode's row depends on nothing but its cell and ``k``.
+Finished rows are appended to ``DIR/episodes.jsonl`` as they arrive; ``resume`` skips them.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import platform
+import time
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from importlib import import_module
+from pathlib import Path
+from typing import Any
+
+from bulletnav.benchmark.metrics import METRICS, EpisodeTrace, cell_summary, episode_metrics
+from bulletnav.benchmark.suite import ControllerSpec, Suite, SuiteError, WorldSpec, load_suite, replay_command
+from bulletnav.errors import BulletnavError
+
+log = logging.getLogger(__name__)
+
+ROBOT_ACCEL = 2.6
+"""The robot's peak acceleration (m/s^2; ``RobotConfig.max_wheel_torque``'s), for the time-optimal drive of SCT."""
+PATH_EPISODES = 3
+"""Rows keep the driven path (for the report's pictures) for the first this many episodes of a
+cell and for every failure."""
+PROJECT_ROOT = Path(__file__).resolve().parents[2]
+"""Where ``models/`` lives (``model: shipped`` and relative model paths)."""
+
+
+def cell_key(world: str, controller: str, episode: int) -> str:
+    return f"{world}\x1f{controller}\x1f{episode}"
+
+
+class _Cells:
+    """One worker's envs and controllers, made on first use per (world, controller)."""
+
+    def __init__(self, suite: Suite, root: Path) -> None:
+        self.suite, self.root = suite, root
+        self.cells: dict[tuple[int, int], tuple[Any, Any]] = {}
+
+    def get(self, w: int, c: int) -> tuple[Any, Any]:
+        if (w, c) not in self.cells:
+            self.cells[(w, c)] = make_cell(self.suite.worlds[w], self.suite.controllers[c], self.root)
+        return self.cells[(w, c)]
+
+    def close(self) -> None:
+        for env, _ in self.cells.values():
+            env.close()
+        self.cells = {}
+
+
+def make_cell(world: WorldSpec, controller: ControllerSpec, root: Path = PROJECT_ROOT) -> tuple[Any, Any]:
+    """The env (behind the shield if asked) and the policy of one cell.
+
+    Raises:
+        BulletnavError: a model file that cannot be loaded, a policy class that cannot be imported.
+    """
+    import gymnasium as gym
+
+    import bulletnav  # noqa: F401
+    from bulletnav.rl.envs import EVALUATE_OBSTACLES, evaluation_env_kwargs
+
+    kwargs: dict[str, Any] = {}
+    policy_factory: Callable[[Any], Any]
+    if controller.type == "navigator":
+        from bulletnav.control.navigator import Navigator, NavigatorConfig
+
+        def policy_factory(env):
+            return Navigator(env.unwrapped.scene, NavigatorConfig(planner=controller.planner))
+    elif controller.type == "model":
+        import torch
+
+        from bulletnav.rl.io import load_model
+        from bulletnav.rl.policy import SB3Policy
+
+        torch.set_num_threads(1)  # one thread: the same arithmetic in every worker, no oversubscription
+        model, meta, vecnorm = load_model(controller.model_path(world.env, root))
+        kwargs = evaluation_env_kwargs(meta.get("env_kwargs", {}))
+        if world.env == "bulletnav/Warehouse-v0":
+            kwargs["num_obstacles"] = EVALUATE_OBSTACLES  # what `bulletnav evaluate` uses, unless the world says
+
+        def policy_factory(env):
+            return SB3Policy(model, vecnorm)
+    else:
+        module_name, _, class_name = controller.cls.partition(":")
+        try:
+            cls = getattr(import_module(module_name), class_name)
+        except (ImportError, AttributeError) as exc:
+            raise BulletnavError(f"controller {controller.name!r}: cannot import {controller.cls!r} ({exc})") from None
+
+        def policy_factory(env):
+            return cls(env.unwrapped.scene, **controller.kwargs)
+    env = gym.make(world.env, **{**kwargs, **world.kwargs})
+    if controller.shield:
+        from bulletnav.control.shield import ShieldWrapper
+
+        env = ShieldWrapper(env)
+    return env, policy_factory(env)
+
+
+def run_chunk(cells: _Cells, w: int, c: int, episodes: list[int]) -> list[dict[str, Any]]:
+    """Rows of ``episodes`` (indices k) of cell (world ``w``, controller ``c``)."""
+    from bulletnav.evaluation import run_episodes
+
+    suite = cells.suite
+    world, controller = suite.worlds[w], suite.controllers[c]
+    env, policy = cells.get(w, c)
+    scene = env.unwrapped.scene
+    top_speed = float(env.unwrapped.config.task.max_speed)
+    rows: list[dict[str, Any]] = []
+    for k in episodes:
+        trace = EpisodeTrace(scene.control_dt, top_speed)
+
+        def on_reset(env_, info, trace=trace):
+            trace.record(scene, info)
+
+        def on_step(env_, info, trace=trace):
+            trace.record(scene, info)
+
+        def on_episode(result, trace=trace, k=k):
+            row = episode_metrics(result, trace, ROBOT_ACCEL)
+            row["episode"] = k
+            if k >= PATH_EPISODES and result.success:
+                row.pop("path")
+            rows.append({"world": world.name, "controller": controller.name, **row})
+
+        run_episodes(env, policy, 1, suite.seed + k, on_episode=on_episode, on_step=on_step, on_reset=on_reset)
+    return rows
+
+
+_PROCESS_CELLS: dict[str, _Cells] = {}
+
+
+def _run_in_process(suite: Suite, root: str, w: int, c: int, episodes: list[int]) -> list[dict[str, Any]]:
+    """A worker process's (or Ray task's) entry: its cached cells for this suite."""
+    key = f"{suite.source}:{suite.sha256}"
+    if key not in _PROCESS_CELLS:
+        _PROCESS_CELLS[key] = _Cells(suite, Path(root))
+    return run_chunk(_PROCESS_CELLS[key], w, c, episodes)
+
+
+def plan_chunks(suite: Suite, done: set[str], workers: int) -> list[tuple[int, int, list[int]]]:
+    """The (world, controller, episodes) chunks still to run, small enough to spread over
+    ``workers`` and to lose little when interrupted."""
+    chunks = []
+    for w, world in enumerate(suite.worlds):
+        n = suite.episodes_of(world)
+        size = max(1, min(10, math.ceil(n / max(1, 2 * workers))))
+        for c, controller in enumerate(suite.controllers):
+            todo = [k for k in range(n) if cell_key(world.name, controller.name, k) not in done]
+            chunks += [(w, c, todo[i:i + size]) for i in range(0, len(todo), size)]
+    return chunks
+
+
+def _read_done(path: Path) -> list[dict[str, Any]]:
+    """Rows of an ``episodes.jsonl`` (a torn last line, from an interrupted run, is dropped)."""
+    rows = []
+    if path.is_file():
+        for line in path.read_text().splitlines():
+            try:
+                rows.append(json.loads(line))
+            except json.JSONDecodeError:
+                log.warning("%s: dropping a torn line (an interrupted write)", path)
+    return rows
+
+
+def run_suite(suite: Suite, out: Path, workers: int = 1, address: str | None = None, resume: bool = False,
+              progress: Callable[[int, int], None] | None = None, root: Path = PROJECT_ROOT) -> dict[str, Any]:
+    """Run ``suite`` into ``out`` (``episodes.jsonl`` as it goes, then ``results.json``) and
+    return the results record. ``progress(done, total)`` is called after every chunk.
+
+    Raises:
+        BulletnavError: ``out`` holds an earlier run of another suite, or holds one and
+            ``resume`` is off; a controller or model that cannot be loaded.
+    """
+    if workers < 1:
+        raise BulletnavError(f"workers must be >= 1, got {workers}")
+    out.mkdir(parents=True, exist_ok=True)
+    log_path, meta_path = out / "episodes.jsonl", out / "suite.json"
+    if log_path.exists() and not resume:
+        raise BulletnavError(f"{out} holds an earlier run ({log_path.name}): pass --resume to go on with it, "
+                             "or choose another --out")
+    if resume and meta_path.is_file():
+        earlier = json.loads(meta_path.read_text()).get("sha256")
+        if earlier != suite.sha256:
+            raise BulletnavError(f"{out} holds a run of another suite file (sha256 {str(earlier)[:12]}...), "
+                                 f"not of {suite.source} ({suite.sha256[:12]}...): choose another --out")
+    _write_json(meta_path, {"source": suite.source, "sha256": suite.sha256})
+    rows = _read_done(log_path)
+    done = {cell_key(r["world"], r["controller"], r["episode"]) for r in rows}
+    chunks = plan_chunks(suite, done, workers)
+    total = suite.total
+    t0 = time.perf_counter()
+    with log_path.open("a") as log_file:
+        def keep(new: list[dict[str, Any]]) -> None:
+            for row in new:
+                log_file.write(json.dumps(row, allow_nan=True) + "\n")
+            log_file.flush()
+            rows.extend(new)
+            if progress is not None:
+                progress(len(rows), total)
+
+        if progress is not None:
+            progress(len(rows), total)
+        if address:
+            _run_ray(suite, root, chunks, address, keep)
+        elif workers == 1:
+            cells = _Cells(suite, root)
+            try:
+                for w, c, eps in chunks:
+                    keep(run_chunk(cells, w, c, eps))
+            finally:
+                cells.close()
+        else:
+            _run_pool(suite, root, chunks, workers, keep)
+    results = build_results(suite, rows, root)
+    results["provenance"] = _provenance(time.perf_counter() - t0, workers, address)
+    _write_json(out / "results.json", results)
+    return results
+
+
+def _run_pool(suite: Suite, root: Path, chunks: list, workers: int, keep: Callable) -> None:
+    import multiprocessing
+
+    ctx = multiprocessing.get_context("forkserver")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+        pending = {pool.submit(_run_in_process, suite, str(root), w, c, eps) for w, c, eps in chunks}
+        while pending:
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for future in finished:
+                keep(future.result())
+
+
+def _run_ray(suite: Suite, root: Path, chunks: list, address: str, keep: Callable) -> None:
+    import ray
+
+    ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
+    remote = ray.remote(num_cpus=1)(_run_in_process)
+    pending = [remote.remote(suite, str(root), w, c, eps) for w, c, eps in chunks]
+    while pending:
+        finished, pending = ray.wait(pending, num_returns=1)
+        keep(ray.get(finished[0]))
+
+
+def build_results(suite: Suite, rows: list[dict[str, Any]], root: Path = PROJECT_ROOT) -> dict[str, Any]:
+    """The results record of ``rows``: rows sorted by world, controller and episode (the
+    suite's order), a summary per cell, the suite, the metric definitions, and each failure's
+    replay command."""
+    order_w = {w.name: i for i, w in enumerate(suite.worlds)}
+    order_c = {c.name: i for i, c in enumerate(suite.controllers)}
+    keep = [r for r in rows if r["world"] in order_w and r["controller"] in order_c]
+    unique = {cell_key(r["world"], r["controller"], r["episode"]): r for r in keep}
+    ordered = sorted(unique.values(), key=lambda r: (order_w[r["world"]], order_c[r["controller"]], r["episode"]))
+    cells = []
+    for world in suite.worlds:
+        for controller in suite.controllers:
+            cell = [r for r in ordered if r["world"] == world.name and r["controller"] == controller.name]
+            cells.append({"world": world.name, "controller": controller.name, "summary": cell_summary(cell)})
+    for row in ordered:
+        if not row["success"]:
+            world = suite.worlds[order_w[row["world"]]]
+            controller = suite.controllers[order_c[row["controller"]]]
+            row["replay"] = replay_command(suite, world, controller, row["seed"], root)
+    return {
+        "suite": {"name": suite.name, "source": suite.source, "sha256": suite.sha256, "episodes": suite.episodes,
+                  "seed": suite.seed,
+                  "worlds": [{"name": w.name, "env": w.env, "kwargs": w.kwargs, "episodes": suite.episodes_of(w)}
+                             for w in suite.worlds],
+                  "controllers": [{"name": c.name, "type": c.type, "planner": c.planner if c.type == "navigator" else None,
+                                   "model": c.model or None, "class": c.cls or None, "shield": c.shield}
+                                  for c in suite.controllers]},
+        "metrics": METRICS,
+        "cells": cells,
+        "episodes": ordered,
+    }
+
+
+def _provenance(wall: float, workers: int, address: str | None) -> dict[str, Any]:
+    from importlib.metadata import PackageNotFoundError, version
+
+    from bulletnav.provenance import command_line, git_commit, machine
+
+    commit = git_commit()
+    versions = {}
+    for package in ("bulletnav", "pybullet", "gymnasium", "stable-baselines3", "torch", "numpy"):
+        try:
+            versions[package] = version(package)
+        except PackageNotFoundError:
+            versions[package] = None
+    return {"git_commit": commit.removesuffix("-dirty"), "dirty": commit.endswith("-dirty"), "versions": versions,
+            "machine": machine(), "processor": platform.processor() or platform.machine(), "cpus": os.cpu_count(),
+            "wall_time_s": round(wall, 1), "workers": workers, "ray_address": address, "command": command_line()}
+
+
+def _write_json(path: Path, data: Any) -> None:
+    """Strict JSON (NaN as null), written atomically."""
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(_strict(data), indent=1) + "\n")
+    os.replace(tmp, path)
+
+
+def _strict(value: Any) -> Any:
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _strict(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_strict(v) for v in value]
+    return value
+
+
+def replay(suite_path: str, world: str, controller: str, seed: int) -> dict[str, Any]:
+    """Run one episode of a suite again (episode ``seed - suite.seed`` of ``world`` with
+    ``controller``) and return its row.
+
+    Raises:
+        SuiteError: no world or controller of that name in the suite.
+    """
+    suite = load_suite(suite_path)
+    names_w = [w.name for w in suite.worlds]
+    names_c = [c.name for c in suite.controllers]
+    if world not in names_w or controller not in names_c:
+        raise SuiteError(f"{suite.source}: no world {world!r} / controller {controller!r}; worlds {names_w}, "
+                         f"controllers {names_c}")
+    cells = _Cells(suite, PROJECT_ROOT)
+    try:
+        return run_chunk(cells, names_w.index(world), names_c.index(controller), [seed - suite.seed])[0]
+    finally:
+        cells.close()

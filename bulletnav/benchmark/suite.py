@@ -1,0 +1,276 @@
+"""Benchmark suites: which worlds, which controllers, how many seeded episodes.
+
+A suite is a YAML file (shipped: ``quick`` and ``standard`` in ``bulletnav/benchmark/suites/``)::
+
+    name: quick
+    episodes: 20                  # per world and controller
+    seed: 3000000                 # episode k of every world is env.reset(seed=seed + k)
+    worlds:
+      - name: scattered           # optional; default: the id's short name
+        env: bulletnav/Warehouse-v0
+        kwargs: {num_obstacles: 40}    # optional: num_obstacles, world, perturb, goals, goal_order
+        episodes: 10              # optional: this world's own count
+      - env: bulletnav/WarehouseAisles-v0
+    controllers:
+      - {name: PID + A*, type: navigator, planner: astar}    # planner: none, astar or rrt
+      - {name: PPO, type: model, model: shipped}             # shipped: the world's shipped model; else a path
+      - {name: PPO + shield, type: model, model: shipped, shield: true}
+      - {name: mine, type: policy, class: "mypackage.module:MyPolicy", kwargs: {gain: 2.0}}
+
+Every controller runs on the same seeded episodes of a world. A ``policy`` class implements
+:class:`bulletnav.policy.Policy` (``reset(info)``, ``act(obs, info)``) and is built as
+``Class(scene, **kwargs)`` with the env's read-only scene view; any controller takes
+``shield: true``. World kwargs are limited to those the CLI can express, so that every
+episode of a report can be replayed by one ``bulletnav navigate`` / ``evaluate`` command.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from bulletnav.errors import BulletnavError
+
+SUITES_DIR = Path(str(resources.files("bulletnav").joinpath("benchmark", "suites")))
+"""The shipped suites (``quick``, ``standard``)."""
+
+SHIPPED_MODELS = {
+    "bulletnav/Warehouse-v0": "models/ppo_warehouse.zip",
+    "bulletnav/WarehouseAisles-v0": "models/ppo_dynamic.zip",
+    "bulletnav/WarehouseDynamic-v0": "models/ppo_dynamic.zip",
+    "bulletnav/WarehouseMission-v0": "models/ppo_mission.zip",
+}
+"""``model: shipped`` for each registered id: the policy trained for that world (the aisle
+world's is the dynamic policy, trained on the same aisle warehouses with movers), relative
+to the project root."""
+
+WORLD_KWARGS = {"num_obstacles": "--obstacles", "world": "--world", "perturb": "--perturb", "goals": "--goals",
+                "goal_order": "--order"}
+"""World kwargs a suite may set, with the CLI flag that replays them."""
+
+PLANNERS = ("none", "astar", "rrt")
+LIMITS = {"episodes": 100_000, "worlds": 64, "controllers": 64}
+"""Largest suite the parser accepts (raise them here)."""
+
+
+class SuiteError(BulletnavError):
+    """A suite file that cannot be used; the message names the file and the field."""
+
+
+@dataclass(frozen=True)
+class WorldSpec:
+    """One world of a suite."""
+
+    name: str
+    env: str
+    """Registered env id."""
+    kwargs: dict[str, Any] = field(default_factory=dict)
+    """Env kwargs on top of the id's (see :data:`WORLD_KWARGS`)."""
+    episodes: int = 0
+    """Episodes of this world (the suite's count when 0)."""
+
+
+@dataclass(frozen=True)
+class ControllerSpec:
+    """One controller of a suite."""
+
+    name: str
+    type: str
+    """``navigator``, ``model`` or ``policy``."""
+    planner: str = "astar"
+    """Navigators: ``none`` (PID alone), ``astar`` or ``rrt``."""
+    model: str = ""
+    """Models: a path, or ``shipped``."""
+    cls: str = ""
+    """Policies: ``module:Class``."""
+    kwargs: dict[str, Any] = field(default_factory=dict)
+    """Policies: keyword arguments of the class."""
+    shield: bool = False
+    """Behind the safety shield."""
+
+    def model_path(self, env_id: str, root: Path) -> Path:
+        """The model file this controller runs on ``env_id`` (``shipped`` resolved, relative
+        paths against ``root``)."""
+        path = Path(SHIPPED_MODELS.get(env_id, SHIPPED_MODELS["bulletnav/Warehouse-v0"]) if self.model == "shipped"
+                    else self.model)
+        return path if path.is_absolute() else root / path
+
+
+@dataclass(frozen=True)
+class Suite:
+    """A parsed suite file."""
+
+    name: str
+    episodes: int
+    seed: int
+    worlds: tuple[WorldSpec, ...]
+    controllers: tuple[ControllerSpec, ...]
+    source: str = ""
+    """Where it came from (file path)."""
+    sha256: str = ""
+    """SHA-256 of the file's bytes (the results record it)."""
+
+    def episodes_of(self, world: WorldSpec) -> int:
+        return world.episodes or self.episodes
+
+    @property
+    def total(self) -> int:
+        """Episodes in the whole suite."""
+        return sum(self.episodes_of(w) for w in self.worlds) * len(self.controllers)
+
+
+def resolve_suite(name_or_path: str) -> Path:
+    """A shipped suite by name (``quick``), else a file path.
+
+    Raises:
+        SuiteError: neither exists (the message lists the shipped suites).
+    """
+    shipped = SUITES_DIR / f"{name_or_path}.yaml"
+    if "/" not in name_or_path and not name_or_path.endswith((".yaml", ".yml")) and shipped.is_file():
+        return shipped
+    path = Path(name_or_path)
+    if not path.is_file():
+        names = sorted(p.stem for p in SUITES_DIR.glob("*.yaml"))
+        raise SuiteError(f"no suite {name_or_path!r}: neither a shipped suite ({', '.join(names)}) nor a file")
+    return path
+
+
+def load_suite(name_or_path: str) -> Suite:
+    """Read and check a suite (:func:`resolve_suite`, :func:`parse_suite`).
+
+    Raises:
+        SuiteError: the file is missing, not YAML, or a field is wrong (named in the message).
+    """
+    path = resolve_suite(name_or_path)
+    data = path.read_bytes()
+    try:
+        raw = yaml.safe_load(data)
+    except yaml.YAMLError as exc:
+        raise SuiteError(f"{path}: not valid YAML: {exc}") from None
+    return parse_suite(raw, str(path), hashlib.sha256(data).hexdigest())
+
+
+def _int(value: Any, where: str, name: str, lo: int, hi: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+        raise SuiteError(f"{where}: field '{name}' must be an integer from {lo} to {hi}, got {value!r}")
+    return value
+
+
+def _str(value: Any, where: str, name: str) -> str:
+    if not isinstance(value, str) or not value.strip():
+        raise SuiteError(f"{where}: field '{name}' must be a non-empty string, got {value!r}")
+    return value
+
+
+def _mapping(value: Any, where: str, name: str, allowed: set[str]) -> dict[str, Any]:
+    if not isinstance(value, dict):
+        raise SuiteError(f"{where}: {name} must be a mapping, got {value!r}")
+    unknown = sorted(str(k) for k in set(value) - allowed)
+    if unknown:
+        raise SuiteError(f"{where}: {name} has unknown field(s) {unknown}; allowed: {sorted(allowed)}")
+    return value
+
+
+def parse_suite(raw: Any, where: str = "<suite>", sha256: str = "") -> Suite:
+    """Check a decoded suite document and build a :class:`Suite`.
+
+    Raises:
+        SuiteError: naming ``where``, the field and what is wrong.
+    """
+    import gymnasium as gym
+
+    import bulletnav  # noqa: F401  (registers the ids)
+
+    top = _mapping(raw, where, "the suite", {"name", "description", "episodes", "seed", "worlds", "controllers"})
+    for required in ("worlds", "controllers"):
+        if required not in top:
+            raise SuiteError(f"{where}: field '{required}' is missing")
+    name = _str(top.get("name", Path(where).stem), where, "name")
+    episodes = _int(top.get("episodes", 20), where, "episodes", 1, LIMITS["episodes"])
+    seed = _int(top.get("seed", 0), where, "seed", 0, 2**31 - 1 - LIMITS["episodes"])
+    worlds_raw, controllers_raw = top["worlds"], top["controllers"]
+    for key, items in (("worlds", worlds_raw), ("controllers", controllers_raw)):
+        if not isinstance(items, list) or not 1 <= len(items) <= LIMITS[key]:
+            raise SuiteError(f"{where}: field '{key}' must be a list of 1 to {LIMITS[key]} entries, got {items!r}")
+    worlds = []
+    for i, w in enumerate(worlds_raw):
+        tag = f"worlds[{i}]"
+        w = _mapping(w, where, tag, {"name", "env", "kwargs", "episodes"})
+        env = _str(w.get("env"), where, f"{tag}.env")
+        if env not in gym.registry or not env.startswith("bulletnav/"):
+            known = sorted(e for e in gym.registry if e.startswith("bulletnav/"))
+            raise SuiteError(f"{where}: field '{tag}.env' must be a bulletnav env id ({', '.join(known)}), got {env!r}")
+        kwargs = _mapping(w.get("kwargs") or {}, where, f"{tag}.kwargs", set(WORLD_KWARGS))
+        if "world" in kwargs:
+            world_file = Path(_str(kwargs["world"], where, f"{tag}.kwargs.world"))
+            if not world_file.is_absolute():  # relative to the suite file, as written in it
+                world_file = Path(where).parent / world_file
+            kwargs = {**kwargs, "world": str(world_file)}
+        default_name = env.split("/")[-1].removeprefix("Warehouse").removesuffix("-v0").lower() or "scattered"
+        count = _int(w.get("episodes", 0), where, f"{tag}.episodes", 0, LIMITS["episodes"])
+        worlds.append(WorldSpec(_str(w.get("name", default_name), where, f"{tag}.name"), env, dict(kwargs), count))
+    controllers = []
+    for i, c in enumerate(controllers_raw):
+        tag = f"controllers[{i}]"
+        c = _mapping(c, where, tag, {"name", "type", "planner", "model", "class", "kwargs", "shield"})
+        kind = c.get("type")
+        if kind not in ("navigator", "model", "policy"):
+            raise SuiteError(f"{where}: field '{tag}.type' must be 'navigator', 'model' or 'policy', got {kind!r}")
+        shield = c.get("shield", False)
+        if not isinstance(shield, bool):
+            raise SuiteError(f"{where}: field '{tag}.shield' must be true or false, got {shield!r}")
+        spec: dict[str, Any] = {"type": kind, "shield": shield}
+        if kind == "navigator":
+            planner = c.get("planner", "astar")
+            if planner not in PLANNERS:
+                raise SuiteError(f"{where}: field '{tag}.planner' must be one of {list(PLANNERS)}, got {planner!r}")
+            spec["planner"] = planner
+            default = {"none": "PID", "astar": "PID + A*", "rrt": "PID + RRT"}[planner]
+        elif kind == "model":
+            spec["model"] = _str(c.get("model"), where, f"{tag}.model")
+            default = "PPO" if spec["model"] == "shipped" else Path(spec["model"]).stem
+        else:
+            target = _str(c.get("class"), where, f"{tag}.class")
+            if target.count(":") != 1 or not all(target.split(":")):
+                raise SuiteError(f"{where}: field '{tag}.class' must be 'module:Class', got {target!r}")
+            spec["cls"] = target
+            spec["kwargs"] = dict(_mapping(c.get("kwargs") or {}, where, f"{tag}.kwargs", set(c.get("kwargs") or {})))
+            default = target.split(":")[1]
+        name_ = _str(c.get("name", default + (" + shield" if shield else "")), where, f"{tag}.name")
+        controllers.append(ControllerSpec(name=name_, **spec))
+    for label, names in (("worlds", [w.name for w in worlds]), ("controllers", [c.name for c in controllers])):
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise SuiteError(f"{where}: {label} need distinct names; repeated: {dup}")
+    suite = Suite(name, episodes, seed, tuple(worlds), tuple(controllers), where, sha256)
+    if suite.total > LIMITS["episodes"] * 10:
+        raise SuiteError(f"{where}: {suite.total} episodes in all exceed the limit of {LIMITS['episodes'] * 10} "
+                         "(bulletnav.benchmark.suite.LIMITS)")
+    return suite
+
+
+def replay_command(suite: Suite, world: WorldSpec, controller: ControllerSpec, seed: int, root: Path) -> str:
+    """The ``bulletnav`` command that replays episode ``seed`` of ``world`` with ``controller``
+    (the same env kwargs, the same seeded reset, the same shield)."""
+    flags = [f"--env {world.env}"]
+    for key, value in world.kwargs.items():
+        flags.append(f"{WORLD_KWARGS[key]} {value}")
+    flags += [f"--seed {seed}", "--episodes 1"]
+    if controller.shield:
+        flags.append("--shield")
+    if controller.type == "navigator":
+        return f"bulletnav navigate --planner {controller.planner} " + " ".join(flags) + " --video episode.mp4"
+    if controller.type == "model":
+        path = controller.model_path(world.env, root)
+        try:
+            shown = path.relative_to(root)
+        except ValueError:
+            shown = path
+        return f"bulletnav evaluate --model {shown} " + " ".join(flags) + " --video episode.mp4"
+    return (f"python -c \"from bulletnav.benchmark.runner import replay; print(replay({suite.source!r}, "
+            f"{world.name!r}, {controller.name!r}, {seed}))\"")
