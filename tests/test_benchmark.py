@@ -1,0 +1,246 @@
+"""``bulletnav benchmark``: suite files, the metrics against hand computations, rows that are
+the same at 1 and 2 workers and equal to the committed tiny results, resuming, the CLI."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bulletnav.benchmark.metrics import (
+    INTIMATE_M,
+    EpisodeTrace,
+    bootstrap_interval,
+    cell_summary,
+    episode_metrics,
+    optimal_time,
+)
+from bulletnav.benchmark.runner import build_results, run_suite
+from bulletnav.benchmark.suite import SuiteError, load_suite, parse_suite
+from bulletnav.cli import main
+from bulletnav.errors import BulletnavError
+from bulletnav.evaluation import EpisodeResult
+
+DATA = Path(__file__).resolve().parent / "data"
+TINY = DATA / "benchmark_tiny.yaml"
+GOLDEN = Path(__file__).resolve().parent / "golden" / "benchmark_tiny.json"
+
+
+# ------------------------------------------------------------------ suites
+def _suite(**over):
+    raw = {"name": "t", "episodes": 2, "seed": 5, "worlds": [{"env": "bulletnav/Warehouse-v0"}],
+           "controllers": [{"type": "navigator", "planner": "astar"}]}
+    raw.update(over)
+    return parse_suite(raw, "t.yaml")
+
+
+@pytest.mark.parametrize("over, field", [
+    ({"episodes": 0}, "'episodes'"),
+    ({"worlds": []}, "'worlds'"),
+    ({"worlds": [{"env": "CartPole-v1"}]}, "'worlds[0].env'"),
+    ({"worlds": [{"env": "bulletnav/Warehouse-v0", "kwargs": {"lidar_rays": 10}}]}, "worlds[0].kwargs"),
+    ({"controllers": [{"type": "navigator", "planner": "dijkstra"}]}, "'controllers[0].planner'"),
+    ({"controllers": [{"type": "robot"}]}, "'controllers[0].type'"),
+    ({"controllers": [{"type": "policy", "class": "nomodule"}]}, "'controllers[0].class'"),
+    ({"controllers": [{"type": "model", "model": "x.zip", "shield": "yes"}]}, "'controllers[0].shield'"),
+    ({"controllers": [{"type": "navigator"}, {"type": "navigator"}]}, "distinct names"),
+    ({"colour": "red"}, "unknown field"),
+])
+def test_bad_suites_name_file_and_field(over, field):
+    with pytest.raises(SuiteError, match="t.yaml") as err:
+        _suite(**over)
+    assert field in str(err.value)
+
+
+def test_suite_names_and_counts():
+    suite = _suite(worlds=[{"env": "bulletnav/WarehouseAisles-v0", "episodes": 3}, {"env": "bulletnav/Warehouse-v0"}],
+                   controllers=[{"type": "navigator", "planner": "none"}, {"type": "model", "model": "shipped",
+                                                                            "shield": True}])
+    assert [w.name for w in suite.worlds] == ["aisles", "scattered"]
+    assert [c.name for c in suite.controllers] == ["PID", "PPO + shield"]
+    assert suite.total == (3 + 2) * 2
+    assert load_suite("quick").name == "quick" and load_suite("standard").episodes == 200
+    with pytest.raises(SuiteError, match="quick, standard"):
+        load_suite("nosuch")
+
+
+# ------------------------------------------------------------------ metrics
+def test_optimal_time_is_the_trapezoid_or_the_triangle():
+    # 4 m at 0.5 m/s, 2.5 m/s^2: 0.2 s ramps each way covering 0.05 m each, 3.9 m cruising
+    assert optimal_time(4.0, 0.5, 2.5) == pytest.approx(0.2 + 3.9 / 0.5 + 0.2)
+    # 0.05 m never reaches top speed: accelerate half way, brake half way
+    assert optimal_time(0.05, 0.5, 2.5) == pytest.approx(2 * math.sqrt(0.025 / 2.5 * 2))
+    assert optimal_time(0.0, 0.5, 2.5) == 0.0
+
+
+def _result(**kw) -> EpisodeResult:
+    base = dict(episode=1, seed=0, initial_distance=3.0, shortest_path=3.0, steps=0, reward=0.0, final_distance=0.3,
+                path_length=3.0, success=True, collision=False, spl=1.0, sim_time=0.0, wall_time=0.0)
+    base.update(kw)
+    return EpisodeResult(**base)
+
+
+class _View:
+    def __init__(self):
+        self.pose = (0.0, 0.0, 0.0)
+        self.movers = ()
+
+
+def test_straight_drive_metrics_against_hand_values():
+    dt, v = 0.05, 0.5
+    trace = EpisodeTrace(dt, top_speed=0.5)
+    view = _View()
+    n = 121  # 120 steps of 2.5 cm: 3 m straight along x at top speed
+    for k in range(n):
+        view.pose = (k * v * dt, 0.0, 0.0)
+        trace.record(view, {})
+    row = episode_metrics(_result(steps=n - 1, path_length=3.0), trace, accel=2.5)
+    t = (n - 1) * dt
+    assert row["time_s"] == pytest.approx(6.0)
+    assert row["path_irregularity"] == 0.0 and row["jerk"] == pytest.approx(0.0, abs=1e-6)
+    t_star = optimal_time(3.0, 0.5, 2.5)  # 6.2 s: faster than possible from rest is capped at 1
+    assert row["sct"] == pytest.approx(t_star / max(t, t_star)) and row["sct"] == 1.0
+    assert row["barn_score"] == pytest.approx(6.0 / (4 * 6.0))  # t <= 4 t_opt: the BARN clip
+    assert math.isnan(row["min_separation_m"]) and row["intimate_robot_s"] == 0.0
+
+
+def test_turning_and_a_slow_drive():
+    trace = EpisodeTrace(0.1, top_speed=0.5)
+    view = _View()
+    for k in range(11):  # a quarter turn while driving 1 m
+        view.pose = (0.1 * k, 0.0, math.pi / 2 * k / 10)
+        trace.record(view, {})
+    row = episode_metrics(_result(steps=10, path_length=1.0, shortest_path=1.0), trace, accel=2.5)
+    assert row["path_irregularity"] == pytest.approx(math.pi / 2)
+    t_opt = 1.0 / 0.5
+    assert row["barn_score"] == pytest.approx(t_opt / (4 * t_opt))
+    slow = EpisodeTrace(0.1, top_speed=0.5)
+    for k in range(301):  # 30 s for the same metre: beyond 8 t_opt
+        view.pose = (k / 300, 0.0, 0.0)
+        slow.record(view, {})
+    row = episode_metrics(_result(steps=300, path_length=1.0, shortest_path=1.0), slow, accel=2.5)
+    assert row["barn_score"] == pytest.approx(t_opt / (8 * t_opt))
+    assert row["sct"] == pytest.approx(optimal_time(1.0, 0.5, 2.5) / 30.0)
+    failed = episode_metrics(_result(steps=300, success=False, spl=0.0), slow, accel=2.5)
+    assert failed["sct"] == failed["barn_score"] == failed["spl"] == 0.0
+
+
+class _Mover:
+    def __init__(self, kind, pose, size):
+        self.kind, self.pose, self.size = kind, pose, size
+
+
+def test_person_zones_are_counted_both_ways_and_collisions_by_kind():
+    dt = 0.1
+    trace = EpisodeTrace(dt, top_speed=0.5)
+    view = _View()
+    worker = _Mover("worker", (2.0, 0.0, 0.0), (0.5, 0.5, 1.7))
+    view.movers = (worker,)
+    xs = [0.0, 0.5, 1.0, 1.5, 1.6, 1.6, 1.6]  # drives up to 0.4 m from the worker, then stands
+    for x in xs:
+        view.pose = (x, 0.0, 0.0)
+        trace.record(view, {})
+    # after steps 1..6 the distances are 1.5, 1.0, 0.5, 0.4, 0.4, 0.4; moving on steps 1..4
+    row = episode_metrics(_result(steps=6, path_length=1.6, min_separation=0.1), trace, accel=2.5)
+    assert row["personal_robot_s"] == pytest.approx(3 * dt)  # 1.0, 0.5, 0.4 while moving
+    assert row["intimate_robot_s"] == pytest.approx(1 * dt)  # 0.4 on the last moving step
+    assert row["intimate_person_s"] == pytest.approx(2 * dt) and row["personal_person_s"] == pytest.approx(2 * dt)
+    assert 0.4 < INTIMATE_M
+    forklift = _Mover("forklift", (0.0, 3.0, 0.0), (1.1, 0.8, 2.0))
+    view.movers = (worker, forklift)
+    view.pose = (0.0, 2.5, 0.0)  # touching the forklift, far from the worker
+    trace.record(view, {"collision": True, "collision_with": "dynamic"})
+    assert trace.hit == "mover"
+    view.pose = (1.8, 0.0, 0.0)
+    trace.record(view, {"collision": True, "collision_with": "dynamic"})
+    assert trace.hit == "person"
+    trace.record(view, {"collision": True, "collision_with": "static"})
+    assert trace.hit == "static"
+
+
+def test_bootstrap_interval_is_reproducible_and_brackets_the_mean():
+    values = np.random.default_rng(0).random(50)
+    lo, hi = bootstrap_interval(values)
+    assert (lo, hi) == bootstrap_interval(values) and lo < values.mean() < hi
+    assert bootstrap_interval(np.full(10, 0.7)) == pytest.approx((0.7, 0.7))
+    summary = cell_summary([{**{k: 0.0 for k in ("min_separation_m",)}, **_zero_row(success=s)} for s in (1, 1, 0, 1)])
+    assert summary["success"]["mean"] == 0.75 and summary["episodes"] == 4
+
+
+def _zero_row(**over):
+    from bulletnav.benchmark.metrics import METRICS
+
+    row = {k: 0.0 for k in METRICS}
+    row.update(over)
+    return row
+
+
+# ------------------------------------------------------------------ runs
+def _rows(results):
+    return [{k: v for k, v in r.items()} for r in results["episodes"]]
+
+
+@pytest.fixture(scope="module")
+def tiny_one(tmp_path_factory):
+    out = tmp_path_factory.mktemp("bench") / "one"
+    return run_suite(load_suite(str(TINY)), out, workers=1), out
+
+
+@pytest.mark.slow
+def test_tiny_results_are_the_committed_ones_at_1_and_2_workers(tiny_one, tmp_path):
+    one, _ = tiny_one
+    two = run_suite(load_suite(str(TINY)), tmp_path / "two", workers=2)
+    expected = json.loads(GOLDEN.read_text())
+    strict_one = json.loads((tiny_one[1] / "results.json").read_text())
+    strict_two = json.loads((tmp_path / "two" / "results.json").read_text())
+    assert strict_one["episodes"] == strict_two["episodes"] == expected["episodes"]
+    assert strict_one["cells"] == strict_two["cells"] == expected["cells"]
+    assert len(one["episodes"]) == 8 and {r["controller"] for r in one["episodes"]} == {"PID + A*", "PPO + shield"}
+    assert two["provenance"]["workers"] == 2
+
+
+@pytest.mark.slow
+def test_an_interrupted_run_resumes_without_rerunning(tiny_one, tmp_path):
+    _, done = tiny_one
+    out = tmp_path / "resumed"
+    out.mkdir()
+    lines = (done / "episodes.jsonl").read_text().splitlines()
+    shutil.copy(done / "suite.json", out / "suite.json")
+    (out / "episodes.jsonl").write_text("\n".join(lines[:5]) + "\n" + lines[5][:40])  # 5 rows, a torn sixth
+    seen = []
+    with pytest.raises(BulletnavError, match="--resume"):
+        run_suite(load_suite(str(TINY)), out, workers=1)
+    results = run_suite(load_suite(str(TINY)), out, workers=1, resume=True, progress=lambda d, t: seen.append(d))
+    assert seen[0] == 5 and seen[-1] == 8  # five kept, three run
+    assert len(results["episodes"]) == 8
+    resumed = json.loads((out / "results.json").read_text())
+    assert resumed["episodes"] == json.loads((done / "results.json").read_text())["episodes"]
+    other = dict(json.loads((out / "suite.json").read_text()), sha256="0" * 64)
+    (out / "suite.json").write_text(json.dumps(other))
+    with pytest.raises(BulletnavError, match="another suite"):
+        run_suite(load_suite(str(TINY)), out, workers=1, resume=True)
+
+
+@pytest.mark.slow
+def test_cli_prints_the_headline_and_writes_the_report(tiny_one, tmp_path, capsys):
+    results = json.loads((tiny_one[1] / "results.json").read_text())
+    assert main(["benchmark", str(TINY), "--out", str(tmp_path / "cli"), "--json"]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["episodes"] == results["episodes"]
+    assert (tmp_path / "cli" / "report.html").is_file()
+    failures = [r for r in results["episodes"] if not r["success"]]
+    for row in failures:
+        assert row["replay"].startswith("bulletnav ") and f"--seed {row['seed']}" in row["replay"]
+
+
+def test_build_results_orders_rows_and_keeps_one_per_episode():
+    suite = load_suite(str(TINY))
+    rows = [{"world": w.name, "controller": c.name, "episode": k, **_zero_row(success=1)}
+            for w in reversed(suite.worlds) for c in suite.controllers for k in (1, 0, 1)]
+    results = build_results(suite, rows)
+    keys = [(r["world"], r["controller"], r["episode"]) for r in results["episodes"]]
+    assert keys == [(w.name, c.name, k) for w in suite.worlds for c in suite.controllers for k in (0, 1)]
