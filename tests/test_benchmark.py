@@ -199,7 +199,7 @@ def test_tiny_results_are_the_committed_ones_at_1_and_2_workers(tiny_one, tmp_pa
     strict_two = json.loads((tmp_path / "two" / "results.json").read_text())
     assert strict_one["episodes"] == strict_two["episodes"] == expected["episodes"]
     assert strict_one["cells"] == strict_two["cells"] == expected["cells"]
-    assert len(one["episodes"]) == 8 and {r["controller"] for r in one["episodes"]} == {"PID + A*", "PPO + shield"}
+    assert len(one["episodes"]) == 8 and {r["controller"] for r in one["episodes"]} == {"PID", "PPO + shield"}
     assert two["provenance"]["workers"] == 2
 
 
