@@ -178,6 +178,23 @@ def bench_env(steps: int = 6000, block: int = 100, seed: int = 0, config: EnvCon
     }
 
 
+def step_with_resets(env: gym.Env, actions: np.ndarray) -> tuple[float, float, int]:
+    """Step ``env`` through ``actions``, resetting at every episode end as training does.
+    Returns (wall seconds in all, seconds of that inside ``reset()``, episodes ended)."""
+    clock = time.perf_counter
+    in_reset = 0.0
+    episodes = 0
+    t0 = clock()
+    for a in actions:
+        _, _, terminated, truncated, _ = env.step(a)
+        if terminated or truncated:
+            t1 = clock()
+            env.reset()
+            in_reset += clock() - t1
+            episodes += 1
+    return clock() - t0, in_reset, episodes
+
+
 def bench_env_pair(env_id: str, reference_id: str, steps: int = 6000, block: int = 100, seed: int = 0) -> dict[str, Any]:
     """Step cost of ``env_id`` as a ratio to ``reference_id``'s, timed in the same run.
 
@@ -197,23 +214,14 @@ def bench_env_pair(env_id: str, reference_id: str, steps: int = 6000, block: int
     times = {name: 0.0 for name in envs}
     resets = {name: [0, 0.0] for name in envs}
     ratios = []
-    clock = time.perf_counter
     for b in range(0, steps, block):
         chunk = actions[b:b + block]
         block_time = {}
         for name, env in envs.items():
-            t_env = 0.0
-            t0 = clock()
-            for a in chunk:
-                _, _, terminated, truncated, _ = env.step(a)
-                if terminated or truncated:
-                    t1 = clock()
-                    t_env += t1 - t0
-                    env.reset()
-                    resets[name][0] += 1
-                    resets[name][1] += clock() - t1
-                    t0 = clock()
-            t_env += clock() - t0
+            wall, in_reset, episodes = step_with_resets(env, chunk)
+            resets[name][0] += episodes
+            resets[name][1] += in_reset
+            t_env = wall - in_reset
             block_time[name] = t_env
             times[name] += t_env
         ratios.append(block_time[env_id] / block_time[reference_id])

@@ -28,6 +28,7 @@ import gymnasium as gym
 import numpy as np
 import pybullet as p
 
+from bulletnav.bench.env_bench import step_with_resets
 from bulletnav.sim.client import configure_physics
 
 REGISTERED = ("bulletnav/Warehouse-v0", "bulletnav/WarehouseAisles-v0", "bulletnav/WarehouseDynamic-v0",
@@ -125,18 +126,7 @@ def bench_throughput(env_id: str, steps: int = 6000, seed: int = 0) -> dict[str,
     rng = np.random.default_rng(seed)
     actions = rng.uniform(env.action_space.low, env.action_space.high, size=(steps, 2)).astype(np.float32)
     env.reset(seed=seed)
-    clock = time.perf_counter
-    in_reset = 0.0
-    episodes = 0
-    t0 = clock()
-    for a in actions:
-        _, _, terminated, truncated, _ = env.step(a)
-        if terminated or truncated:
-            t1 = clock()
-            env.reset()
-            in_reset += clock() - t1
-            episodes += 1
-    wall = clock() - t0
+    wall, in_reset, episodes = step_with_resets(env, actions)
     env.close()
     return {
         "steps": steps,

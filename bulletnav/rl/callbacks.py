@@ -177,17 +177,19 @@ class ThroughputCallback(BaseCallback):
         return True
 
     def summary(self) -> dict[str, float]:
-        """Shares of the wall time since training started and env steps per second."""
+        """Env steps per second and the shares of the wall time since learning started
+        (``seconds``: that time)."""
         wall = max(time.perf_counter() - self._t0, 1e-9)
         env = self.timer.seconds
         evaluation = self.evaluation.seconds if self.evaluation is not None else 0.0
-        return {"env_steps_per_s": round((self.num_timesteps - self._steps0) / wall, 1),
+        return {"env_steps_per_s": round((self.num_timesteps - self._steps0) / wall, 1), "seconds": round(wall, 2),
                 "env_share": round(env / wall, 4), "eval_share": round(evaluation / wall, 4),
                 "learner_share": round(max(wall - env - evaluation, 0.0) / wall, 4)}
 
     def _on_rollout_end(self) -> None:
         for key, value in self.summary().items():
-            self.logger.record(f"time/{key}", value)
+            if key != "seconds":
+                self.logger.record(f"time/{key}", value)
 
 
 class TimedVecEnv(VecEnvWrapper):
@@ -198,21 +200,18 @@ class TimedVecEnv(VecEnvWrapper):
         super().__init__(venv)
         self.seconds = 0.0
 
-    def reset(self):
+    def _timed(self, call: Callable[..., Any], *args: Any) -> Any:
         t0 = time.perf_counter()
         try:
-            return self.venv.reset()
+            return call(*args)
         finally:
             self.seconds += time.perf_counter() - t0
+
+    def reset(self):
+        return self._timed(self.venv.reset)
 
     def step_async(self, actions) -> None:
-        t0 = time.perf_counter()
-        self.venv.step_async(actions)
-        self.seconds += time.perf_counter() - t0
+        self._timed(self.venv.step_async, actions)
 
     def step_wait(self):
-        t0 = time.perf_counter()
-        try:
-            return self.venv.step_wait()
-        finally:
-            self.seconds += time.perf_counter() - t0
+        return self._timed(self.venv.step_wait)
