@@ -591,12 +591,22 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
 
     from tqdm import tqdm
 
-    from bulletnav.benchmark.report import best_controllers, write_report
+    from bulletnav.benchmark.report import best_controllers, screenshots, write_report
     from bulletnav.benchmark.runner import run_suite
     from bulletnav.benchmark.suite import load_suite
 
     suite = load_suite(args.suite)
     out = Path(args.out or f"runs/benchmark/{suite.name}")
+    if args.report_only:  # the report (and screenshots) again from DIR/results.json
+        results_file = out / "results.json"
+        if not results_file.is_file():
+            raise BulletnavError(f"{results_file}: no results to report (run the suite first)")
+        results = json.loads(results_file.read_text())
+        report = write_report(results, out / "report.html")
+        print(f"report:  {report}")
+        for shot in (screenshots(report, out, tab=args.screenshot_tab) if args.screenshots else []):
+            print(f"screenshot: {shot}")
+        return 0
     bar = None
 
     def progress(done: int, total: int) -> None:
@@ -632,6 +642,8 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
                        f"{s['spl']['mean']:.3f}{mark}")
         print(f"| {w['name']} | " + " | ".join(row) + " |")
     print(f"results: {out / 'results.json'}\nreport:  {report}")
+    for shot in (screenshots(report, out, tab=args.screenshot_tab) if args.screenshots else []):
+        print(f"screenshot: {shot}")
     return 0
 
 
@@ -810,6 +822,10 @@ def build_parser() -> argparse.ArgumentParser:
     bm.add_argument("--address", metavar="HOST:PORT", help="run the episodes as tasks on this Ray cluster")
     bm.add_argument("--resume", action="store_true", help="go on with an interrupted run in DIR (finished episodes are kept)")
     bm.add_argument("--json", action="store_true", help="print the results record as JSON")
+    bm.add_argument("--report-only", action="store_true", help="rebuild DIR/report.html from DIR/results.json, run nothing")
+    bm.add_argument("--screenshots", action="store_true",
+                    help="also save DIR/headline.png and DIR/world.png, the report in Chromium (needs playwright and chromium)")
+    bm.add_argument("--screenshot-tab", type=int, default=0, metavar="K", help="the world tab of world.png (default 0)")
     bm.set_defaults(func=cmd_benchmark)
 
     bench = add("bench", "benchmarks (print JSON with --json)")

@@ -266,3 +266,38 @@ def write_report(results: dict[str, Any], path: Path) -> Path:
     tmp.write_text(text)
     os.replace(tmp, path)
     return path
+
+
+def screenshots(report: Path, out: Path, tab: int = 0, width: int = 1280) -> list[Path]:
+    """PNG screenshots of a report in Debian's Chromium (Playwright): ``headline.png`` and the
+    world tab ``tab`` (``world.png``), full page at ``width`` pixels.
+
+    Raises:
+        BulletnavError: Playwright or a Chromium binary is missing.
+    """
+    import shutil
+
+    from bulletnav.errors import BulletnavError
+
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        raise BulletnavError("screenshots need playwright (pip install -e '.[dev]')") from None
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    if chromium is None:
+        raise BulletnavError("screenshots need a chromium binary (Debian: apt-get install chromium)")
+    out.mkdir(parents=True, exist_ok=True)
+    paths = [out / "headline.png", out / "world.png"]
+    with sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path=chromium, args=[
+            "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
+            "--disable-component-update", "--disable-sync"])
+        try:
+            page = browser.new_page(viewport={"width": width, "height": 900})
+            page.goto(report.resolve().as_uri())
+            page.screenshot(path=str(paths[0]), full_page=True)
+            page.click(f"#tab-w{tab}")
+            page.screenshot(path=str(paths[1]), full_page=True)
+        finally:
+            browser.close()
+    return paths
