@@ -1,10 +1,10 @@
 cd /work/main; source .venv/bin/activate
-R=docs/results/issue18
+R=docs/results/shield
 run() { # name, command...
   local name=$1; shift
   [ -s $R/$name.json ] && return
   echo "$*" > $R/$name.cmd
-  nice -n 5 "$@" > $R/$name.json.tmp 2>>/tmp/sh/queue18.err && mv $R/$name.json.tmp $R/$name.json
+  nice -n 5 "$@" > $R/$name.json.tmp 2>>/tmp/sh/queue_shield.err && mv $R/$name.json.tmp $R/$name.json
 }
 M=models/ppo_warehouse.zip
 run ppo_shield_31 bulletnav evaluate --model $M --episodes 200 --seed 1000000 --shield --json

@@ -1,4 +1,4 @@
-source .venv/bin/activate; R=docs/results/issue18/dynamic_policy; mkdir -p $R
+source .venv/bin/activate; R=docs/results/shield/dynamic_policy; mkdir -p $R
 run() { local name=$1; shift; [ -s $R/$name.json ] && return; echo "$*" > $R/$name.cmd; nice -n 5 "$@" > $R/$name.json.tmp 2>>$R/queue.err && mv $R/$name.json.tmp $R/$name.json; }
 M=models/ppo_dynamic.zip
 run ppo_dynamic_31 bulletnav evaluate --model $M --episodes 200 --seed 1000000 --json
