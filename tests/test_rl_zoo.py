@@ -44,7 +44,7 @@ def test_the_rl_zoo_form_builds_the_network_of_the_old_form_to_the_bit(algo):
 
 @pytest.mark.slow
 def test_rl_zoo_trains_ppo_with_the_projects_hyperparameter_file(tmp_path):
-    """The README's RL Zoo command, with a small budget: it leaves a model with the project's
+    """The RL Zoo command of README and docs/learning.md, with a small budget: it leaves a model with the project's
     network and hyperparameters."""
     pytest.importorskip("rl_zoo3")
     from stable_baselines3 import PPO

@@ -478,7 +478,7 @@ def test_a_box_corner_between_two_rays_is_rebuilt(bearing_deg, distance):
 
 @pytest.mark.slow
 def test_a_shielded_episode_among_movers_reproduces_the_committed_result_to_the_bit(capsys):
-    """Seed 1158 of the dynamic policy behind the shield (README's table): the shield replaced
+    """Seed 1158 of the dynamic policy behind the shield (the table in docs/shield.md): the shield replaced
     the command on 1,185 of its 2,399 steps, and it reached its goal by creeping past a mover
     that waited for it (before the creep it timed out, `before_creep/`). The episode replayed
     now must match the committed one exactly, so the compiled geometry (scan points, sweeps,

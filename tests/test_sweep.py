@@ -87,7 +87,7 @@ def test_sweep_file_defaults_and_grid_expansion(tmp_path):
 def test_sweep_shipped_files_are_valid():
     root = Path(__file__).resolve().parents[1] / "docs" / "sweeps"
     files = sorted(root.glob("*.yaml"))
-    assert files, "docs/sweeps/ holds the README's sweep files"
+    assert files, "docs/sweeps/ holds the sweep files of docs/sweeps.md"
     for f in files:
         SweepSpec.from_file(f)
 
