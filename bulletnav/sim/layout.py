@@ -5,7 +5,7 @@ from a YAML file (:func:`load_layout`) or from a seeded generator
 (:func:`generate_warehouse`), and can be rasterised into an occupancy grid
 (:meth:`Layout.occupancy`) for start/goal sampling, shortest paths and map checks.
 
-YAML format (stable; see README)::
+YAML format (stable; see docs/worlds.md)::
 
     name: aisle-test                 # optional
     size: [12.0, 10.0]               # floor extent x, y (m), centred on the origin
