@@ -33,6 +33,14 @@ def _add_shield_arg(parser: argparse.ArgumentParser) -> None:
                              "a mover is replaced by the closest safe one (reports how often)")
 
 
+def _add_physics_arg(parser: argparse.ArgumentParser) -> None:
+    from bulletnav.config import PHYSICS_PROFILES
+
+    parser.add_argument("--physics", choices=list(PHYSICS_PROFILES), default=None,
+                        help="physics profile: default (240 Hz) or fast (the measured cheaper rate, "
+                             "docs/performance/physics.md); default: the model's, else the env's")
+
+
 def _add_world_args(parser: argparse.ArgumentParser) -> None:
     _add_env_arg(parser)
     parser.add_argument("--world", metavar="FILE", help="YAML layout (default: procedural warehouse)")
@@ -71,6 +79,8 @@ def _world_kwargs(args: argparse.Namespace, obstacles: int | None = None) -> dic
         kwargs.update(task_name="mission", goal_order=args.order)
     if getattr(args, "perturb", None) is not None:  # a named evaluation shift, on any env and controller
         kwargs["perturb"] = args.perturb
+    if getattr(args, "physics", None) is not None:  # a named physics profile
+        kwargs["physics"] = args.physics
     return kwargs
 
 
@@ -164,13 +174,33 @@ def cmd_bench(args: argparse.Namespace) -> int:
         lines += [f"{env_id:32s} {r['reset_ms']:9.2f} {r['raw_reset_ms']:7.2f} {r['steps_per_s_with_resets']:20.1f} "
                   f"{r['reset_share'] * 100:8.1f}%" for env_id, r in result["ids"].items()]
     elif args.what == "physics":
-        from bulletnav.bench.physics_bench import bench_physics
+        from bulletnav.bench.physics_bench import POLICY_MODEL, bench_physics, bench_rates
 
         result = bench_physics(steps=args.steps or 3000, seed=args.seed)
         lines = [f"{'setting':34s} {'us/step':>8s} {'speed':>6s} {'3 s dist':>8s} {'drift mm':>8s} {'yaw err %':>9s}"]
         for row in result["settings"]:
             lines.append(f"{row['setting']:34s} {row['us_per_physics_step']:8.1f} {row['speed_vs_pybullet_default']:6.2f} "
                          f"{row['straight_3s_distance_m']:8.4f} {row['max_sideways_drift_mm']:8.2f} {row['yaw_rate_error_pct']:9.2f}")
+        rates = bench_rates(rates=args.rates, steps=args.steps or 6000, seed=args.seed, model=args.model or POLICY_MODEL,
+                            policy_episodes=args.policy_episodes)
+        result["rates"] = rates
+        lines += ["", f"physics rates at {rates['control_hz']} Hz control, against {rates['reference_hz']} Hz "
+                      f"(policy: {rates['policy_model'] or 'not run'}, {rates['policy_episodes']} episodes from seed "
+                      f"{rates['policy_seed']})",
+                  f"{'Hz':>4s} {'ms/step':>8s} {'speed':>6s} {'straight %':>10s} {'turn %':>7s} {'arc %':>6s} "
+                  f"{'slip %':>7s} {'plate':>6s} {'in mm':>6s} {'success':>8s} {'coll.':>6s} {'qualifies':>9s}"]
+        for row in rates["rows"]:
+            pol = row.get("policy")
+            t = row["tunnelling"]
+            lines.append(f"{row['physics_hz']:4d} {row['ms_per_env_step']:8.3f} {row['speedup_vs_reference']:6.2f} "
+                         f"{row['straight_error_pct']:10.3f} {row['turn_error_pct']:7.3f} "
+                         f"{max(row['arc_heading_error_pct'], row['arc_endpoint_error_pct']):6.3f} "
+                         f"{row['wheel_slip_pct']:7.3f} {'hit' if t['collision_registered'] else 'MISSED':>6s} "
+                         f"{t['penetration_at_report_mm']:6.2f} "
+                         + (f"{pol['success_rate'] * 100:7.1f}% {pol['collision_rate'] * 100:5.1f}% " if pol else
+                            f"{'-':>8s} {'-':>6s} ")
+                         + f"{'-' if row['qualifies'] is None else ('yes' if row['qualifies'] else 'no'):>9s}")
+        lines.append(f"qualifying as a fast profile: {', '.join(f'{hz} Hz' for hz in rates['qualifying_hz']) or 'none'}")
     elif args.what == "planners":
         from bulletnav.bench.planner_bench import bench_navigation
 
@@ -360,7 +390,8 @@ def cmd_navigate(args: argparse.Namespace) -> int:
     results, written, layout_size = _run_with_visuals(args, env, nav, line, f"PID + {args.planner} (seed {args.seed})")
     summary = summarize(results)
     summary.update(planner=args.planner, seed=args.seed, pose_source=args.pose, env_id=args.env_id,
-                   world=_world_label(args), world_size=layout_size, perturb=args.perturb, shield=args.shield)
+                   world=_world_label(args), world_size=layout_size, perturb=args.perturb, shield=args.shield,
+                   physics=args.physics or "default")
     if args.json:
         print(_json(summary))
         return 0
@@ -394,6 +425,8 @@ def cmd_train(args: argparse.Namespace) -> int:
 
     logging.getLogger("bulletnav.rl.curriculum").setLevel(logging.INFO)  # stage changes on the console
     extra = {"env_id": args.env_id}
+    if args.physics is not None:  # into the training and in-training evaluation envs, and the run record
+        extra["env_overrides"] = {"physics": args.physics}
     cfg = TrainConfig(
         algo=args.algo, timesteps=args.timesteps, out=Path(args.out), seed=args.seed, n_envs=args.n_envs,
         resume=args.resume, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
@@ -458,7 +491,8 @@ def _evaluate_report(args: argparse.Namespace, model_path: str) -> dict:
             "per_episode")
     out = {k: s[k] for k in keys}
     out.update(model=str(model_path), seed=args.seed, env_id=args.env_id,
-               world=_world_label(args, default_obstacles), world_size=layout_size, perturb=args.perturb, shield=args.shield)
+               world=_world_label(args, default_obstacles), world_size=layout_size, perturb=args.perturb, shield=args.shield,
+               physics=env_kwargs.get("physics", "default"), physics_hz=env.unwrapped.config.physics.physics_hz)
     if args.json:
         print(_json(out))
         return out
@@ -697,6 +731,17 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
+def _hz_list(text: str) -> tuple[int, ...]:
+    """``--rates``: comma-separated positive integers (Hz)."""
+    try:
+        rates = tuple(int(x) for x in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated rates in Hz, e.g. 240,120, got {text!r}") from None
+    if not rates or min(rates) <= 0:
+        raise argparse.ArgumentTypeError(f"rates must be positive integers (Hz), got {text!r}")
+    return rates
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="bulletnav",
@@ -718,6 +763,7 @@ def build_parser() -> argparse.ArgumentParser:
     nav.add_argument("--gui", action="store_true", help="watch in the PyBullet GUI (needs a display)")
     nav.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
     _add_shield_arg(nav)
+    _add_physics_arg(nav)
     nav.add_argument("--video", metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
     nav.add_argument("--plot", metavar="PNG", help="write all episodes' paths over their maps")
     nav.set_defaults(func=cmd_navigate)
@@ -744,6 +790,7 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--no-progress", action="store_true", help="no progress bar")
     tr.add_argument("--shield", action="store_true",
                     help="train (and evaluate during training) behind the safety shield, so the policy learns with it")
+    _add_physics_arg(tr)
     tr.set_defaults(func=cmd_train)
 
     sw = add("sweep", "train a sweep file's trials (grid x seeds, or --optimize N) on Ray Tune, locally or on a cluster")
@@ -775,6 +822,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--gui", action="store_true", help="watch in the PyBullet GUI (needs a display)")
     ev.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
     _add_shield_arg(ev)
+    _add_physics_arg(ev)
     ev.add_argument("--video", metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
     ev.add_argument("--plot", metavar="PNG", help="write all episodes' paths over their maps")
     ev.set_defaults(func=cmd_evaluate)
@@ -804,6 +852,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--gui", action="store_true", help="watch live in the PyBullet GUI")
     demo.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
     _add_shield_arg(demo)
+    _add_physics_arg(demo)
     demo.set_defaults(func=cmd_demo, algo=None)
 
     view = add("view", "look at a warehouse in the PyBullet GUI")
@@ -830,7 +879,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     bench = add("bench", "benchmarks (print JSON with --json)")
     bench.add_argument("what", choices=["env", "physics", "planners", "gui", "shield"],
-                       help="env: env vs raw PyBullet loop; physics: solver settings; planners: A* vs RRT; "
+                       help="env: env vs raw PyBullet loop; physics: solver settings and physics rates; planners: A* vs RRT; "
                             "gui: dashboard frame rate (needs a display: xvfb-run -a); shield: the safety "
                             "shield's decision time per step against the env step (default env WarehouseDynamic-v0)")
     bench.add_argument("--episodes", type=int, default=50, help="navigation episodes per planner (planners)")
@@ -850,7 +899,14 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--driver", choices=["ram", "navigator", "policy"], default="ram",
                        help="shield: who drives, a forward-pushing random driver (default), PID + A*, or a trained "
                             "model (--model)")
-    bench.add_argument("--model", default=None, metavar="PATH", help="shield: the model --driver policy drives with")
+    bench.add_argument("--model", default=None, metavar="PATH",
+                       help="shield: the model --driver policy drives with; physics: the policy evaluated at each "
+                            "physics rate (default models/ppo_warehouse.zip)")
+    bench.add_argument("--rates", type=_hz_list, default=(240, 120, 96, 48), metavar="HZ,HZ,...",
+                       help="physics: physics rates to compare at 24 Hz control, the first the reference "
+                            "(default 240,120,96,48)")
+    bench.add_argument("--policy-episodes", type=int, default=200, metavar="N",
+                       help="physics: the policy's episodes at each rate, seeds 1000000.. (default 200; 0 skips it)")
     bench.set_defaults(func=cmd_bench)
     return parser
 

@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 
@@ -61,6 +62,31 @@ class PhysicsConfig:
     def physics_dt(self) -> float:
         """Seconds per physics step."""
         return 1.0 / self.physics_hz
+
+
+PHYSICS_PROFILES: MappingProxyType[str, PhysicsConfig] = MappingProxyType({
+    "default": PhysicsConfig(),
+    "fast": PhysicsConfig(physics_hz=96),
+})
+"""Named physics settings, chosen with the env keyword ``physics`` (``--physics`` on the CLI).
+
+``"default"``: 240 Hz physics, 10 substeps per 24 Hz control step (every published result).
+``"fast"``: 96 Hz physics, 4 substeps per control step, solver otherwise unchanged: the
+lowest rate of ``bulletnav bench physics`` (240 / 120 / 96 / 48 Hz) whose driving stays within
+1 % of 240 Hz and on which the shipped PPO stays within 2 points of its 240 Hz success and
+collision rates; 48 Hz misses the driving bound (docs/performance/physics.md has the table)."""
+
+
+def physics_profile(name: str) -> PhysicsConfig:
+    """The :data:`PHYSICS_PROFILES` entry called ``name``.
+
+    Raises:
+        ValueError: an unknown name (the message names it and the known ones).
+    """
+    try:
+        return PHYSICS_PROFILES[name]
+    except (KeyError, TypeError):
+        raise ValueError(f"unknown physics profile {name!r}; known: {', '.join(PHYSICS_PROFILES)}") from None
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ import numpy as np
 import pybullet as p
 from gymnasium import spaces
 
-from bulletnav.config import EnvConfig, RewardConfig, ShiftConfig
+from bulletnav.config import EnvConfig, RewardConfig, ShiftConfig, physics_profile
 from bulletnav.envs.randomization import STREAM as DR_STREAM
 from bulletnav.envs.randomization import Distribution, draw, draw_world, parse_randomize
 from bulletnav.envs.scene import Scene, SceneView
@@ -77,12 +77,19 @@ def make_config(config: EnvConfig | None = None, **kwargs: Any) -> EnvConfig:
     """Build an :class:`EnvConfig` from flat keyword arguments on top of ``config``.
 
     Besides the names in the env docstring, ``reward_<field>`` sets a :class:`RewardConfig`
-    field (e.g. ``reward_collision=-20``) and ``world`` names a YAML layout file.
+    field (e.g. ``reward_collision=-20``), ``world`` names a YAML layout file and ``physics``
+    a named physics profile (:data:`~bulletnav.config.PHYSICS_PROFILES`: ``"default"``,
+    ``"fast"``), which replaces the physics section before ``physics_hz`` and the other
+    physics keywords apply.
 
     Raises:
         TypeError: an unknown keyword (the message lists the known ones).
+        ValueError: an unknown physics profile name.
     """
     cfg = config or EnvConfig()
+    if "physics" in kwargs:  # a named profile first, so physics_hz & co. apply on top in any order
+        kwargs = dict(kwargs)
+        cfg = replace(cfg, physics=physics_profile(kwargs.pop("physics")))
     for key, value in kwargs.items():
         if key == "world":
             cfg = replace(cfg, layout_file=None if value is None else str(value))
@@ -106,7 +113,7 @@ def make_config(config: EnvConfig | None = None, **kwargs: Any) -> EnvConfig:
                 value = (float(value), float(value)) if isinstance(value, (int, float)) else tuple(value)
             cfg = _replace_at(cfg, path, name, value)
         else:
-            known = sorted([*_KWARGS, "world", "config", "render_mode", "perturb", "randomize",
+            known = sorted([*_KWARGS, "world", "config", "render_mode", "perturb", "randomize", "physics",
                             *(f"reward_{f}" for f in _REWARD_FIELDS), *(f"shift_{f}" for f in _SHIFT_FIELDS)])
             raise TypeError(f"bulletnav/Warehouse-v0 got an unknown keyword argument {key!r}; known: {', '.join(known)}")
     return cfg
@@ -219,7 +226,8 @@ class WarehouseEnv(gym.Env):
     ``world`` (YAML layout path or None), ``world_size`` ((14, 14) m),
     ``min_goal_distance`` (2 m), ``max_goal_distance`` (6 m), ``lidar_rays`` (36),
     ``lidar_range`` (5 m), ``lidar_noise`` (0 m), ``imu_accel_noise`` (0.05 m/s^2),
-    ``imu_gyro_noise`` (0.01 rad/s), ``odometry_noise`` (0 rad), ``physics_hz`` (240),
+    ``imu_gyro_noise`` (0.01 rad/s), ``odometry_noise`` (0 rad), ``physics`` ("default": 240 Hz;
+    "fast": the measured fast profile of ``bulletnav.config.PHYSICS_PROFILES``), ``physics_hz`` (240),
     ``control_hz`` (24), ``solver_iterations``, ``goal_radius`` (0.5 m),
     ``pose_source`` ("truth"), ``collision_terminates`` (False), ``normalize_actions``
     (False), ``layouts_every`` (1: a new procedural warehouse every reset),
@@ -250,7 +258,7 @@ class WarehouseEnv(gym.Env):
       ``task_name``, ``min_detour``, ``blocked_by``, ``detour_share``, ``aisles``,
       ``lidar_history``, ``guidance``, the movers' ``forklifts``, ``workers``, ``forklift_speed``,
       ``worker_speed``, ``pallet_events_per_min``, ``yield_to_robot``, ``perturb``,
-      ``shift_<field>``, ``randomize``; YAML ``dynamic:`` and ``events:``) leave every default
+      ``shift_<field>``, ``randomize``, ``physics``; YAML ``dynamic:`` and ``events:``) leave every default
       episode bit-identical.
     - ``bulletnav/WarehouseAisles-v0``: the same env with ``layout_style="aisles"`` on a 20 x 16 m
       floor, goals 3-10 m away, 80 % planning episodes (straight line through a rack, detour
