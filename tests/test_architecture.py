@@ -39,7 +39,7 @@ def _rel(path: Path) -> str:
 
 CONSUMERS = sorted({
     *PKG.glob("control/*.py"), PKG / "evaluation.py", PKG / "policy.py", *PKG.glob("viz/*.py"), PKG / "cli.py",
-    *PKG.glob("rl/*.py"), *PKG.glob("bench/*.py"), *PKG.glob("sweep/*.py"),
+    *PKG.glob("rl/*.py"), *PKG.glob("bench/*.py"), *PKG.glob("sweep/*.py"), *PKG.glob("benchmark/*.py"),
 })
 """Every module that drives or reads an env from outside it."""
 
@@ -52,6 +52,7 @@ NOT_ENV_INTERNALS = {
     ("bulletnav/cli.py", "args.world"): "the --world option (a layout file path) on argparse's namespace",
     ("bulletnav/bench/env_bench.py", "cfg.robot"): "EnvConfig.robot, the robot's configuration (RobotConfig)",
     ("bulletnav/bench/physics_bench.py", "sim.robot"): "the physics benchmark drives a bare Simulation, no env",
+    ("bulletnav/bench/reset_bench.py", "config.robot"): "EnvConfig.robot: the URDF the raw rebuild loads (RobotConfig)",
 }
 """Exact (file, expression) pairs that carry one of the internal names without being the
 env's internals. Anything else with those names is reported."""

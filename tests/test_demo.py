@@ -78,7 +78,7 @@ def test_demo_runs_the_shipped_dynamic_policy_and_reproduces_its_card(tmp_path, 
     is, to the bit, the first of the model card's 200-episode evaluation."""
     import json
 
-    card = ROOT / "docs" / "results" / "issue17" / "shipped" / "ppo_dynamic_nominal.json"
+    card = ROOT / "docs" / "results" / "dynamic_policy" / "ppo_dynamic_nominal.json"
     out = tmp_path / "demo"
     assert main(["demo", "--env", "bulletnav/WarehouseDynamic-v0", "--episodes", "1", "--seed", "1000", "--json",
                  "--out", str(out)]) == 0

@@ -483,7 +483,7 @@ def test_a_shielded_episode_among_movers_reproduces_the_committed_result_to_the_
     that waited for it (before the creep it timed out, `before_creep/`). The episode replayed
     now must match the committed one exactly, so the compiled geometry (scan points, sweeps,
     the hit test) and the creep decide as the code that produced the table did."""
-    path = asset_path("..", "..", "docs", "results", "issue18", "ppo_dynamic_shield_dynamic.json")
+    path = asset_path("..", "..", "docs", "results", "shield", "ppo_dynamic_shield_dynamic.json")
     want = next(e for e in json.loads(open(path).read())["per_episode"] if e["seed"] == 1158)
     assert want["shield_steps"] > 1000 and want["success"]
     model = asset_path("..", "..", "models", "ppo_dynamic.zip")

@@ -93,7 +93,8 @@ def bench_resets(env_id: str, resets: int = 200, seed: int = 0) -> dict[str, Any
         env.reset()
         times.append(clock() - t0)
         worlds.append(_snapshot(cid, unwrapped.scene.robot_body))
-    physics, urdf = unwrapped.config.physics, str(unwrapped.config.robot.urdf_path())
+    config = unwrapped.config
+    physics, urdf = config.physics, str(config.robot.urdf_path())
     env.close()
     raw_cid = p.connect(p.DIRECT)
     try:

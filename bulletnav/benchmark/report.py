@@ -123,9 +123,9 @@ def _episode_scene(world: dict[str, Any], seed: int) -> tuple[Any, tuple, tuple]
 def _draw_panel(ax: Any, layout: Any, start: tuple, goals: tuple, row: dict[str, Any] | None, title: str) -> None:
     from matplotlib.patches import Circle
 
-    from bulletnav.viz.plots import _draw_layout
+    from bulletnav.viz.plots import draw_layout
 
-    _draw_layout(ax, layout)
+    draw_layout(ax, layout)
     for g in goals:
         ax.add_patch(Circle(g, 0.5, facecolor="#009E73", alpha=0.3, edgecolor="#009E73", zorder=2))
     ax.plot(start[0], start[1], marker="o", ms=5, mfc="white", mec="black", zorder=5)

@@ -117,7 +117,7 @@ def run_chunk(cells: _Cells, w: int, c: int, episodes: list[int]) -> list[dict[s
     world, controller = suite.worlds[w], suite.controllers[c]
     env, policy = cells.get(w, c)
     scene = env.unwrapped.scene
-    top_speed = float(env.unwrapped.config.task.max_speed)
+    top_speed = float(scene.command_limits[0][1])
     rows: list[dict[str, Any]] = []
     for k in episodes:
         trace = EpisodeTrace(scene.control_dt, top_speed)

@@ -265,7 +265,7 @@ def trajectory_figure(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory], 
     fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi, layout="constrained")
     if _shared_layout(episodes):
         ax = fig.add_subplot()
-        _draw_layout(ax, episodes[0].layout)
+        draw_layout(ax, episodes[0].layout)
         routes: set[tuple[str, tuple[tuple[float, float], ...]]] = set()
         labels: dict[tuple[float, float], int] = {}
         for ep in episodes:
@@ -280,7 +280,7 @@ def trajectory_figure(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory], 
         cols, rows = _grid(len(shown))
         for i, ep in enumerate(shown):
             ax = fig.add_subplot(rows, cols, i + 1)
-            _draw_layout(ax, ep.layout)
+            draw_layout(ax, ep.layout)
             _draw_episode(ax, ep, linewidth=1.4)
             ax.set_title(f"episode {i + 1}: {ep.outcome}", fontsize=8)
             ax.set_xticks([])
@@ -311,7 +311,8 @@ def _grid(n: int) -> tuple[int, int]:
     return cols, max(1, math.ceil(n / cols))
 
 
-def _draw_layout(ax: Any, layout: Layout) -> None:
+def draw_layout(ax: Any, layout: Layout) -> None:
+    """Draw ``layout`` (walls, floor, obstacles in their category colours) on matplotlib axes ``ax``, to scale."""
     from matplotlib.patches import Circle, Polygon, Rectangle
 
     hx, hy = layout.half_extents
