@@ -149,7 +149,7 @@ class Layout:
         return self.within_levels(xs, ys, (distance,))[0]
 
     def within_levels(self, xs: np.ndarray, ys: np.ndarray, distances: tuple[float, ...]) -> np.ndarray:
-        """Boolean grids ``[k, ix, iy]``: True where :meth:`clearance` at (``xs[ix]``, ``ys[iy]``)
+        """Boolean grids ``[k, ix, iy]`` over increasing ``xs`` and ``ys``: True where :meth:`clearance` at (``xs[ix]``, ``ys[iy]``)
         is ``<= distances[k]`` (m), bit for bit, all distances in one pass.
 
         The same per-point arithmetic as :meth:`clearance` (compiled, :mod:`bulletnav.sim.kernels`),
