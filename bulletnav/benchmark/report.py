@@ -14,7 +14,6 @@ from __future__ import annotations
 import base64
 import html
 import io
-import os
 from pathlib import Path
 from typing import Any
 
@@ -260,11 +259,10 @@ def render_report(results: dict[str, Any], results_name: str = "results.json") -
 
 
 def write_report(results: dict[str, Any], path: Path) -> Path:
-    """Write :func:`render_report` to ``path`` atomically."""
-    text = render_report(results)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+    """Write :func:`render_report` to ``path`` atomically (:func:`bulletnav.rl.io.atomic_write_bytes`)."""
+    from bulletnav.rl.io import atomic_write_bytes
+
+    atomic_write_bytes(path, render_report(results).encode())
     return path
 
 

@@ -304,10 +304,10 @@ def _provenance(wall: float, workers: int, address: str | None) -> dict[str, Any
 
 
 def _write_json(path: Path, data: Any) -> None:
-    """Strict JSON (NaN as null), written atomically."""
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(_strict(data), indent=1) + "\n")
-    os.replace(tmp, path)
+    """Strict JSON (NaN as null), written atomically (:func:`bulletnav.rl.io.atomic_write_bytes`)."""
+    from bulletnav.rl.io import atomic_write_bytes
+
+    atomic_write_bytes(path, (json.dumps(_strict(data), indent=1) + "\n").encode())
 
 
 def _strict(value: Any) -> Any:
