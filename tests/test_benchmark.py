@@ -244,3 +244,32 @@ def test_build_results_orders_rows_and_keeps_one_per_episode():
     results = build_results(suite, rows)
     keys = [(r["world"], r["controller"], r["episode"]) for r in results["episodes"]]
     assert keys == [(w.name, c.name, k) for w in suite.worlds for c in suite.controllers for k in (0, 1)]
+
+
+@pytest.mark.slow
+def test_tiny_suite_through_a_ray_cluster_gives_the_committed_rows(tmp_path):
+    """``--address``: a real local cluster (a head with no CPUs, two one-CPU worker nodes), the
+    benchmark connecting to it by address as a user would, every episode on a worker node."""
+    ray = pytest.importorskip("ray")
+    from ray.cluster_utils import Cluster
+
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 0})
+    for _ in range(2):
+        cluster.add_node(num_cpus=1)
+    try:
+        cluster.wait_for_nodes()
+        address = cluster.address
+        results = run_suite(load_suite(str(TINY)), tmp_path / "ray", workers=2, address=address)
+        assert not ray.is_initialized()  # the connection the run opened is closed
+    finally:
+        cluster.shutdown()
+    expected = json.loads(GOLDEN.read_text())
+    written = json.loads((tmp_path / "ray" / "results.json").read_text())
+    assert written["episodes"] == expected["episodes"] and written["cells"] == expected["cells"]
+    assert results["provenance"]["ray_address"] == address
+
+
+def test_an_address_with_no_cluster_is_one_clear_error(tmp_path):
+    pytest.importorskip("ray")
+    with pytest.raises(BulletnavError, match="--address 127.0.0.1:1: cannot connect"):
+        run_suite(load_suite(str(TINY)), tmp_path / "none", workers=1, address="127.0.0.1:1")

@@ -243,14 +243,43 @@ def _run_pool(suite: Suite, root: Path, chunks: list, workers: int, keep: Callab
 
 
 def _run_ray(suite: Suite, root: Path, chunks: list, address: str, keep: Callable) -> None:
+    """Run ``chunks`` as Ray tasks of one CPU each on the cluster at ``address``.
+
+    Every node needs bulletnav installed and ``root`` (the project's models) at the same path,
+    as on a shared file system. A connection this call opened is closed when it ends; one the
+    caller already holds is left open.
+    """
     import ray
 
-    ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
-    remote = ray.remote(num_cpus=1)(_run_in_process)
-    pending = [remote.remote(suite, str(root), w, c, eps) for w, c, eps in chunks]
-    while pending:
-        finished, pending = ray.wait(pending, num_returns=1)
-        keep(ray.get(finished[0]))
+    opened = not ray.is_initialized()
+    if opened:
+        _probe(address)
+        try:
+            ray.init(address=address, log_to_driver=False)
+        except (ConnectionError, RuntimeError, ValueError) as exc:
+            raise BulletnavError(f"--address {address}: cannot connect to a Ray cluster there ({exc})") from exc
+    try:
+        remote = ray.remote(num_cpus=1)(_run_in_process)
+        pending = [remote.remote(suite, str(root), w, c, eps) for w, c, eps in chunks]
+        while pending:
+            finished, pending = ray.wait(pending, num_returns=1)
+            keep(ray.get(finished[0]))
+    finally:
+        if opened:
+            ray.shutdown()
+
+
+def _probe(address: str, timeout_s: float = 5.0) -> None:
+    """Refuse a ``HOST:PORT`` nobody listens on at once (Ray itself retries for minutes)."""
+    import socket
+
+    host, sep, port = address.rpartition(":")
+    if not sep or "://" in address or not port.isdigit():
+        return  # "auto", "ray://..." and other forms Ray resolves itself
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout_s).close()
+    except OSError as exc:
+        raise BulletnavError(f"--address {address}: cannot connect to a Ray cluster there ({exc})") from None
 
 
 def build_results(suite: Suite, rows: list[dict[str, Any]], root: Path = PROJECT_ROOT) -> dict[str, Any]:
