@@ -6,7 +6,6 @@ from __future__ import annotations
 import io
 import json
 import os
-import pickle
 import tempfile
 import zipfile
 from pathlib import Path
@@ -46,8 +45,11 @@ def atomic_save_model(model, path: str | Path) -> None:
 
 
 def atomic_save_vecnormalize(vecnorm, path: str | Path) -> None:
-    """Pickle a ``VecNormalize`` (its statistics) atomically."""
-    atomic_write_bytes(path, pickle.dumps(vecnorm))
+    """Write a ``VecNormalize``'s statistics as JSON (``model_vecnormalize.json``), atomically:
+    numbers only, never a pickle."""
+    from bulletnav.rl.safe import stats_to_json
+
+    atomic_write_json(path, stats_to_json(vecnorm))
 
 
 def atomic_write_json(path: str | Path, data: Any) -> None:
@@ -74,20 +76,29 @@ def sidecar_path(model_path: str | Path) -> Path:
 
 
 def vecnormalize_path(model_path: str | Path) -> Path:
-    """``model.zip`` -> ``model_vecnormalize.pkl``: the normalisation statistics beside a model."""
+    """``model.zip`` -> ``model_vecnormalize.json``: the normalisation statistics beside a model."""
     p = Path(model_path)
-    return p.with_name(p.stem + "_vecnormalize.pkl")
+    return p.with_name(p.stem + "_vecnormalize.json")
 
 
-def load_model(path: str | Path, algo: str | None = None):
-    """Load a model saved by ``bulletnav train`` with its sidecar metadata.
+def load_model(path: str | Path, algo: str | None = None, trust_pickle: bool = False):
+    """Load a model saved by ``bulletnav train`` (or any SB3 zip) without running code it holds.
 
-    Returns ``(model, meta, vecnorm)``; ``vecnorm`` is the saved ``VecNormalize`` or None.
+    The safe format (``NAME.safetensors`` + ``NAME.json``, :mod:`bulletnav.rl.safe`) is
+    preferred; an SB3 zip without it loads with every pickled entry rebuilt from its text, and
+    normalization statistics come from JSON or ``.npz``. ``trust_pickle`` lets SB3 unpickle the
+    zip and opens a ``NAME_vecnormalize.pkl``: that runs whatever code the files hold.
+
+    Returns ``(model, meta, normalizer)``; ``normalizer`` normalizes observations as the
+    ``VecNormalize`` the model was trained behind (``norm_obs``, ``normalize_obs``), or is None.
 
     Raises:
         ModelError: the file is missing, not a zip, truncated, not an SB3 model, or of another
             algorithm than its sidecar says.
+        UnsafeModelError: it can only be opened by running its code (and ``trust_pickle`` is off).
     """
+    from bulletnav.rl import safe
+
     path = Path(path)
     if not path.is_file():
         raise ModelError(f"{path}: model file not found")
@@ -96,9 +107,16 @@ def load_model(path: str | Path, algo: str | None = None):
     if side.is_file():
         try:
             meta = json.loads(side.read_text())
-        except json.JSONDecodeError as exc:
-            raise ModelError(f"{side}: model metadata is not valid JSON ({exc})") from exc
+        except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
+            raise ModelError(f"{side}: model metadata is not valid JSON ({exc})") from None
+        if not isinstance(meta, dict):
+            raise ModelError(f"{side}: model metadata must be a JSON object")
+    if algo is not None and meta.get("algo") not in (None, algo):
+        raise ModelError(f"{path}: cannot load as {algo.upper()} (its sidecar says {str(meta.get('algo')).upper()})")
     algo = algo or meta.get("algo")
+    if safe.has_safe(path, meta):
+        model = safe.load_safe(path, meta)
+        return model, meta, safe.normalizer(safe.load_stats(path, meta))
     if not zipfile.is_zipfile(path):
         raise ModelError(f"{path}: not a model archive (not a zip file; truncated or another kind of file?)")
     try:
@@ -109,26 +127,24 @@ def load_model(path: str | Path, algo: str | None = None):
             bad = zf.testzip()
             if bad is not None:
                 raise ModelError(f"{path}: corrupt model archive (member {bad!r} fails its CRC)")
-            data = json.loads(zf.read("data"))
-    except (zipfile.BadZipFile, OSError, json.JSONDecodeError, KeyError) as exc:
+    except (zipfile.BadZipFile, OSError, KeyError) as exc:
         raise ModelError(f"{path}: corrupt model archive ({exc})") from exc
+    data = safe.read_zip_data(path)
     if algo is None:
         algo = _guess_algo(data)
     if algo is None:
         raise ModelError(f"{path}: cannot tell the algorithm; pass --algo or keep the .json beside the model")
     cls = algo_class(algo)
+    stats = safe.load_stats(path, meta, trust_pickle=trust_pickle)  # refused before any tensor is read
     try:
-        model = cls.load(path, device="cpu")
-    except Exception as exc:  # SB3 raises many kinds on a mismatched or broken archive
-        raise ModelError(f"{path}: cannot load as {algo.upper()} ({type(exc).__name__}: {exc})") from exc
+        model = safe.load_zip(path, cls, trust_pickle=trust_pickle)
+    except ModelError:
+        raise
+    except Exception as exc:  # SB3 and torch raise many kinds on a mismatched, broken or hostile archive
+        raise ModelError(f"{path}: cannot load as {algo.upper()} ({type(exc).__name__}: {str(exc)[:300]})") from None
     if not isinstance(model, cls):
         raise ModelError(f"{path}: expected a {algo.upper()} model, got {type(model).__name__}")
-    vecnorm = None
-    vn = vecnormalize_path(path)
-    if vn.is_file():
-        with open(vn, "rb") as f:
-            vecnorm = pickle.load(f)
-    return model, meta, vecnorm
+    return model, meta, safe.normalizer(stats)
 
 
 def _guess_algo(data: dict[str, Any]) -> str | None:

@@ -29,6 +29,7 @@ from bulletnav.rl.io import (
     sidecar_path,
     vecnormalize_path,
 )
+from bulletnav.rl.safe import apply_stats, load_stats, load_zip, save_safe, stats_to_json, zip_spaces
 
 log = logging.getLogger(__name__)
 
@@ -72,6 +73,9 @@ class TrainConfig:
     on_evaluation: Callable[[dict[str, Any]], None] | None = None
     """Called with every evaluation row (timesteps, wall_time, success_rate, ...) as it is
     recorded; a sweep reports them to Ray Tune for early stopping."""
+    trust_pickle: bool = False
+    """Let ``--resume`` / ``--init-from`` files be unpickled (older checkpoints with a
+    ``*_vecnormalize.pkl``, zips with entries bulletnav does not rebuild): runs their code."""
 
 
 def resolve_vec_env(vec_env: str, n_envs: int) -> str:
@@ -139,8 +143,8 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
         if not ckpt.is_file():
             raise ModelError(f"{ckpt}: no checkpoint to resume from")
         if normalize:
-            venv = VecNormalize.load(str(vecnormalize_path(ckpt)), venv)
-        model = cls.load(ckpt, env=venv, device="cpu")
+            venv = apply_stats(VecNormalize(venv, **normalize), _checkpoint_stats(ckpt, cfg.trust_pickle))
+        model = load_zip(ckpt, cls, env=venv, trust_pickle=cfg.trust_pickle)
         start_steps = int(model.num_timesteps)
         hist_file = cfg.out / "eval_history.json"
         if hist_file.is_file():
@@ -149,8 +153,12 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
         if cfg.init_from is not None:
             _check_spaces(cfg.init_from, venv)
         if normalize:
-            stats = vecnormalize_path(cfg.init_from) if cfg.init_from is not None else None
-            venv = VecNormalize.load(str(stats), venv) if stats is not None and stats.is_file() else VecNormalize(venv, **normalize)
+            stats = load_stats(Path(cfg.init_from), _sidecar(cfg.init_from), cfg.trust_pickle) if cfg.init_from else None
+            venv = VecNormalize(venv, **normalize)
+            if isinstance(stats, dict):
+                apply_stats(venv, stats)
+            elif stats is not None:  # a trusted, unpickled VecNormalize
+                venv.obs_rms, venv.ret_rms = stats.obs_rms, stats.ret_rms
             venv.training, venv.norm_reward = True, bool(normalize.get("norm_reward", True))
         model = cls(policy_class(hp), venv, seed=cfg.seed, device="cpu", verbose=0,
                     tensorboard_log=str(cfg.out / "tb"), **model_kwargs(hp, venv.action_space.shape[0]))
@@ -218,10 +226,9 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
     record.update(throughput=timing)
     record.update(wall_time_s=round(wall, 1), wall_time_total_s=round(prior + wall, 1), total_timesteps=int(model.num_timesteps),
                   final_eval=history[-1] if history else None, eval_seeds=f"{EVAL_SEED_BASE}..")
-    atomic_write_json(sidecar_path(final_path), {"algo": cfg.algo, "env_id": cfg.env_id, "env_kwargs": env_kwargs,
-                                                 "shield": shield,
-                                                 "seed": cfg.seed, "timesteps": int(model.num_timesteps),
-                                                 "git_commit": record["git_commit"], "command": cfg.command})
+    meta = {"algo": cfg.algo, "env_id": cfg.env_id, "env_kwargs": env_kwargs, "shield": shield, "seed": cfg.seed,
+            "timesteps": int(model.num_timesteps), "git_commit": record["git_commit"], "command": cfg.command}
+    atomic_write_json(sidecar_path(final_path), save_safe(model, final_path, vecnorm, meta))
     atomic_write_json(cfg.out / "run.json", record)
     if history:
         plot_learning_curve(history, cfg.out / "learning_curve.png", title=f"{cfg.algo.upper()} seed {cfg.seed}")
@@ -230,17 +237,33 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
 
 def _check_spaces(path: Path, venv) -> None:
     """A model to fine-tune from must have this run's observation and action spaces."""
-    from stable_baselines3.common.save_util import load_from_zip_file
-
     if not Path(path).is_file():
         raise ModelError(f"{path}: model file not found (--init-from)")
-    data, _, _ = load_from_zip_file(path, device="cpu")
+    spaces = dict(zip(("observation_space", "action_space"), zip_spaces(Path(path))))
     for name in ("observation_space", "action_space"):
-        theirs, ours = (data or {}).get(name), getattr(venv, name)
+        theirs, ours = spaces.get(name), getattr(venv, name)
         if theirs is not None and (getattr(theirs, "shape", None) != getattr(ours, "shape", None) or theirs != ours):
             shapes = getattr(theirs, "shape", None), getattr(ours, "shape", None)
             what = f"has shape {shapes[0]}, this run's {shapes[1]}" if shapes[0] != shapes[1] else "has other bounds than this run's"
             raise ModelError(f"{path}: its {name} {what} (--init-from needs the same spaces: same env and settings)")
+
+
+def _sidecar(path: Path) -> dict[str, Any]:
+    side = sidecar_path(path)
+    try:
+        meta = json.loads(side.read_text()) if side.is_file() else {}
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ModelError(f"{side}: model metadata is not valid JSON ({exc})") from None
+    return meta if isinstance(meta, dict) else {}
+
+
+def _checkpoint_stats(ckpt: Path, trust_pickle: bool) -> dict[str, Any]:
+    stats = load_stats(ckpt, {}, trust_pickle)
+    if stats is None:
+        raise ModelError(f"{ckpt}: no normalization statistics beside it ({vecnormalize_path(ckpt).name})")
+    if not isinstance(stats, dict):  # a trusted pickle from an older checkpoint
+        stats = stats_to_json(stats)
+    return stats
 
 
 def _load_weights(model, path: Path) -> None:

@@ -32,7 +32,7 @@ from bulletnav.sweep.spec import SweepSpec
 
 log = logging.getLogger(__name__)
 
-RUN_FILES = ("model.zip", "model.json", "model_vecnormalize.pkl", "run.json", "config.json", "eval_history.json",
+RUN_FILES = ("model.zip", "model.safetensors", "model.json", "model_vecnormalize.json", "run.json", "config.json", "eval_history.json",
              "heldout.json", "learning_curve.png", "hyperparams.yml")
 """What a finished trial keeps in its last Tune checkpoint."""
 
