@@ -33,6 +33,12 @@ def _add_shield_arg(parser: argparse.ArgumentParser) -> None:
                              "a mover is replaced by the closest safe one (reports how often)")
 
 
+def _add_trust_pickle_arg(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--trust-pickle", action="store_true",
+                        help="let the model's pickled entries and a *_vecnormalize.pkl be unpickled: that RUNS CODE the "
+                             "files hold; only for files you trust (default: never; see docs/safety.md)")
+
+
 def _add_physics_arg(parser: argparse.ArgumentParser) -> None:
     from bulletnav.config import PHYSICS_PROFILES
 
@@ -432,7 +438,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         resume=args.resume, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
         checkpoint_freq=args.checkpoint_freq, progress_bar=not args.no_progress, vec_env=args.vec_env,
         hyperparams=Path(args.hyperparams) if args.hyperparams else None, command=command_line(), shield=args.shield,
-        init_from=Path(args.init_from) if args.init_from else None, **extra,
+        init_from=Path(args.init_from) if args.init_from else None, trust_pickle=args.trust_pickle, **extra,
     )
     record = train(cfg)
     final = record.get("final_eval") or {}
@@ -462,7 +468,8 @@ def _evaluate_report(args: argparse.Namespace, model_path: str) -> dict:
     from bulletnav.rl.io import load_model
     from bulletnav.rl.policy import SB3Policy
 
-    model, meta, vecnorm = load_model(model_path, algo=getattr(args, "algo", None))
+    model, meta, vecnorm = load_model(model_path, algo=getattr(args, "algo", None),
+                                      trust_pickle=getattr(args, "trust_pickle", False))
     # the model's env settings on top of the chosen env; on Warehouse-v0 the benchmark's obstacle count
     default_obstacles = EVALUATE_OBSTACLES if args.env_id == DEFAULT_ENV_ID else None
     env_kwargs = evaluation_env_kwargs(meta.get("env_kwargs", {}))
@@ -731,6 +738,19 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_convert_model(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from bulletnav.rl.safe import convert_model, weights_path
+
+    path = Path(args.model)
+    meta = convert_model(path, trust_pickle=args.trust_pickle)
+    print(f"wrote {weights_path(path)} and {path.with_suffix('.json')} ({meta['policy']['algo'].upper()}, "
+          f"{meta['policy']['class'].rsplit('.', 1)[1]}, statistics: {'yes' if meta['normalization'] else 'none'}); "
+          "every loader now reads these and never unpickles")
+    return 0
+
+
 def _hz_list(text: str) -> tuple[int, ...]:
     """``--rates``: comma-separated positive integers (Hz)."""
     try:
@@ -790,6 +810,7 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--no-progress", action="store_true", help="no progress bar")
     tr.add_argument("--shield", action="store_true",
                     help="train (and evaluate during training) behind the safety shield, so the policy learns with it")
+    _add_trust_pickle_arg(tr)
     _add_physics_arg(tr)
     tr.set_defaults(func=cmd_train)
 
@@ -820,6 +841,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_obstacles_arg(ev, "31 on Warehouse-v0, else the model's or the env's")
     ev.add_argument("--seed", type=int, default=1000, help="episode k uses env seed S + k (default 1000)")
     ev.add_argument("--gui", action="store_true", help="watch in the PyBullet GUI (needs a display)")
+    _add_trust_pickle_arg(ev)
     ev.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
     _add_shield_arg(ev)
     _add_physics_arg(ev)
@@ -853,7 +875,14 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
     _add_shield_arg(demo)
     _add_physics_arg(demo)
+    _add_trust_pickle_arg(demo)
     demo.set_defaults(func=cmd_demo, algo=None)
+
+    conv = add("convert-model", "write the pickle-free files (NAME.safetensors + the sidecar's policy and statistics) "
+                                "beside an SB3 model zip")
+    conv.add_argument("model", metavar="MODEL", help="SB3 model zip (with its .json and statistics beside it, if any)")
+    _add_trust_pickle_arg(conv)
+    conv.set_defaults(func=cmd_convert_model)
 
     view = add("view", "look at a warehouse in the PyBullet GUI")
     _add_env_arg(view)
