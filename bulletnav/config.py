@@ -13,6 +13,8 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+from bulletnav import limits
+
 
 def asset_path(*parts: str) -> Path:
     """Absolute path of a file shipped in ``bulletnav/assets``."""
@@ -199,6 +201,9 @@ class WorldConfig:
             raise ValueError(f"num_obstacles must be >= 0, got {self.num_obstacles}")
         if min(self.size) <= 2.0:
             raise ValueError(f"size must exceed 2 m on both axes, got {self.size}")
+        for axis, side in zip("xy", self.size):
+            limits.check("world_size", side, f"world size ({axis})")
+        limits.check("obstacles", self.num_obstacles, "world num_obstacles")
 
 
 @dataclass(frozen=True)
@@ -264,6 +269,7 @@ class LidarConfig:
         _check_rate("lidar", self.rate_hz)
         if self.num_rays < 1:
             raise ValueError(f"lidar num_rays must be >= 1, got {self.num_rays}")
+        limits.check("lidar_rays", self.num_rays, "lidar num_rays")
         if not 0.0 <= self.min_range < self.max_range:
             raise ValueError(f"need 0 <= lidar min_range < max_range, got {self.min_range}, {self.max_range}")
         if self.noise_std < 0:
@@ -298,6 +304,9 @@ class CameraConfig:
         _check_rate("camera", self.rate_hz)
         if self.width < 1 or self.height < 1:
             raise ValueError(f"camera size must be positive, got {self.width}x{self.height}")
+        limits.check("camera_width", self.width, "camera width")
+        limits.check("camera_height", self.height, "camera height")
+        limits.check("camera_pixels", self.width * self.height, f"camera pixels ({self.width} x {self.height})")
         if not 0.0 < self.near < self.far:
             raise ValueError(f"need 0 < camera near < far, got {self.near}, {self.far}")
 
@@ -433,12 +442,15 @@ class TaskConfig:
     def __post_init__(self) -> None:
         if self.pose_source not in ("truth", "odometry"):
             raise ValueError(f"pose_source must be 'truth' or 'odometry', got {self.pose_source!r}")
-        if not (isinstance(self.goals, int) and 1 <= self.goals <= 8):
-            raise ValueError(f"goals must be an integer from 1 to 8, got {self.goals!r}")
+        if not (isinstance(self.goals, int) and not isinstance(self.goals, bool) and self.goals >= 1):
+            raise ValueError(f"goals must be an integer >= 1, got {self.goals!r}")
+        limits.check("goals", self.goals, "task goals")
         if self.goal_order not in ("fixed", "free"):
             raise ValueError(f"goal_order must be 'fixed' or 'free', got {self.goal_order!r}")
         if self.steps_per_goal < 1:
             raise ValueError(f"steps_per_goal must be >= 1, got {self.steps_per_goal}")
+        limits.check("episode_steps", self.steps_per_goal * self.goals,
+                     f"task steps_per_goal x goals ({self.steps_per_goal} x {self.goals})")
         if not (isinstance(self.lidar_history, int) and self.lidar_history >= 1):
             raise ValueError(f"lidar_history must be an integer >= 1, got {self.lidar_history!r}")
         if self.guidance not in ("none", "floorplan"):
@@ -493,6 +505,10 @@ class DynamicConfig:
                 raise ValueError(f"dynamic.{name} must be (min, max) m/s with 0 < min <= max, got {(lo, hi)}")
         if self.pallet_events_per_min < 0:
             raise ValueError(f"dynamic.pallet_events_per_min must be >= 0, got {self.pallet_events_per_min}")
+        limits.check("movers", self.forklifts[1] + self.workers[1],
+                     f"dynamic forklifts + workers ({self.forklifts[1]} + {self.workers[1]})")
+        limits.check("event_rate", self.pallet_events_per_min, "dynamic pallet_events_per_min")
+        limits.check("events", self.event_pallets, "dynamic event_pallets")
 
     @property
     def active(self) -> bool:

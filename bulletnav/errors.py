@@ -27,3 +27,8 @@ class RunError(BulletnavError, ValueError):
 
 class ConfigError(BulletnavError, ValueError):
     """A hyperparameter or configuration file is missing or malformed (message names file and key)."""
+
+
+class LimitError(BulletnavError, ValueError):
+    """A size or count exceeds its resource limit (:mod:`bulletnav.limits`); the message names the
+    field, the value, the limit and the environment variable that raises it."""

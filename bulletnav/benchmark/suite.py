@@ -34,7 +34,8 @@ from typing import Any
 
 import yaml
 
-from bulletnav.errors import BulletnavError
+from bulletnav import limits
+from bulletnav.errors import BulletnavError, LimitError
 
 SUITES_DIR = Path(str(resources.files("bulletnav").joinpath("benchmark", "suites")))
 """The shipped suites (``quick``, ``standard``)."""
@@ -206,6 +207,13 @@ def parse_suite(raw: Any, where: str = "<suite>", sha256: str = "") -> Suite:
             known = sorted(e for e in gym.registry if e.startswith("bulletnav/"))
             raise SuiteError(f"{where}: field '{tag}.env' must be a bulletnav env id ({', '.join(known)}), got {env!r}")
         kwargs = _mapping(w.get("kwargs") or {}, where, f"{tag}.kwargs", set(WORLD_KWARGS))
+        for key, name in (("num_obstacles", "obstacles"), ("goals", "goals")):
+            if key in kwargs:
+                count = _int(kwargs[key], where, f"{tag}.kwargs.{key}", 0 if key == "num_obstacles" else 1, 2**31)
+                try:
+                    limits.check(name, count, f"field '{tag}.kwargs.{key}'")
+                except LimitError as exc:
+                    raise SuiteError(f"{where}: {exc}") from None
         if "world" in kwargs:
             world_file = Path(_str(kwargs["world"], where, f"{tag}.kwargs.world"))
             if not world_file.is_absolute():  # relative to the suite file, as written in it

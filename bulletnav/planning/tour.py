@@ -13,8 +13,11 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 
+from bulletnav import limits
+
 MAX_GOALS = 8
-"""Largest K the exact tour accepts."""
+"""Largest K the exact tour accepts by default (the ``goals`` limit of :mod:`bulletnav.limits`,
+which ``BULLETNAV_MAX_GOALS`` raises)."""
 
 
 def tour(dist: Sequence[Sequence[float]], order: str = "free") -> tuple[float, tuple[int, ...]]:
@@ -30,8 +33,9 @@ def tour(dist: Sequence[Sequence[float]], order: str = "free") -> tuple[float, t
     k = n - 1
     if order not in ("fixed", "free"):
         raise ValueError(f"order must be 'fixed' or 'free', got {order!r}")
-    if k > MAX_GOALS:
-        raise ValueError(f"an exact tour takes at most {MAX_GOALS} goals, got {k}")
+    most = max(MAX_GOALS, limits.current().goals)
+    if k > most:
+        raise ValueError(f"an exact tour takes at most {most} goals, got {k} (raise it with {limits.env_var('goals')})")
     if k <= 0:
         return 0.0, ()
     if order == "fixed":

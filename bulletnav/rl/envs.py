@@ -7,7 +7,7 @@ from typing import Any
 
 import gymnasium as gym
 
-from bulletnav import ENV_ID
+from bulletnav import ENV_ID, limits
 
 EVAL_SEED_BASE = 10_000_000
 """Evaluation during training uses seeds from here up: training only seeds its first resets
@@ -39,7 +39,15 @@ def make_env_fn(env_kwargs: dict[str, Any], env_id: str = ENV_ID, shield: bool =
 
 
 def make_env(env_id: str, env_kwargs: dict[str, Any], shield: bool = False, **make_kwargs: Any) -> gym.Env:
-    """``gym.make(env_id, **env_kwargs)``, wrapped in a :class:`~bulletnav.control.shield.ShieldWrapper` with ``shield``."""
+    """``gym.make(env_id, **env_kwargs)``, wrapped in a :class:`~bulletnav.control.shield.ShieldWrapper` with ``shield``.
+
+    Raises:
+        LimitError: a ``max_episode_steps`` (Gymnasium's ``TimeLimit``, which the env itself
+            never sees) above the ``episode_steps`` limit of :mod:`bulletnav.limits`.
+    """
+    for source in (env_kwargs, make_kwargs):
+        if source.get("max_episode_steps") is not None:
+            limits.check("episode_steps", source["max_episode_steps"], "max_episode_steps")
     env = gym.make(env_id, **env_kwargs, **make_kwargs)
     if shield:
         from bulletnav.control.shield import ShieldWrapper

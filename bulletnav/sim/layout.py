@@ -33,8 +33,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import yaml
 
+from bulletnav import limits
 from bulletnav.config import WorldConfig
-from bulletnav.errors import LayoutError
+from bulletnav.errors import LayoutError, LimitError
 from bulletnav.sim.kernels import BOX, CYLINDER, any_within, mark_levels, mark_within
 
 if TYPE_CHECKING:
@@ -246,12 +247,17 @@ def parse_layout(data: Any, where: str = "<layout>") -> Layout:
     for i, s in enumerate(size):
         if s <= 2.0:
             raise LayoutError(f"{where}: field 'size[{i}]' must be > 2 m, got {s}")
+        _limit("world_size", s, where, f"size[{i}]")
     wall_height = _positive(_num(data.get("wall_height", 2.0), where, "wall_height"), where, "wall_height")
     raw_obstacles = data.get("obstacles", [])
     if raw_obstacles is None:
         raw_obstacles = []
     if not isinstance(raw_obstacles, list):
         raise LayoutError(f"{where}: field 'obstacles' must be a list, got {type(raw_obstacles).__name__}")
+    _limit("obstacles", len(raw_obstacles), where, "obstacles (entries)")
+    for key, name in (("dynamic", "movers"), ("events", "events")):
+        if isinstance(data.get(key), list):
+            _limit(name, len(data[key]), where, f"{key} (entries)")
     obstacles = tuple(_parse_obstacle(o, where, i) for i, o in enumerate(raw_obstacles))
     hx, hy = size[0] / 2, size[1] / 2
     for i, obs in enumerate(obstacles):
@@ -281,8 +287,9 @@ def parse_layout(data: Any, where: str = "<layout>") -> Layout:
     goals: tuple[tuple[float, ...], ...] = ()
     if data.get("goals") is not None:
         raw = data["goals"]
-        if not isinstance(raw, list) or not 1 <= len(raw) <= 8:
-            raise LayoutError(f"{where}: field 'goals' must be a list of 1 to 8 [x, y] points, got {raw!r}")
+        if not isinstance(raw, list) or not raw:
+            raise LayoutError(f"{where}: field 'goals' must be a non-empty list of [x, y] points, got {raw!r}")
+        _limit("goals", len(raw), where, "goals (entries)")
         goals = tuple(_vec(g, 2, where, f"goals[{i}]") for i, g in enumerate(raw))
         for i, g in enumerate(goals):
             _check_free(layout, g, where, f"goals[{i}]")
@@ -386,6 +393,14 @@ def _parse_events(raw: Any, layout: Layout, where: str) -> tuple[EventSpec, ...]
                                   f"'add', got {label!r}; labels: {sorted(labels)}")
             out.append(EventSpec(at, remove=label))
     return tuple(sorted(out, key=lambda e: e.at))
+
+
+def _limit(name: str, value: float, where: str, field_name: str) -> None:
+    """:func:`bulletnav.limits.check` as a :class:`LayoutError` naming the file."""
+    try:
+        limits.check(name, value, f"field '{field_name}'")
+    except LimitError as exc:
+        raise LayoutError(f"{where}: {exc}") from None
 
 
 def _check_free(layout: Layout, xy: tuple[float, ...], where: str, field_name: str) -> None:

@@ -39,8 +39,8 @@ from typing import Any
 
 import yaml
 
-from bulletnav import ENV_ID
-from bulletnav.errors import ConfigError
+from bulletnav import ENV_ID, limits
+from bulletnav.errors import ConfigError, LimitError
 
 ALGOS = ("ppo", "sac", "td3", "a2c")
 DISTRIBUTIONS = ("uniform", "loguniform", "randint", "choice")
@@ -179,6 +179,11 @@ class SweepSpec:
                     raise ConfigError(f"{where}: field 'grid': {key!r} must be a non-empty list of values (got {values!r})")
                 grid[str(key)] = tuple(values)
             kw["grid"] = grid
+        trials = math.prod(len(v) for v in kw.get("grid", {}).values()) * len(kw.get("seeds", (0,)))
+        try:  # before the grid is ever expanded: 20 keys of 10 values are 10^20 configurations
+            limits.check("sweep_trials", trials, "sweep trials (grid configurations x seeds)")
+        except LimitError as exc:
+            raise ConfigError(f"{where}: field 'grid': {exc}") from None
         if data.get("search") is not None:
             if not isinstance(data["search"], dict):
                 raise bad("search", f"must map hyperparameter names to distributions ({', '.join(DISTRIBUTIONS)})")

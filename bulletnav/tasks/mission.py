@@ -18,7 +18,7 @@ The navigation task's observation, reward and rules, applied to the current targ
   visit and ``(0, 0, 0, 0)`` for one reached (the last entry is the mask).
 - **Episode length.** Truncated after ``steps_per_goal * K`` control steps (1,200 per goal).
 - **Goals** come from ``reset(options={"goals": [[x, y], ...]})`` or a YAML layout's ``goals:``
-  list (as many as the env's ``goals``, 1 to 8), or are
+  list (as many as the env's ``goals``, 1 to 8 unless ``BULLETNAV_MAX_GOALS`` raises it), or are
   sampled connected, at least ``min_goal_separation`` (1.5 m) from each other and the start,
   each leg ``min_goal_distance``-``max_goal_distance`` long (:func:`~bulletnav.sim.sampler.sample_mission`).
 """
@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from bulletnav import limits
 from bulletnav.config import EnvConfig
 from bulletnav.planning.tour import tour
 from bulletnav.sim.sampler import sample_mission
@@ -92,8 +93,9 @@ class MissionTask(NavigationTask):
             goals = [pose_option(g, 2, "goals") for g in value]
         except TypeError:
             raise ValueError(f"options['goals'] must be a list of [x, y] points, got {value!r}") from None
-        if not 1 <= len(goals) <= 8:
-            raise ValueError(f"options['goals'] must hold 1 to 8 goals, got {len(goals)}")
+        if not goals:
+            raise ValueError("options['goals'] must hold at least one goal, got none")
+        limits.check("goals", len(goals), "options['goals'] (entries)")
         if len(goals) != self.k:
             raise ValueError(f"options['goals'] has {len(goals)} goals but the env was made with goals={self.k}")
         layout = scene.layout

@@ -1,0 +1,200 @@
+"""Resource limits (bulletnav.limits): each refused just above, accepted at the limit, raised by
+its environment variable; and wired into the places values enter (env kwargs, layout files,
+sweep files, benchmark suites, mission goals)."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import fields
+
+import pytest
+import yaml
+
+from bulletnav import limits
+from bulletnav.config import CameraConfig, DynamicConfig, LidarConfig, TaskConfig, WorldConfig
+from bulletnav.errors import BulletnavError, ConfigError, LayoutError, LimitError
+from bulletnav.limits import Limits, env_var
+
+D = Limits()
+
+CASES = {
+    # limit -> (build with value v, the field as the message names it, a value just above the limit)
+    "world_size": (lambda v: WorldConfig(size=(v, 10.0)), "world size (x)", D.world_size + 0.5),
+    "obstacles": (lambda v: WorldConfig(num_obstacles=v), "world num_obstacles", D.obstacles + 1),
+    "movers": (lambda v: DynamicConfig(forklifts=(0, v // 2), workers=(0, v - v // 2)), "dynamic forklifts + workers",
+               D.movers + 1),
+    "events": (lambda v: DynamicConfig(event_pallets=v), "dynamic event_pallets", D.events + 1),
+    "event_rate": (lambda v: DynamicConfig(pallet_events_per_min=v), "dynamic pallet_events_per_min",
+                   D.event_rate + 0.5),
+    "lidar_rays": (lambda v: LidarConfig(num_rays=v), "lidar num_rays", D.lidar_rays + 1),
+    "camera_width": (lambda v: CameraConfig(width=v, height=16), "camera width", D.camera_width + 1),
+    "camera_height": (lambda v: CameraConfig(width=16, height=v), "camera height", D.camera_height + 1),
+    "camera_pixels": (lambda v: CameraConfig(width=4096, height=v // 4096), "camera pixels (4096 x",
+                      D.camera_pixels + 4096),
+    "episode_steps": (lambda v: TaskConfig(steps_per_goal=v), "task steps_per_goal x goals", D.episode_steps + 1),
+    "goals": (lambda v: TaskConfig(goals=v, steps_per_goal=100), "task goals", D.goals + 1),
+    "sweep_trials": (lambda v: _sweep(v), "sweep trials (grid configurations x seeds)", D.sweep_trials + 1),
+}
+
+
+def _sweep(trials: int):
+    from bulletnav.sweep.spec import SweepSpec
+
+    # trials = 10 configurations x seeds; the grid is never expanded by the check
+    return SweepSpec.from_dict({"algo": "ppo", "grid": {"learning_rate": list(range(10))},
+                                "seeds": list(range(trials // 10 + (trials % 10 > 0)))})
+
+
+def test_every_limit_has_a_case_and_a_documented_row():
+    names = [f.name for f in fields(Limits)]
+    assert sorted(CASES) == sorted(names)
+    page = open("docs/limits.md").read()
+    for name in names:
+        assert f"`{env_var(name)}`" in page, name
+        assert f"`{name}`" in page, name
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_accepted_at_the_limit(name):
+    build, _, _ = CASES[name]
+    build(getattr(D, name))
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_refused_just_above_with_field_value_limit_and_variable(name):
+    build, what, above = CASES[name]
+    with pytest.raises((LimitError, ConfigError)) as err:
+        build(above)
+    message = str(err.value)
+    assert isinstance(err.value, BulletnavError) and isinstance(err.value, ValueError)
+    assert what in message
+    assert f"exceeds the limit {getattr(D, name)} (raise it with {env_var(name)})" in message
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_raised_by_its_environment_variable(name, monkeypatch):
+    build, _, above = CASES[name]
+    monkeypatch.setenv(env_var(name), str(above * 2 if name != "camera_pixels" else above))
+    assert getattr(limits.current(), name) == type(getattr(D, name))(above * 2 if name != "camera_pixels" else above)
+    build(above)
+    monkeypatch.delenv(env_var(name))
+    with pytest.raises((LimitError, ConfigError)):
+        build(above)
+
+
+def test_lowered_by_its_environment_variable(monkeypatch):
+    monkeypatch.setenv("BULLETNAV_MAX_LIDAR_RAYS", "36")
+    LidarConfig(num_rays=36)
+    with pytest.raises(LimitError, match=r"^lidar num_rays = 37 exceeds the limit 36 \(raise it with BULLETNAV_MAX_LIDAR_RAYS\)$"):
+        LidarConfig(num_rays=37)
+
+
+@pytest.mark.parametrize("raw", ["many", "-5", "0", "1.5", "nan", "inf"])
+def test_a_bad_variable_is_named(raw, monkeypatch):
+    monkeypatch.setenv("BULLETNAV_MAX_LIDAR_RAYS", raw)
+    with pytest.raises(LimitError, match=f"BULLETNAV_MAX_LIDAR_RAYS={raw!r} must be a positive integer"):
+        LidarConfig(num_rays=36)
+
+
+def test_env_kwargs_are_checked_before_a_world_is_built(monkeypatch):
+    import gymnasium as gym
+
+    import bulletnav  # noqa: F401
+    from bulletnav.envs import scene
+
+    def no_scene(*args, **kwargs):
+        raise AssertionError("a scene was built")
+
+    monkeypatch.setattr(scene.Scene, "__init__", no_scene)
+    for kwargs, what in [({"lidar_rays": 10_000_000}, "lidar num_rays = 10000000 exceeds the limit 4096"),
+                         ({"world_size": (10_000.0, 10_000.0)}, "world size (x) = 10000.0 exceeds the limit 200.0"),
+                         ({"num_obstacles": 100_000}, "world num_obstacles = 100000 exceeds the limit 1000"),
+                         ({"forklifts": 50, "workers": 50}, "dynamic forklifts + workers (50 + 50) = 100"),
+                         ({"task_name": "mission", "goals": 20}, "task goals = 20 exceeds the limit 8")]:
+        with pytest.raises(LimitError, match=re.escape(what)):
+            gym.make("bulletnav/Warehouse-v0", **kwargs)
+
+
+def test_max_episode_steps_through_make_env():
+    from bulletnav.rl.envs import make_env
+
+    with pytest.raises(LimitError, match=r"max_episode_steps = 1000000 exceeds the limit 100000 "
+                                         r"\(raise it with BULLETNAV_MAX_EPISODE_STEPS\)"):
+        make_env("bulletnav/Warehouse-v0", {"max_episode_steps": 1_000_000})
+
+
+BOX = {"type": "box", "center": [0.0, 0.0], "size": [0.2, 0.2, 0.5]}
+
+
+@pytest.mark.parametrize("data, what", [
+    ({"size": [10_000.0, 10.0], "obstacles": []}, "field 'size[0]' = 10000.0 exceeds the limit 200.0"),
+    ({"size": [10.0, 10.0], "obstacles": [BOX] * (D.obstacles + 1)}, "field 'obstacles (entries)' = 1001"),
+    ({"size": [10.0, 10.0], "dynamic": [{"type": "worker", "waypoints": [[1, 1], [2, 2]]}] * (D.movers + 1)},
+     "field 'dynamic (entries)' = 65 exceeds the limit 64 (raise it with BULLETNAV_MAX_MOVERS)"),
+    ({"size": [10.0, 10.0], "events": [{"at": 1.0, "add": BOX}] * (D.events + 1)},
+     "field 'events (entries)' = 1001 exceeds the limit 1000"),
+    ({"size": [10.0, 10.0], "goals": [[1.0, 1.0]] * (D.goals + 1)}, "field 'goals (entries)' = 9 exceeds the limit 8"),
+])
+def test_layout_files_name_file_field_and_limit(tmp_path, data, what):
+    from bulletnav.sim.layout import load_layout
+
+    path = tmp_path / "big.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(LayoutError) as err:
+        load_layout(path)
+    assert str(err.value).startswith(f"{path}: ")
+    assert what in str(err.value)
+
+
+def test_layout_at_the_limits_loads(tmp_path):
+    from bulletnav.sim.layout import load_layout
+
+    data = {"size": [D.world_size, 10.0], "obstacles": [BOX] * D.obstacles,
+            "dynamic": [{"type": "worker", "waypoints": [[1, 1], [2, 2]]}] * D.movers,
+            "events": [{"at": 1.0, "add": {**BOX, "center": [3.0, 3.0]}}] * D.events, "goals": [[1.0, 1.0]] * D.goals}
+    path = tmp_path / "big.yaml"
+    path.write_text(yaml.safe_dump(data))
+    layout = load_layout(path)
+    assert (len(layout.obstacles), len(layout.dynamic), len(layout.events), len(layout.goals)) == \
+        (D.obstacles, D.movers, D.events, D.goals)
+
+
+def test_benchmark_suite_world_kwargs(tmp_path):
+    from bulletnav.benchmark.suite import SuiteError, parse_suite
+
+    def suite(**kwargs):
+        return {"worlds": [{"env": "bulletnav/Warehouse-v0", "kwargs": kwargs}], "controllers": [{"type": "navigator"}]}
+
+    parse_suite(suite(num_obstacles=D.obstacles, goals=D.goals), "s.yaml")
+    with pytest.raises(SuiteError, match=r"s.yaml: field 'worlds\[0\].kwargs.num_obstacles' = 1001 exceeds the limit"):
+        parse_suite(suite(num_obstacles=D.obstacles + 1), "s.yaml")
+    with pytest.raises(SuiteError, match=r"field 'worlds\[0\].kwargs.goals' = 9 exceeds the limit 8"):
+        parse_suite(suite(goals=9), "s.yaml")
+    with pytest.raises(SuiteError, match=r"field 'worlds\[0\].kwargs.num_obstacles' must be an integer"):
+        parse_suite(suite(num_obstacles="many"), "s.yaml")
+
+
+def test_sweep_grid_is_refused_before_it_is_expanded():
+    from bulletnav.sweep.spec import SweepSpec
+
+    grid = {f"k{i}": list(range(10)) for i in range(20)}  # 10^20 configurations
+    with pytest.raises(ConfigError, match=r"sweep: field 'grid': sweep trials .* = 100000000000000000000 exceeds"):
+        SweepSpec.from_dict({"algo": "ppo", "grid": grid})
+
+
+def test_mission_goals_option(monkeypatch):
+    from bulletnav.tasks.mission import MissionTask
+
+    task = MissionTask.__new__(MissionTask)
+    with pytest.raises(LimitError, match=r"options\['goals'\] \(entries\) = 9 exceeds the limit 8"):
+        task._goal_option([[0.0, 0.0]] * 9, None)
+
+
+def test_tour_follows_the_goals_limit(monkeypatch):
+    from bulletnav.planning.tour import tour
+
+    dist = [[abs(i - j) for j in range(11)] for i in range(11)]  # 10 goals
+    with pytest.raises(ValueError, match="at most 8 goals, got 10 .raise it with BULLETNAV_MAX_GOALS"):
+        tour(dist)
+    monkeypatch.setenv("BULLETNAV_MAX_GOALS", "10")
+    assert tour(dist)[1] == tuple(range(1, 11))
