@@ -230,6 +230,13 @@ def kwargs_from_json(d: Any, what: str) -> dict[str, Any]:
 
 
 def _kwargs_from_zip(entry: dict[str, Any], what: str) -> dict[str, Any]:
+    try:
+        names, _ = pickle_globals(entry[":serialized:"])
+    except (ValueError, TypeError, KeyError) as exc:
+        raise UnsafeModelError(f"{what}: unreadable serialized entry ({exc})") from None
+    if entry.get(":type:") != "<class 'dict'>" or not set(names) <= KWARG_CLASSES:
+        odd = sorted(set(names) - KWARG_CLASSES) or [entry.get(":type:")]
+        raise UnsafeModelError(f"{what} is a pickle referencing {', '.join(map(str, odd))}, not a mapping of allowed classes")
     out: dict[str, Any] = {}
     for k, v in entry.items():
         if k in (":type:", ":serialized:"):
@@ -594,20 +601,49 @@ def convert_model(path: Path, trust_pickle: bool = False) -> dict[str, Any]:
     """Write the safe format beside an SB3 zip: ``NAME.safetensors``, the sidecar ``NAME.json``
     with its ``policy`` and ``normalization`` blocks, and ``NAME_vecnormalize.json``.
 
-    The zip is read without unpickling (unless ``trust_pickle``); a ``NAME_vecnormalize.pkl``
-    is read only with ``trust_pickle``. Returns the new sidecar.
+    The zip itself is the source (not safe files already beside it), read without unpickling
+    unless ``trust_pickle``; statistics come from ``NAME_vecnormalize.pkl`` when it exists and
+    ``trust_pickle`` is on, else from JSON / ``.npz``. Returns the new sidecar.
+
+    Raises:
+        UnsafeModelError: the zip or the statistics can only be read by unpickling, untrusted.
     """
-    from bulletnav.rl.algos import algo_class
-    from bulletnav.rl.io import atomic_write_json, load_model, sidecar_path
+    from bulletnav.rl.io import _guess_algo, atomic_write_json, sidecar_path
 
     path = Path(path)
-    model, meta, _ = load_model(path, trust_pickle=trust_pickle)
+    if not zipfile.is_zipfile(path):
+        raise ModelError(f"{path}: not a model archive (not a zip file)")
+    side = sidecar_path(path)
+    try:
+        meta = json.loads(side.read_text()) if side.is_file() else {}
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ModelError(f"{side}: model metadata is not valid JSON ({exc})") from None
+    if not isinstance(meta, dict):
+        raise ModelError(f"{side}: model metadata must be a JSON object")
     meta = {k: v for k, v in meta.items() if k not in ("format", "policy", "normalization")}
-    stats = load_stats(path, {}, trust_pickle=trust_pickle)
+    from bulletnav.rl.algos import ALGOS, algo_class
+
+    algo = meta.get("algo") or _guess_algo(read_zip_data(path))
+    if algo not in ALGOS:
+        raise ModelError(f"{path}: cannot tell the algorithm; write {side.name} with \"algo\" first")
+    try:
+        model = load_zip(path, algo_class(algo), trust_pickle=trust_pickle)
+    except ModelError:
+        raise
+    except Exception as exc:  # SB3 and torch raise many kinds on a broken archive
+        raise ModelError(f"{path}: cannot load as {algo.upper()} ({type(exc).__name__}: {str(exc)[:300]})") from None
+    pkl = stats_path(path, ".pkl")
+    stats = load_stats(path, {}, trust_pickle=True) if (pkl.is_file() and trust_pickle) else None
+    if stats is None:
+        for candidate in (stats_path(path), stats_path(path, ".npz")):
+            if candidate.is_file():
+                stats = load_stats(path, {}, trust_pickle=False)
+                break
+        else:
+            if pkl.is_file():
+                stats = load_stats(path, {}, trust_pickle=False)  # raises: only a pickle holds them
     if stats is not None and not isinstance(stats, dict):
         stats = stats_to_json(stats)  # the trusted pickle, now numbers
-    if not isinstance(model, algo_class(type(model).__name__.lower())):
-        raise ModelError(f"{path}: not a model of a known algorithm")
     new = save_safe(model, path, None, meta)
     new["normalization"] = stats
     if stats is not None:
