@@ -1,0 +1,293 @@
+"""The multi-robot fleet (``bulletnav.fleet``): PettingZoo API, spaces equal to the single-robot
+env's, determinism, the lidar seeing other robots, collisions, errands, bad arguments, and a
+shipped single-robot policy running zero-shot on every robot."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import yaml
+from pettingzoo.test import api_test, parallel_api_test
+
+import bulletnav  # noqa: F401 (registers the single-robot ids)
+from bulletnav.errors import BulletnavError, ConfigError, SamplingError
+from bulletnav.fleet import fleet_v0
+
+ROOT = Path(__file__).resolve().parent.parent
+EMPTY = str(ROOT / "bulletnav" / "assets" / "worlds" / "empty.yaml")
+ROOM_STATIONS = {"pick_stations": [(2.0, 3.0), (-2.0, 3.0)], "drop_stations": [(3.0, -3.5), (-3.0, -3.5)]}
+"""Stations for the empty 10 x 10 m room (it has no racks to derive them from)."""
+
+
+@pytest.fixture
+def room(tmp_path):
+    """A 10 x 8 m room with one rack and its stations named in the file."""
+    path = tmp_path / "room.yaml"
+    path.write_text(yaml.safe_dump({
+        "name": "room", "size": [10.0, 8.0],
+        "obstacles": [{"type": "box", "center": [0.0, 2.0], "size": [4.0, 1.0, 2.0], "label": "rack"}],
+        "stations": {"pick": [[0.0, 0.9], [1.5, 3.1]], "drop": [[-4.0, -3.0], [4.0, -3.0]]},
+    }))
+    return str(path)
+
+
+def _zero(env):
+    return {a: np.zeros(2, dtype=np.float32) for a in env.agents}
+
+
+def _teleport(env, index, pose):
+    env._scene.robots[index].reset_pose(pose)  # test-only reach into the scene
+
+
+# ------------------------------------------------------------------ PettingZoo API
+def test_parallel_api():
+    env = fleet_v0.parallel_env(num_robots=2, duration_s=2.0)
+    try:
+        parallel_api_test(env, num_cycles=60)  # 48 steps: the episode ends inside the test
+    finally:
+        env.close()
+
+
+def test_aec_api():
+    env = fleet_v0.env(num_robots=2, duration_s=1.0)
+    try:
+        api_test(env, num_cycles=30)
+    finally:
+        env.close()
+
+
+def test_agents_and_truncation_together():
+    env = fleet_v0.parallel_env(num_robots=3, duration_s=0.5)
+    obs, infos = env.reset(seed=3)
+    assert env.agents == ["robot_0", "robot_1", "robot_2"] and set(obs) == set(infos) == set(env.agents)
+    steps = 0
+    while env.agents:
+        obs, rewards, terms, truncs, infos = env.step(_zero(env))
+        steps += 1
+        assert not any(terms.values())
+        assert len(set(truncs.values())) == 1  # all together
+    assert steps == 12 and all(truncs.values())  # 0.5 s at 24 Hz
+    env.close()
+
+
+# ------------------------------------------------------------------ spaces
+@pytest.mark.parametrize("kwargs, single_id", [
+    ({}, "bulletnav/WarehouseAisles-v0"),
+    ({"guidance": "floorplan", "normalize_actions": True, "lidar_rays": 24}, "bulletnav/WarehouseAisles-v0"),
+])
+def test_spaces_equal_single_robot(kwargs, single_id):
+    single = gym.make(single_id, **kwargs)
+    env = fleet_v0.parallel_env(num_robots=2, duration_s=1.0, **kwargs)
+    try:
+        for agent in env.possible_agents:
+            assert env.observation_space(agent) == single.observation_space
+            assert env.action_space(agent) == single.action_space
+        obs, _ = env.reset(seed=1)
+        assert all(single.observation_space.contains(o) for o in obs.values())
+    finally:
+        env.close()
+        single.close()
+
+
+# ------------------------------------------------------------------ determinism
+def rollout_hash(seed: int = 7, steps: int = 48) -> str:
+    """SHA-256 of every observation, reward and info of a seeded dynamic 3-robot rollout."""
+    env = fleet_v0.parallel_env(num_robots=3, duration_s=steps / 24, dynamic=True)
+    actions = np.random.default_rng(seed).uniform([0.0, -1.5], [0.5, 1.5], (steps, 3, 2)).astype(np.float32)
+    h = hashlib.sha256()
+
+    def feed(obs, infos, rewards=None):
+        for a in sorted(obs):
+            h.update(obs[a].tobytes())
+            h.update(json.dumps(infos[a], sort_keys=True, default=lambda x: np.asarray(x).tolist()).encode())
+            if rewards is not None:
+                h.update(repr(rewards[a]).encode())
+
+    obs, infos = env.reset(seed=seed)
+    feed(obs, infos)
+    for t in range(steps):
+        obs, rewards, _, _, infos = env.step({a: actions[t, i] for i, a in enumerate(env.possible_agents)})
+        feed(obs, infos, rewards)
+    env.close()
+    return h.hexdigest()
+
+
+def test_same_seed_same_episode_here_and_in_a_fresh_process():
+    first = rollout_hash()
+    assert rollout_hash() == first
+    code = f"import sys; sys.path.insert(0, {str(ROOT / 'tests')!r}); from test_fleet import rollout_hash; print(rollout_hash())"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
+    assert out.stdout.strip().splitlines()[-1] == first
+    assert rollout_hash(seed=8) != first
+
+
+# ------------------------------------------------------------------ lidar
+def test_lidar_sees_other_robot_not_itself():
+    env = fleet_v0.parallel_env(num_robots=2, world=EMPTY, **ROOM_STATIONS)
+    try:
+        env.reset(seed=0)
+        scene = env._scene
+        geometry = scene.geometry
+        back = min(r.cx - r.half_x for r in geometry.rectangles)   # rear face of the body (m, body frame)
+        front = max(r.cx + r.half_x for r in geometry.rectangles)
+        _teleport(env, 0, (-2.0, 0.0, 0.0))
+        _teleport(env, 1, (0.0, 0.0, 0.0))
+        env.step(_zero(env))
+        r0, r1 = scene.robots[0].state, scene.robots[1].state
+        lidar0, lidar1 = scene.sensors[0].lidar, scene.sensors[1].lidar
+        ahead = float(lidar0.read()[0])  # ray 0: straight ahead
+        expected = (r1.x + back) - lidar0.origin()[0]
+        assert abs(ahead - expected) < 0.015, (ahead, expected)
+        behind = int(np.argmin(np.abs(np.abs(lidar1.angles) - math.pi)))  # robot 1 looks back at robot 0
+        expected_back = lidar1.origin()[0] - (r0.x + front)
+        assert abs(float(lidar1.read()[behind]) - expected_back) < 0.015
+        # alone in the open: no ray of either robot hits its own body
+        _teleport(env, 1, (3.0, 3.0, 0.0))
+        env.step(_zero(env))
+        assert float(scene.sensors[0].lidar.read().min()) > 2.5  # walls >= 3 m away, robot 1 out of the way
+    finally:
+        env.close()
+
+
+# ------------------------------------------------------------------ collisions
+def test_robot_robot_collision_stops_both_and_episode_goes_on():
+    env = fleet_v0.parallel_env(num_robots=2, world=EMPTY, collision_penalty_s=1.0, duration_s=6.0, **ROOM_STATIONS)
+    try:
+        env.reset(seed=0)
+        _teleport(env, 0, (-0.6, -1.0, 0.0))
+        _teleport(env, 1, (0.6, -1.0, math.pi))
+        forward = {a: np.array([0.5, 0.0], dtype=np.float32) for a in env.possible_agents}
+        hit_at = None
+        for t in range(72):
+            _, rewards, terms, truncs, infos = env.step(forward)
+            if infos["robot_0"]["collisions_robot"]:
+                hit_at = t
+                break
+        assert hit_at is not None, "the robots never met"
+        for a in env.possible_agents:
+            assert infos[a]["collisions_robot"] == 1 and infos[a]["collision_with"] == "robot"
+            assert infos[a]["reward_collision"] == env.config.task.reward.collision
+            assert infos[a]["collisions_static"] == infos[a]["collisions_mover"] == infos[a]["collisions_person"] == 0
+            assert infos[a]["stopped_s"] == pytest.approx(1.0)
+        poses = [infos[a]["pose"].copy() for a in env.possible_agents]
+        for _ in range(24):  # 1 s of penalty: the actions (full speed ahead) are ignored
+            _, _, terms, truncs, infos = env.step(forward)
+            assert not any(terms.values()) and not any(truncs.values())
+        for a, before in zip(env.possible_agents, poses):
+            assert np.hypot(*(infos[a]["pose"][:2] - before[:2])) < 0.02
+            assert infos[a]["stopped_s"] == 0.0 and infos[a]["collisions_robot"] == 1  # touching still: not counted again
+        turn = {a: np.array([0.0, 1.5], dtype=np.float32) for a in env.possible_agents}
+        _, _, _, _, infos = env.step(turn)
+        assert env.agents == env.possible_agents  # the episode goes on
+    finally:
+        env.close()
+
+
+# ------------------------------------------------------------------ errands
+def test_errand_completes_pick_then_drop_and_next_is_assigned(room):
+    env = fleet_v0.parallel_env(num_robots=2, world=room)
+    try:
+        _, infos = env.reset(seed=2)
+        assert env.stations.pick == ((0.0, 0.9), (1.5, 3.1)) and env.stations.dock_wall == "named"
+        errand = infos["robot_0"]["errand"]
+        assert errand["leg"] == "pick" and infos["robot_0"]["goal"] == errand["pick"]
+        _teleport(env, 0, (*errand["pick"], 0.0))
+        _, rewards, _, _, infos = env.step(_zero(env))
+        info = infos["robot_0"]
+        assert info["legs_completed"] == 1 and info["errands_completed"] == 0
+        assert info["errand"]["leg"] == "drop" and info["errand"]["id"] == errand["id"]
+        assert info["goal"] == errand["drop"] and info["reward_goal"] == env.config.task.reward.goal
+        _teleport(env, 0, (*errand["drop"], 0.0))
+        _, _, _, _, infos = env.step(_zero(env))
+        info = infos["robot_0"]
+        assert info["errands_completed"] == 1 and info["legs_completed"] == 2
+        assert info["errand"]["leg"] == "pick" and info["errand"]["id"] == 2  # errands 0 and 1 went out at reset
+        assert info["goal"] == info["errand"]["pick"] and info["goal"] in env.stations.pick
+        assert infos["robot_1"]["errands_completed"] == 0
+    finally:
+        env.close()
+
+
+def test_stations_derived_from_an_aisle_warehouse():
+    env = fleet_v0.parallel_env(num_robots=4, duration_s=1.0)
+    try:
+        _, infos = env.reset(seed=5)
+        st = env.stations
+        assert len(st.pick) >= 8 and len(st.drop) >= 3
+        free = env._scene.free_space
+        layout = env._scene.layout
+        for pt in (*st.pick, *st.drop):
+            assert free.reachable(st.pick[0], pt)
+            assert float(layout.clearance(np.array(pt[0]), np.array(pt[1]))) > env.config.sampler.clearance
+        poses = [infos[a]["pose"] for a in env.possible_agents]
+        for i in range(4):
+            assert free.reachable(tuple(poses[i][:2]), infos[f"robot_{i}"]["goal"])
+            for j in range(i):
+                assert np.hypot(*(poses[i][:2] - poses[j][:2])) >= 2 * env._scene.geometry.radius + 0.3 - 1e-9
+    finally:
+        env.close()
+
+
+# ------------------------------------------------------------------ bad arguments
+@pytest.mark.parametrize("n", [0, 17, 2.5])
+def test_num_robots_out_of_range(n):
+    with pytest.raises(ConfigError, match="num_robots"):
+        fleet_v0.parallel_env(num_robots=n)
+
+
+def test_more_robots_than_fit(tmp_path):
+    path = tmp_path / "closet.yaml"
+    path.write_text(yaml.safe_dump({"size": [3.0, 3.0], "obstacles": []}))
+    env = fleet_v0.parallel_env(num_robots=16, world=str(path), pick_stations=[(0.5, 0.5)], drop_stations=[(-0.5, -0.5)])
+    try:
+        with pytest.raises(SamplingError, match="num_robots=16"):
+            env.reset(seed=0)
+    finally:
+        env.close()
+
+
+def test_world_without_stations():
+    env = fleet_v0.parallel_env(num_robots=2, world=EMPTY)
+    try:
+        with pytest.raises(ConfigError, match="no pick stations"):
+            env.reset(seed=0)
+    finally:
+        env.close()
+    env = fleet_v0.parallel_env(num_robots=2, world=EMPTY, pick_stations=[(0.0, 0.0)], drop_stations=[(0.0, 4.9)])
+    try:
+        with pytest.raises(ConfigError, match="drop_stations"):  # 0.1 m from the wall: not free floor
+            env.reset(seed=0)
+    finally:
+        env.close()
+    with pytest.raises(BulletnavError, match="task_name"):
+        fleet_v0.parallel_env(num_robots=2, task_name="mission")
+
+
+# ------------------------------------------------------------------ zero-shot single-robot policy
+def test_shipped_dynamic_policy_runs_on_every_robot():
+    from bulletnav.rl.io import load_model
+    from bulletnav.rl.policy import SB3Policy
+
+    model, meta, normalizer = load_model(ROOT / "models" / "ppo_dynamic.zip")
+    kwargs = {k: v for k, v in meta["env_kwargs"].items() if k not in ("collision_terminates", "layouts_every")}
+    env = fleet_v0.parallel_env(num_robots=3, duration_s=1.0, dynamic=True, **kwargs)
+    try:
+        assert env.observation_space("robot_0") == model.observation_space
+        policy = SB3Policy(model, normalizer)
+        obs, infos = env.reset(seed=11)
+        policy.reset(infos["robot_0"])
+        while env.agents:
+            actions = {a: policy.act(obs[a], infos[a]) for a in env.agents}
+            obs, rewards, _, _, infos = env.step(actions)
+            assert all(np.isfinite(r) for r in rewards.values())
+        assert all(info["path_length"] > 0.0 for info in infos.values())
+    finally:
+        env.close()
