@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import fields
 from typing import Any
@@ -166,12 +165,12 @@ class FleetEnv(ParallelEnv):
         self._stream: ErrandStream | None = None
 
     # ------------------------------------------------------------------ spaces
-    @functools.lru_cache(maxsize=None)  # noqa: B019 (one env per cache entry; PettingZoo wants the same object back)
     def observation_space(self, agent: str) -> spaces.Space:
+        """The agent's observation space (the same object at every call, as PettingZoo asks)."""
         return self._observation_spaces[agent]
 
-    @functools.lru_cache(maxsize=None)  # noqa: B019
     def action_space(self, agent: str) -> spaces.Space:
+        """The agent's action space (the same object at every call)."""
         return self._action_spaces[agent]
 
     @property
@@ -181,6 +180,8 @@ class FleetEnv(ParallelEnv):
 
     # ------------------------------------------------------------------ API
     def reset(self, seed: int | None = None, options: dict[str, Any] | None = None):
+        """Start an episode (``options`` are accepted and ignored). A seeded reset draws a new
+        layout and rebuilds the physics scene, so it is bit-identical whatever came before."""
         if seed is not None or self._np_random is None:
             self._np_random, _ = seeding.np_random(seed)
         rng = self._np_random
@@ -222,6 +223,8 @@ class FleetEnv(ParallelEnv):
         return obs, infos
 
     def step(self, actions: dict[str, Any]):
+        """Advance every robot one control period. A robot without an action (or None) stops;
+        a robot serving a collision penalty ignores its action."""
         if not self.agents:
             raise RuntimeError("the fleet episode is over: call reset()")
         scene, n = self._scene, self.fleet_config.num_robots

@@ -17,8 +17,8 @@ import numpy as np
 import pybullet as p
 
 from bulletnav.config import EnvConfig
-from bulletnav.geometry import RobotGeometry, robot_geometry
 from bulletnav.fleet.lidar import FIRST_ROBOT_BIT, FleetLidar, robot_group
+from bulletnav.geometry import RobotGeometry, robot_geometry
 from bulletnav.planning.grid import OccupancyGrid
 from bulletnav.sensors.camera import Camera
 from bulletnav.sensors.imu import Imu
@@ -37,8 +37,6 @@ from bulletnav.sim.world import World
 KINDS = ("static", "mover", "person", "robot")
 """What a robot can collide with: walls and obstacles (pallet events included), forklifts,
 walking workers, other robots."""
-_PRIORITY = ("person", "robot", "mover", "static")
-"""When one step brings new contacts of several kinds, the collision counts as the first of these."""
 _ALL_BITS = 0x7FFFFFFF  # every collision-filter group (robots collide with each other and with everything else)
 
 
