@@ -17,13 +17,88 @@ DEFAULT_ENV_ID = "bulletnav/Warehouse-v0"
 """The env every subcommand uses unless ``--env`` names another."""
 
 
-def _add_env_arg(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--env", dest="env_id", default=DEFAULT_ENV_ID, metavar="ID",
-                        help=f"registered bulletnav env id, e.g. bulletnav/WarehouseAisles-v0 (default {DEFAULT_ENV_ID})")
+class _Parser(argparse.ArgumentParser):
+    """Usage errors as one line, ``bulletnav CMD: error: ...`` (exit 2), like the library's errors."""
+
+    def error(self, message: str):  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _int_type(minimum: int, maximum: int | None = None, what: str = "a whole number"):
+    """An argparse type: an integer in ``[minimum, maximum]``, else one line naming the value and what is allowed."""
+    allowed = f"{what} from {minimum} to {maximum}" if maximum is not None else f"{what} >= {minimum}"
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {allowed}, got {text!r}") from None
+        if value < minimum or (maximum is not None and value > maximum):
+            raise argparse.ArgumentTypeError(f"expected {allowed}, got {value}")
+        return value
+
+    parse.__name__ = "int"  # argparse's fallback message names the type
+    return parse
+
+
+COUNT = _int_type(1)
+"""Episodes, envs, workers, rounds, resets, frequencies: at least 1."""
+NON_NEGATIVE = _int_type(0)
+"""Seeds, obstacle counts, indices, and counts where 0 means "none" or "the default"."""
+SEED = _int_type(0, 2**32 - 1, "a seed, a whole number")
+
+
+def _positive_seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds > 0, got {text!r}") from None
+    if not 0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected seconds > 0, got {text!r}")
+    return value
+
+
+def _file_type(suffixes: tuple[str, ...], what: str):
+    """An argparse type: a file path ending in one of ``suffixes`` (checked before anything runs)."""
+
+    def parse(text: str) -> str:
+        from pathlib import Path
+
+        suffix = Path(text).suffix.lower()
+        if suffix not in suffixes:
+            raise argparse.ArgumentTypeError(f"{text!r}: {what} is written as {' or '.join(suffixes)}, "
+                                             f"not {suffix or 'a name without a suffix'!r}")
+        return text
+
+    parse.__name__ = "path"
+    return parse
+
+
+VIDEO_FILE = _file_type((".mp4", ".gif"), "a video")
+PNG_FILE = _file_type((".png",), "a plot")
+
+
+class _EnvIdAction(argparse.Action):
+    """``--env ID``; also records that it was given (``env_given``), so a model's own env can be the default."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        setattr(namespace, self.dest, values)
+        namespace.env_given = True
+
+
+def _add_env_arg(parser: argparse.ArgumentParser, default_help: str = DEFAULT_ENV_ID) -> None:
+    parser.add_argument("--env", dest="env_id", default=DEFAULT_ENV_ID, metavar="ID", action=_EnvIdAction,
+                        help=f"registered bulletnav env id, e.g. bulletnav/WarehouseAisles-v0 (default {default_help})")
+    parser.set_defaults(env_given=False)
+
+
+def _add_overwrite_arg(parser: argparse.ArgumentParser, what: str) -> None:
+    parser.add_argument("--overwrite", action="store_true",
+                        help=f"replace {what} that already exist (default: refuse, so one run never replaces another's)")
 
 
 def _add_obstacles_arg(parser: argparse.ArgumentParser, default: str = "the env's; 31 on Warehouse-v0") -> None:
-    parser.add_argument("--obstacles", type=int, default=None, metavar="K",
+    parser.add_argument("--obstacles", type=NON_NEGATIVE, default=None, metavar="K",
                         help=f"obstacles in a procedural warehouse (default: {default})")
 
 
@@ -51,7 +126,7 @@ def _add_world_args(parser: argparse.ArgumentParser) -> None:
     _add_env_arg(parser)
     parser.add_argument("--world", metavar="FILE", help="YAML layout (default: procedural warehouse)")
     _add_obstacles_arg(parser)
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--seed", type=SEED, default=0, help="random seed (default 0)")
 
 
 def bulletnav_env_ids() -> list[str]:
@@ -91,7 +166,7 @@ def _world_kwargs(args: argparse.Namespace, obstacles: int | None = None) -> dic
 
 
 def _add_mission_args(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--goals", type=int, default=None, metavar="K",
+    parser.add_argument("--goals", type=COUNT, default=None, metavar="K",
                         help="a mission of K goals (1-8) on any env (default: the env's own task)")
     parser.add_argument("--order", choices=["fixed", "free"], default=None,
                         help="mission goal order: fixed (as given) or free (any; default free)")
@@ -332,9 +407,15 @@ class _Visuals:
         if self.log is not None:
             self.log.on_episode(result)
 
-    def close(self, title: str = "") -> list[str]:
+    def close(self, title: str = "", ok: bool = True) -> list[str]:
+        """Finish the video and write the plot; when the episodes did not finish (``ok`` off),
+        drop the unfinished video and write nothing."""
         from bulletnav.viz import plot_trajectories
 
+        if not ok:
+            if self.recorder is not None:
+                self.recorder.abort()
+            return []
         written = []
         if self.recorder is not None:
             self.recorder.close()
@@ -361,12 +442,16 @@ def _run_with_visuals(args, env, policy, line, title: str):
         visuals.on_episode(r)
         line(r)
 
+    ok = False
     try:
         results = run_episodes(env, policy, args.episodes, args.seed, on_episode=on_episode,
                                on_step=visuals.on_step, on_reset=on_reset)
+        ok = True
     finally:
-        written = visuals.close(title)
-        env.close()
+        try:
+            written = visuals.close(title, ok)
+        finally:
+            env.close()
     return results, written, (sizes[0] if sizes else None)
 
 
@@ -378,11 +463,31 @@ def _fmt(x: float, spec: str = ".2f") -> str:
     return "n/a" if x != x else format(x, spec)  # NaN when nothing to average
 
 
+def _holds_run(path) -> bool:
+    """Whether ``path`` is there and not an empty folder (it then holds another run's outputs)."""
+    from pathlib import Path
+
+    path = Path(path)
+    return path.exists() and (not path.is_dir() or any(path.iterdir()))
+
+
+def _refuse_existing_files(args: argparse.Namespace, *options: str) -> None:
+    """Output files (``--video``, ``--plot``) that exist already are refused unless ``--overwrite``."""
+    from pathlib import Path
+
+    for option in options:
+        value = getattr(args, option, None)
+        if value and Path(value).exists() and not getattr(args, "overwrite", False):
+            raise BulletnavError(f"--{option} {value}: the file already exists (another run's?); pass --overwrite "
+                                 "to replace it, or choose another name")
+
+
 def cmd_navigate(args: argparse.Namespace) -> int:
     """Classical navigation (PID, optionally with A* or RRT) scored on env episodes."""
     from bulletnav.control.navigator import Navigator, NavigatorConfig
     from bulletnav.evaluation import summarize
 
+    _refuse_existing_files(args, "video", "plot")
     env = _shielded(args, _make_env(args))
     nav = Navigator(env.unwrapped.scene, NavigatorConfig(planner=args.planner, pose_source=args.pose))
 
@@ -422,19 +527,59 @@ def cmd_navigate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _rollout_note(args: argparse.Namespace) -> str | None:
+    """The steps ``train`` will really take when ``--timesteps`` is not a whole number of rollouts.
+
+    SB3 learns in whole rollouts: PPO and A2C collect ``n_steps`` x ``n_envs`` steps each, SAC and
+    TD3 ``train_freq`` x ``n_envs``; ``learn`` goes on until the count is reached or passed."""
+    if args.resume:
+        return None  # the run's recorded settings and its steps so far decide; train reports the total
+    from bulletnav.rl.hyperparams import load_hyperparams
+
+    hp = load_hyperparams(args.algo, env_id=args.env_id, path=args.hyperparams)
+    n_envs = int(args.n_envs or hp.get("n_envs", 4))
+    timesteps = int(args.timesteps if args.timesteps is not None else hp.get("n_timesteps", 500_000))
+    if args.algo in ("ppo", "a2c"):
+        n_steps = int(hp.get("n_steps", 2048 if args.algo == "ppo" else 5))
+        per, why = n_steps * n_envs, f"{args.algo.upper()} learns in rollouts of n_steps {n_steps} x {n_envs} envs"
+    else:
+        freq = hp.get("train_freq", 1)
+        if isinstance(freq, (list, tuple)):
+            if len(freq) != 2 or str(freq[1]) != "step":
+                return None  # episodes per rollout: no fixed step count
+            freq = freq[0]
+        per, why = int(freq) * n_envs, f"{args.algo.upper()} collects train_freq {int(freq)} x {n_envs} envs per update"
+    if timesteps <= 0 or per <= 0 or timesteps % per == 0:
+        return None
+    trained = -(-timesteps // per) * per
+    return (f"--timesteps {timesteps:,} is not a whole number of rollouts: {why} = {per:,} steps, so "
+            f"{trained:,} steps will be trained (pass a multiple of {per:,} to train exactly that)")
+
+
 def cmd_train(args: argparse.Namespace) -> int:
     import logging
     from pathlib import Path
 
+    from bulletnav.errors import RunError
     from bulletnav.provenance import command_line
     from bulletnav.rl.train import TrainConfig, train
 
     logging.getLogger("bulletnav.rl.curriculum").setLevel(logging.INFO)  # stage changes on the console
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise RunError(f"--out {out}: is a file, not a run directory")
+    if not args.resume and not args.overwrite and _holds_run(out):
+        names = ", ".join(sorted(p.name for p in out.iterdir())[:4])
+        raise RunError(f"--out {out} already holds a run ({names}, ...): pass --resume to continue it, --overwrite to "
+                       "train into it anyway (files of the same names are replaced), or choose another --out")
+    note = _rollout_note(args)
+    if note:
+        print(f"bulletnav train: note: {note}", file=sys.stderr)
     extra = {"env_id": args.env_id}
     if args.physics is not None:  # into the training and in-training evaluation envs, and the run record
         extra["env_overrides"] = {"physics": args.physics}
     cfg = TrainConfig(
-        algo=args.algo, timesteps=args.timesteps, out=Path(args.out), seed=args.seed, n_envs=args.n_envs,
+        algo=args.algo, timesteps=args.timesteps, out=out, seed=args.seed, n_envs=args.n_envs,
         resume=args.resume, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
         checkpoint_freq=args.checkpoint_freq, progress_bar=not args.no_progress, vec_env=args.vec_env,
         hyperparams=Path(args.hyperparams) if args.hyperparams else None, command=command_line(), shield=args.shield,
@@ -458,23 +603,48 @@ def cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
-def _evaluate_report(args: argparse.Namespace, model_path: str) -> dict:
-    """Evaluate ``model_path`` as ``args`` say; print the article's report (or JSON)."""
+def _load_for_evaluation(args: argparse.Namespace, model_path: str) -> tuple:
+    """The model at ``model_path`` and the env to evaluate it on, checked to fit each other.
+
+    The env is ``--env``, else the one the model's sidecar records (``env_id``), with the
+    model's env settings on top. Returns ``(model, meta, vecnorm, env, env_kwargs, default_obstacles)``.
+
+    Raises:
+        ModelError: the model cannot be loaded, or its spaces are not the env's.
+    """
     import gymnasium as gym
 
     import bulletnav  # noqa: F401
-    from bulletnav.evaluation import SAFETY_KEYS, SHIELD_KEYS, summarize
+    from bulletnav.rl.compat import check_model_fits
     from bulletnav.rl.envs import evaluation_env_kwargs
     from bulletnav.rl.io import load_model
-    from bulletnav.rl.policy import SB3Policy
 
     model, meta, vecnorm = load_model(model_path, algo=getattr(args, "algo", None),
                                       trust_pickle=getattr(args, "trust_pickle", False))
+    recorded = meta.get("env_id")
+    if not getattr(args, "env_given", True) and isinstance(recorded, str) and recorded != args.env_id:
+        check_env_id(recorded)  # the model's own env, unless --env names another
+        args.env_id = recorded
     # the model's env settings on top of the chosen env; on Warehouse-v0 the benchmark's obstacle count
     default_obstacles = EVALUATE_OBSTACLES if args.env_id == DEFAULT_ENV_ID else None
     env_kwargs = evaluation_env_kwargs(meta.get("env_kwargs", {}))
     env_kwargs.update(_world_kwargs(args, default_obstacles))
     env = _shielded(args, gym.make(args.env_id, render_mode="human" if args.gui else None, **env_kwargs))
+    try:
+        check_model_fits(model, env, model_path, args.env_id)
+    except BaseException:
+        env.close()
+        raise
+    return model, meta, vecnorm, env, env_kwargs, default_obstacles
+
+
+def _evaluate_report(args: argparse.Namespace, model_path: str, loaded: tuple | None = None) -> dict:
+    """Evaluate ``model_path`` as ``args`` say (``loaded``: :func:`_load_for_evaluation`'s, if done
+    already); print the article's report (or JSON)."""
+    from bulletnav.evaluation import SAFETY_KEYS, SHIELD_KEYS, summarize
+    from bulletnav.rl.policy import SB3Policy
+
+    model, meta, vecnorm, env, env_kwargs, default_obstacles = loaded or _load_for_evaluation(args, model_path)
     algo = str(meta.get("algo", getattr(args, "algo", None) or "?")).upper()
     bar = "=" * 60
     if not args.json:
@@ -558,6 +728,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
+    _refuse_existing_files(args, "video", "plot")
     _evaluate_report(args, args.model)
     return 0
 
@@ -585,14 +756,60 @@ def cmd_demo(args: argparse.Namespace) -> int:
             model = packaged
         else:
             raise ModelError(f"{args.model}: model file not found (train one with `bulletnav train`)")
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    _refuse_existing_files(args, "video")
+    if args.out is not None and Path(args.out).exists() and not Path(args.out).is_dir():
+        raise BulletnavError(f"--out {args.out}: is a file, not a folder")
+    if args.out is not None and _holds_run(args.out) and not args.overwrite:
+        raise BulletnavError(f"--out {args.out} already holds a run ({', '.join(sorted(p.name for p in Path(args.out).iterdir())[:3])}"
+                             "): pass --overwrite to replace its files, or choose another folder (without --out every "
+                             f"demo gets a new folder beside {DEFAULT_DEMO_OUT})")
+    loaded = _load_for_evaluation(args, str(model))  # the model fits the env before any folder is made
+    try:
+        out, created = _demo_folder(args.out)
+    except BaseException:
+        loaded[3].close()
+        raise
+    if args.out is None and out != Path(DEFAULT_DEMO_OUT):
+        print(f"{DEFAULT_DEMO_OUT} holds an earlier demo: this one writes to {out}/", file=sys.stderr if args.json else sys.stdout)
     args.video = args.video or str(out / "episodes.mp4")
     args.plot = str(out / "trajectories.png")
     t0 = time.perf_counter()
-    _evaluate_report(args, str(model))
+    try:
+        _evaluate_report(args, str(model), loaded)
+    except BaseException:
+        if created and not _holds_run(out):
+            out.rmdir()  # nothing written: no empty folder left behind
+        raise
     print(f"demo finished in {time.perf_counter() - t0:.0f} s; results in {out}/")
     return 0
+
+
+DEFAULT_DEMO_OUT = "runs/demo"
+"""Where ``demo`` writes without ``--out``; when it holds an earlier demo, ``runs/demo-2``, ``-3``, ..."""
+
+
+def _demo_folder(out: str | None):
+    """``(folder, created)``: ``out`` (made if missing), or without it the first of ``runs/demo``,
+    ``runs/demo-2``, ... that is missing or empty, claimed with an exclusive ``mkdir`` (two demos
+    started together get two folders)."""
+    import itertools
+    from pathlib import Path
+
+    if out is not None:
+        path = Path(out)
+        created = not path.exists()
+        path.mkdir(parents=True, exist_ok=True)
+        return path, created
+    base = Path(DEFAULT_DEMO_OUT)
+    for k in itertools.count(1):
+        path = base if k == 1 else base.with_name(f"{base.name}-{k}")
+        try:
+            path.mkdir(parents=True)
+            return path, True
+        except FileExistsError:
+            if path.is_dir() and not _holds_run(path):
+                return path, False
+    raise AssertionError("unreachable")
 
 
 def cmd_view(args: argparse.Namespace) -> int:
@@ -763,7 +980,7 @@ def _hz_list(text: str) -> tuple[int, ...]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="bulletnav",
         description="PyBullet warehouse navigation: classical and learned controllers on the same episodes.")
     parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
@@ -775,7 +992,7 @@ def build_parser() -> argparse.ArgumentParser:
     nav = add("navigate", "classical navigation (PID, A*, RRT) scored on env episodes")
     nav.add_argument("--planner", choices=["none", "astar", "rrt"], default="astar",
                      help="planner on the lidar map: none (PID at the goal), astar or rrt (default astar)")
-    nav.add_argument("--episodes", type=int, default=10, help="episodes to run (default 10)")
+    nav.add_argument("--episodes", type=COUNT, default=10, help="episodes to run (default 10)")
     _add_world_args(nav)
     _add_mission_args(nav)
     nav.add_argument("--pose", choices=["truth", "odometry"], default="truth",
@@ -784,24 +1001,27 @@ def build_parser() -> argparse.ArgumentParser:
     nav.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
     _add_shield_arg(nav)
     _add_physics_arg(nav)
-    nav.add_argument("--video", metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
-    nav.add_argument("--plot", metavar="PNG", help="write all episodes' paths over their maps")
+    nav.add_argument("--video", type=VIDEO_FILE, metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
+    nav.add_argument("--plot", type=PNG_FILE, metavar="PNG", help="write all episodes' paths over their maps")
+    _add_overwrite_arg(nav, "--video and --plot files")
     nav.set_defaults(func=cmd_navigate)
 
     tr = add("train", "train an SB3 agent (hyperparameters from rl/hyperparams/<algo>.yml)")
     tr.add_argument("--algo", choices=["ppo", "sac", "td3", "a2c"], default="ppo", help="algorithm (default ppo)")
-    tr.add_argument("--timesteps", type=int, default=None,
+    tr.add_argument("--timesteps", type=NON_NEGATIVE, default=None,
                     help="total environment steps (default: the hyperparameter file's n_timesteps, else 500000)")
-    tr.add_argument("--n-envs", type=int, default=None, help="parallel envs (default: the hyperparameter file's, 4)")
-    tr.add_argument("--seed", type=int, default=0, help="random seed of the run (default 0)")
+    tr.add_argument("--n-envs", type=COUNT, default=None, help="parallel envs (default: the hyperparameter file's, 4)")
+    tr.add_argument("--seed", type=SEED, default=0, help="random seed of the run (default 0)")
     _add_env_arg(tr)
     tr.add_argument("--out", required=True, metavar="DIR", help="run directory, e.g. runs/ppo")
     tr.add_argument("--resume", action="store_true", help="continue from DIR/checkpoints/last.zip")
+    tr.add_argument("--overwrite", action="store_true",
+                    help="train into an --out DIR that holds another run, replacing its files (default: refuse)")
     tr.add_argument("--init-from", metavar="MODEL",
                     help="fine-tune: start from this model's weights with this run's settings (steps count from 0)")
-    tr.add_argument("--eval-freq", type=int, default=25_000, help="evaluate every N timesteps (default 25000)")
-    tr.add_argument("--eval-episodes", type=int, default=20, help="unseen episodes per evaluation (default 20)")
-    tr.add_argument("--checkpoint-freq", type=int, default=25_000, help="checkpoint every N timesteps (default 25000)")
+    tr.add_argument("--eval-freq", type=COUNT, default=25_000, help="evaluate every N timesteps (default 25000)")
+    tr.add_argument("--eval-episodes", type=COUNT, default=20, help="unseen episodes per evaluation (default 20)")
+    tr.add_argument("--checkpoint-freq", type=COUNT, default=25_000, help="checkpoint every N timesteps (default 25000)")
     tr.add_argument("--vec-env", choices=["auto", "subproc", "dummy"], default="auto",
                     help="one process per env (subproc), all in this one (dummy), or auto (default): subprocesses "
                          "for several envs on a machine with more than one core")
@@ -820,13 +1040,13 @@ def build_parser() -> argparse.ArgumentParser:
                     help="results: DIR/<name>/ gets the tables, plot and (without --storage) the trials (default runs/sweeps)")
     sw.add_argument("--resume", action="store_true",
                     help="continue the interrupted sweep: finished trials are kept, unfinished ones resume")
-    sw.add_argument("--optimize", type=int, metavar="N",
+    sw.add_argument("--optimize", type=COUNT, metavar="N",
                     help="N trials of Optuna's TPE over the file's search: block, bad ones stopped early")
     sw.add_argument("--address", metavar="HOST:PORT",
                     help="join this Ray cluster (default: RAY_ADDRESS if set, else a local Ray on this machine's cores)")
     sw.add_argument("--storage", metavar="PATH|URI",
                     help="where trials and their checkpoints live, reachable from every node (default --out)")
-    sw.add_argument("--num-cpus", type=int, metavar="N", help="CPUs of the local Ray (default: all)")
+    sw.add_argument("--num-cpus", type=COUNT, metavar="N", help="CPUs of the local Ray (default: all)")
     sw.add_argument("--json", action="store_true", help="print the results record as JSON")
     sw.set_defaults(func=cmd_sweep)
 
@@ -834,24 +1054,25 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--model", required=True, metavar="PATH", help="model zip written by train")
     ev.add_argument("--algo", choices=["ppo", "sac", "td3", "a2c"], default=None,
                     help="only needed when the .json beside the model is missing")
-    ev.add_argument("--episodes", type=int, default=10, help="episodes to run (default 10)")
-    _add_env_arg(ev)
+    ev.add_argument("--episodes", type=COUNT, default=10, help="episodes to run (default 10)")
+    _add_env_arg(ev, "the env the model's .json names, else " + DEFAULT_ENV_ID)
     ev.add_argument("--world", metavar="FILE", help="YAML layout (default: procedural warehouse)")
     _add_mission_args(ev)
     _add_obstacles_arg(ev, "31 on Warehouse-v0, else the model's or the env's")
-    ev.add_argument("--seed", type=int, default=1000, help="episode k uses env seed S + k (default 1000)")
+    ev.add_argument("--seed", type=SEED, default=1000, help="episode k uses env seed S + k (default 1000)")
     ev.add_argument("--gui", action="store_true", help="watch in the PyBullet GUI (needs a display)")
     _add_trust_pickle_arg(ev)
     ev.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
     _add_shield_arg(ev)
     _add_physics_arg(ev)
-    ev.add_argument("--video", metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
-    ev.add_argument("--plot", metavar="PNG", help="write all episodes' paths over their maps")
+    ev.add_argument("--video", type=VIDEO_FILE, metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
+    ev.add_argument("--plot", type=PNG_FILE, metavar="PNG", help="write all episodes' paths over their maps")
+    _add_overwrite_arg(ev, "--video and --plot files")
     ev.set_defaults(func=cmd_evaluate)
 
     cmp_ = add("compare", "plot several training runs' learning curves and tabulate them")
     cmp_.add_argument("runs", nargs="+", metavar="RUN_DIR", help="directories written by train")
-    cmp_.add_argument("--out", default="docs/algorithms.png", metavar="PNG",
+    cmp_.add_argument("--out", type=PNG_FILE, default="docs/algorithms.png", metavar="PNG",
                       help="figure to write (default docs/algorithms.png)")
     cmp_.add_argument("--group-by", choices=("algo", "hyperparams"), default="algo",
                       help="colour and summarize runs by algorithm (default) or by hyperparameter file "
@@ -863,14 +1084,17 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--model", help=f"model zip (default: the shipped model for --env, {DEFAULT_MODEL} on "
                       "Warehouse-v0, models/ppo_mission.zip on WarehouseMission-v0, models/ppo_dynamic.zip on "
                       "WarehouseDynamic-v0)")
-    demo.add_argument("--episodes", type=int, default=5, help="episodes to run (default 5)")
-    demo.add_argument("--seed", type=int, default=2024, help="episode k uses env seed S + k (default 2024)")
-    _add_env_arg(demo)
+    demo.add_argument("--episodes", type=COUNT, default=5, help="episodes to run (default 5)")
+    demo.add_argument("--seed", type=SEED, default=2024, help="episode k uses env seed S + k (default 2024)")
+    _add_env_arg(demo, "the env the model's .json names, else " + DEFAULT_ENV_ID)
     demo.add_argument("--world", metavar="FILE", help="YAML layout (default: procedural warehouse)")
     _add_mission_args(demo)
     _add_obstacles_arg(demo, "31 on Warehouse-v0, else the model's or the env's")
-    demo.add_argument("--out", default="runs/demo", metavar="DIR", help="output directory (default runs/demo)")
-    demo.add_argument("--video", metavar="PATH", help="video file (default DIR/episodes.mp4)")
+    demo.add_argument("--out", default=None, metavar="DIR",
+                      help="output directory; one that holds a run is refused without --overwrite (default: "
+                           "runs/demo, or runs/demo-2, -3, ... when it holds an earlier demo)")
+    demo.add_argument("--video", type=VIDEO_FILE, metavar="PATH", help="video file (default DIR/episodes.mp4)")
+    _add_overwrite_arg(demo, "the files of an --out DIR or a --video")
     demo.add_argument("--gui", action="store_true", help="watch live in the PyBullet GUI")
     demo.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
     _add_shield_arg(demo)
@@ -888,22 +1112,22 @@ def build_parser() -> argparse.ArgumentParser:
     _add_env_arg(view)
     view.add_argument("--world", metavar="FILE", help="YAML layout (default: procedural warehouse)")
     _add_obstacles_arg(view)
-    view.add_argument("--seed", type=int, default=0, help="warehouse seed (default 0)")
-    view.add_argument("--seconds", type=float, default=30.0, help="how long to show it (default 30)")
+    view.add_argument("--seed", type=SEED, default=0, help="warehouse seed (default 0)")
+    view.add_argument("--seconds", type=_positive_seconds, default=30.0, help="how long to show it (default 30)")
     view.set_defaults(func=cmd_view)
 
     bm = add("benchmark", "every controller of a suite on the same seeded episodes of every world: results.json + report.html")
     bm.add_argument("suite", nargs="?", default="quick", metavar="SUITE",
                     help="a shipped suite (quick, standard) or a suite YAML file (default quick)")
     bm.add_argument("--out", metavar="DIR", help="output directory (default runs/benchmark/<suite name>)")
-    bm.add_argument("--workers", type=int, default=1, help="local worker processes (default 1); rows are the same for any count")
+    bm.add_argument("--workers", type=COUNT, default=1, help="local worker processes (default 1); rows are the same for any count")
     bm.add_argument("--address", metavar="HOST:PORT", help="run the episodes as tasks on this Ray cluster")
     bm.add_argument("--resume", action="store_true", help="go on with an interrupted run in DIR (finished episodes are kept)")
     bm.add_argument("--json", action="store_true", help="print the results record as JSON")
     bm.add_argument("--report-only", action="store_true", help="rebuild DIR/report.html from DIR/results.json, run nothing")
     bm.add_argument("--screenshots", action="store_true",
                     help="also save DIR/headline.png and DIR/world.png, the report in Chromium (needs playwright and chromium)")
-    bm.add_argument("--screenshot-tab", type=int, default=0, metavar="K", help="the world tab of world.png (default 0)")
+    bm.add_argument("--screenshot-tab", type=NON_NEGATIVE, default=0, metavar="K", help="the world tab of world.png (default 0)")
     bm.set_defaults(func=cmd_benchmark)
 
     bench = add("bench", "benchmarks (print JSON with --json)")
@@ -911,18 +1135,18 @@ def build_parser() -> argparse.ArgumentParser:
                        help="env: env vs raw PyBullet loop; physics: solver settings and physics rates; planners: A* vs RRT; "
                             "gui: dashboard frame rate (needs a display: xvfb-run -a); shield: the safety "
                             "shield's decision time per step against the env step (default env WarehouseDynamic-v0)")
-    bench.add_argument("--episodes", type=int, default=50, help="navigation episodes per planner (planners)")
+    bench.add_argument("--episodes", type=COUNT, default=50, help="navigation episodes per planner (planners)")
     bench.add_argument("--json", action="store_true", help="print one JSON object")
-    bench.add_argument("--steps", type=int, default=0, help="steps to time (default: the benchmark's own)")
-    bench.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    bench.add_argument("--steps", type=NON_NEGATIVE, default=0, help="steps to time (default: the benchmark's own)")
+    bench.add_argument("--seed", type=SEED, default=0, help="random seed (default 0)")
     bench.add_argument("--env", dest="env_id", default=None, metavar="ID",
                        help="env: Warehouse-v0 against raw PyBullet, or WarehouseDynamic-v0 against "
                             "WarehouseAisles-v0 (default Warehouse-v0); shield: any env (default WarehouseDynamic-v0)")
-    bench.add_argument("--resets", type=int, default=200, help="env: resets timed per id (default 200)")
+    bench.add_argument("--resets", type=COUNT, default=200, help="env: resets timed per id (default 200)")
     bench.add_argument("--against", metavar="COMMIT",
                        help="env: the same reset and throughput measurements of COMMIT's code, interleaved with this "
                             "checkout's in one run (before/after)")
-    bench.add_argument("--rounds", type=int, default=3, help="env --against: rounds of both sides (default 3)")
+    bench.add_argument("--rounds", type=COUNT, default=3, help="env --against: rounds of both sides (default 3)")
     bench.add_argument("--vec", action="store_true",
                        help="env: vectorised steps/s at 1, 2 and 4 envs (make_vec sync/async, SB3 Dummy/SubprocVecEnv)")
     bench.add_argument("--driver", choices=["ram", "navigator", "policy"], default="ram",
@@ -934,7 +1158,7 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--rates", type=_hz_list, default=(240, 120, 96, 48), metavar="HZ,HZ,...",
                        help="physics: physics rates to compare at 24 Hz control, the first the reference "
                             "(default 240,120,96,48)")
-    bench.add_argument("--policy-episodes", type=int, default=200, metavar="N",
+    bench.add_argument("--policy-episodes", type=NON_NEGATIVE, default=200, metavar="N",
                        help="physics: the policy's episodes at each rate, seeds 1000000.. (default 200; 0 skips it)")
     bench.set_defaults(func=cmd_bench)
     return parser

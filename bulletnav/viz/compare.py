@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import Any
 
 from bulletnav.errors import RunError
+from bulletnav.viz.plots import _save_atomic
 
 
 def plot_learning_curve(history: list[dict[str, Any]], path: Path, title: str = "") -> None:
@@ -32,10 +32,10 @@ def plot_learning_curve(history: list[dict[str, Any]], path: Path, title: str = 
     ax1.grid(alpha=0.3)
     ax1.set_title(title)
     fig.tight_layout()
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp)
-    plt.close(fig)
-    os.replace(tmp, path)
+    try:
+        _save_atomic(fig, Path(path), fig.dpi)  # a unique temp file beside it, renamed; removed on failure
+    finally:
+        plt.close(fig)
 
 
 REACH_SUCCESS = 0.8
@@ -134,9 +134,8 @@ def compare_runs(run_dirs: list[Path], out_png: Path, group_by: str = "algo") ->
         ax.set_ylim(-0.02, 1.02)
     ax1.legend(loc="lower right" if len(run_dirs) > 4 else "upper left", fontsize="small" if len(run_dirs) > 4 else None)
     fig.tight_layout()
-    out_png.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out_png.with_name(f".{out_png.name}.tmp.png")
-    fig.savefig(tmp)
-    plt.close(fig)
-    os.replace(tmp, out_png)
+    try:
+        _save_atomic(fig, out_png, fig.dpi)
+    finally:
+        plt.close(fig)
     return rows

@@ -36,6 +36,8 @@ from __future__ import annotations
 
 import logging
 import math
+import os
+import tempfile
 from collections import OrderedDict
 from collections.abc import Sequence
 from pathlib import Path
@@ -249,17 +251,25 @@ class EpisodeRecorder:
         self.last_frame: np.ndarray | None = None
         """The most recent composed frame, (H, W, 3) uint8."""
         suffix = self.path.suffix.lower()
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        if suffix == ".mp4":
-            self._writer = imageio.get_writer(
-                self.path, format="FFMPEG", mode="I", fps=fps, codec="libx264", quality=quality,
-                pixelformat="yuv420p", macro_block_size=16, ffmpeg_log_level="error",
-            )
-        elif suffix == ".gif":
-            # Pillow stores durations in ms, rounded to GIF's 10 ms resolution
-            self._writer = imageio.get_writer(self.path, mode="I", duration=1000.0 / fps, loop=0)
-        else:
+        if suffix not in (".mp4", ".gif"):
             raise ValueError(f"{self.path}: EpisodeRecorder writes .mp4 or .gif, not {suffix or 'no suffix'!r}")
+        # frames go to a hidden file beside the target, renamed onto it by close(): a crash or an
+        # interrupted run never leaves half a video under the name, nor replaces an earlier one
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=f".tmp{suffix}", dir=self.path.parent)
+        os.close(fd)
+        self._tmp = Path(tmp)
+        try:
+            if suffix == ".mp4":
+                self._writer = imageio.get_writer(
+                    self._tmp, format="FFMPEG", mode="I", fps=fps, codec="libx264", quality=quality,
+                    pixelformat="yuv420p", macro_block_size=16, ffmpeg_log_level="error",
+                )
+            else:  # Pillow stores durations in ms, rounded to GIF's 10 ms resolution
+                self._writer = imageio.get_writer(self._tmp, mode="I", duration=1000.0 / fps, loop=0)
+        except BaseException:
+            self._tmp.unlink(missing_ok=True)
+            raise
         self._closed = False
         self._font = _font(13)
         self._small = _font(11)
@@ -323,17 +333,40 @@ class EpisodeRecorder:
             self._done_written = self._outcome is not None
 
     def close(self) -> None:
-        """Finish the file (idempotent)."""
+        """Finish the file and rename it onto :attr:`path` (idempotent)."""
         if not self._closed:
             self._closed = True
-            self._writer.close()
+            try:
+                self._writer.close()
+                umask = os.umask(0)
+                os.umask(umask)
+                os.chmod(self._tmp, 0o666 & ~umask)  # mkstemp makes it private; a video is meant to be shared
+                os.replace(self._tmp, self.path)
+            except BaseException:
+                self._tmp.unlink(missing_ok=True)
+                raise
             log.info("wrote %d frames (%d episodes) to %s", self.frames_written, self.episodes, self.path)
+
+    def abort(self) -> None:
+        """Stop recording and delete the unfinished file; :attr:`path` is left as it was (idempotent)."""
+        if not self._closed:
+            self._closed = True
+            try:
+                self._writer.close()
+            except Exception:  # an unfinished file is dropped whatever its writer says
+                log.debug("closing the writer of an aborted recording failed", exc_info=True)
+            finally:
+                self._tmp.unlink(missing_ok=True)
 
     def __enter__(self) -> EpisodeRecorder:
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
+        """Keep the file when the block ended normally, drop it when it raised."""
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
 
     # ------------------------------------------------------------------ frames
     def compose(self, env: Any, path: Sequence[tuple[float, float]] | None = None) -> np.ndarray:
