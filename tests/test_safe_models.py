@@ -44,10 +44,18 @@ def _rewrite_zip(src: Path, dst: Path, change) -> None:
             zout.writestr(item, blob)
 
 
+def _plain_sidecar(name: str, dst: Path) -> None:
+    """The sidecar as it was before the safe format: env id and settings, no policy or statistics."""
+    meta = json.loads((ROOT / "models" / f"{name}.json").read_text())
+    dst.write_text(json.dumps({k: v for k, v in meta.items() if k not in ("format", "policy", "normalization")}))
+
+
 def _zip_only(tmp_path: Path, name: str = "ppo_warehouse") -> Path:
-    """A shipped model's SB3 zip alone (no safe files, no statistics), as a third party shares it."""
+    """A shipped model's SB3 zip with a plain sidecar (no safe files, no statistics), as a
+    third party shares it."""
     dst = tmp_path / f"{name}.zip"
     shutil.copy(ROOT / "models" / f"{name}.zip", dst)
+    _plain_sidecar(name, dst.with_suffix(".json"))
     return dst
 
 
@@ -60,6 +68,7 @@ def _crafted_zip(tmp_path: Path, marker: Path, key: str = "policy_class") -> Pat
         return data
 
     _rewrite_zip(ROOT / "models" / "ppo_warehouse.zip", model, change)
+    _plain_sidecar("ppo_warehouse", model.with_suffix(".json"))
     return model
 
 
@@ -126,8 +135,10 @@ def test_a_crafted_tensor_file_is_refused(tmp_path, capsys):
     with zipfile.ZipFile(ROOT / "models" / "ppo_warehouse.zip") as zin, zipfile.ZipFile(model, "w") as zout:
         for item in zin.infolist():
             zout.writestr(item, buf.getvalue() if item.filename == "policy.pth" else zin.read(item.filename))
+    _plain_sidecar("ppo_warehouse", model.with_suffix(".json"))
     rc, err = _evaluate(model, capsys)
     assert rc == 2 and not marker.exists() and str(model) in err and "Traceback" not in err
+    assert "weights_only" in err.lower() or "unpickl" in err.lower(), err
 
 
 def test_safe_files_that_were_tampered_with_are_refused(tmp_path, capsys):

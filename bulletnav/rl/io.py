@@ -131,7 +131,7 @@ def load_model(path: str | Path, algo: str | None = None, trust_pickle: bool = F
         raise ModelError(f"{path}: corrupt model archive ({exc})") from exc
     data = safe.read_zip_data(path)
     if algo is None:
-        algo = _guess_algo(data)
+        algo = guess_algo(data)
     if algo is None:
         raise ModelError(f"{path}: cannot tell the algorithm; pass --algo or keep the .json beside the model")
     cls = algo_class(algo)
@@ -147,7 +147,8 @@ def load_model(path: str | Path, algo: str | None = None, trust_pickle: bool = F
     return model, meta, safe.normalizer(stats)
 
 
-def _guess_algo(data: dict[str, Any]) -> str | None:
+def guess_algo(data: dict[str, Any]) -> str | None:
+    """The algorithm an SB3 zip's ``data`` names in its policy class's module (its text only)."""
     text = json.dumps(data.get("policy_class", {}))
     for name in ALGOS:
         if f"{name}.policies" in text.lower():

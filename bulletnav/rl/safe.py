@@ -38,6 +38,7 @@ import zipfile
 from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 
 from bulletnav.errors import ModelError
@@ -536,6 +537,23 @@ def save_safe(model: Any, model_path: Path, vecnorm: Any, meta: dict[str, Any]) 
     return {**meta, "format": FORMAT, "policy": policy, "normalization": stats_to_json(vecnorm) if vecnorm is not None else None}
 
 
+class _SpacesEnv(gym.Env):
+    """An env that is only its spaces: what SB3's constructor needs to build the networks.
+    Acting uses ``predict``; nothing ever steps it."""
+
+    def __init__(self, observation_space: Any, action_space: Any) -> None:
+        self.observation_space, self.action_space = observation_space, action_space
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        raise ModelError("a model rebuilt from its files has no env: give it one to act in (set_env)")
+
+    def step(self, action: Any):
+        raise ModelError("a model rebuilt from its files has no env: give it one to act in (set_env)")
+
+    def close(self) -> None:
+        pass
+
+
 def has_safe(model_path: Path, meta: dict[str, Any]) -> bool:
     return meta.get("format") == FORMAT and weights_path(model_path).is_file()
 
@@ -568,16 +586,13 @@ def load_safe(model_path: Path, meta: dict[str, Any]) -> Any:
         raise ModelError(f"{side}: hyperparameters {sorted(set(hyper) - allowed) if isinstance(hyper, dict) else hyper!r} "
                          f"are not {cls.__name__} parameters")
     try:
-        model = cls(policy=policy_cls, env=None, device="cpu", _init_setup_model=False)
-        model.__dict__.update(hyper)
+        hyper = dict(hyper)
         if "train_freq" in hyper:
-            model.train_freq = tuple(hyper["train_freq"])
+            hyper["train_freq"] = tuple(hyper["train_freq"])
         if "buffer_size" in hyper:
-            model.buffer_size = 1  # acting needs no replay memory; training on starts a fresh one of its own size
-        model.observation_space, model.action_space, model.n_envs = obs_space, act_space, 1
-        model.policy_kwargs = kwargs
+            hyper["buffer_size"] = 1  # acting needs no replay memory; training on starts a fresh one of its own size
+        model = cls(policy_cls, _SpacesEnv(obs_space, act_space), device="cpu", policy_kwargs=kwargs, **hyper)
         model.num_timesteps = int(p.get("num_timesteps", 0))
-        model._setup_model()
         state = load(blob)
         model.policy.load_state_dict(state, strict=True)
     except ModelError:
@@ -608,7 +623,7 @@ def convert_model(path: Path, trust_pickle: bool = False) -> dict[str, Any]:
     Raises:
         UnsafeModelError: the zip or the statistics can only be read by unpickling, untrusted.
     """
-    from bulletnav.rl.io import _guess_algo, atomic_write_json, sidecar_path
+    from bulletnav.rl.io import atomic_write_json, guess_algo, sidecar_path
 
     path = Path(path)
     if not zipfile.is_zipfile(path):
@@ -623,7 +638,7 @@ def convert_model(path: Path, trust_pickle: bool = False) -> dict[str, Any]:
     meta = {k: v for k, v in meta.items() if k not in ("format", "policy", "normalization")}
     from bulletnav.rl.algos import ALGOS, algo_class
 
-    algo = meta.get("algo") or _guess_algo(read_zip_data(path))
+    algo = meta.get("algo") or guess_algo(read_zip_data(path))
     if algo not in ALGOS:
         raise ModelError(f"{path}: cannot tell the algorithm; write {side.name} with \"algo\" first")
     try:
