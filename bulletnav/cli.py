@@ -537,22 +537,26 @@ def _rollout_note(args: argparse.Namespace) -> str | None:
     from bulletnav.rl.hyperparams import load_hyperparams
 
     hp = load_hyperparams(args.algo, env_id=args.env_id, path=args.hyperparams)
-    n_envs = int(args.n_envs or hp.get("n_envs", 4))
-    timesteps = int(args.timesteps if args.timesteps is not None else hp.get("n_timesteps", 500_000))
-    if args.algo in ("ppo", "a2c"):
-        n_steps = int(hp.get("n_steps", 2048 if args.algo == "ppo" else 5))
-        per, why = n_steps * n_envs, f"{args.algo.upper()} learns in rollouts of n_steps {n_steps} x {n_envs} envs"
-    else:
-        freq = hp.get("train_freq", 1)
-        if isinstance(freq, (list, tuple)):
-            if len(freq) != 2 or str(freq[1]) != "step":
-                return None  # episodes per rollout: no fixed step count
-            freq = freq[0]
-        per, why = int(freq) * n_envs, f"{args.algo.upper()} collects train_freq {int(freq)} x {n_envs} envs per update"
+    try:
+        n_envs = int(args.n_envs or hp.get("n_envs", 4))
+        timesteps = int(args.timesteps if args.timesteps is not None else hp.get("n_timesteps", 500_000))
+        if args.algo in ("ppo", "a2c"):
+            n_steps = int(hp.get("n_steps", 2048 if args.algo == "ppo" else 5))
+            per, why = n_steps * n_envs, f"{args.algo.upper()} learns in rollouts of n_steps {n_steps} x {n_envs} envs"
+        else:
+            freq = hp.get("train_freq", 1)
+            if isinstance(freq, (list, tuple)):
+                if len(freq) != 2 or str(freq[1]) != "step":
+                    return None  # episodes per rollout: no fixed step count
+                freq = freq[0]
+            per, why = int(freq) * n_envs, f"{args.algo.upper()} collects train_freq {int(freq)} x {n_envs} envs per update"
+    except (TypeError, ValueError, OverflowError):
+        return None  # a malformed value: training itself says what is wrong with it
     if timesteps <= 0 or per <= 0 or timesteps % per == 0:
         return None
     trained = -(-timesteps // per) * per
-    return (f"--timesteps {timesteps:,} is not a whole number of rollouts: {why} = {per:,} steps, so "
+    label = "--timesteps" if args.timesteps is not None else "the hyperparameter file's n_timesteps"
+    return (f"{label} {timesteps:,} is not a whole number of rollouts: {why} = {per:,} steps, so "
             f"{trained:,} steps will be trained (pass a multiple of {per:,} to train exactly that)")
 
 

@@ -276,6 +276,7 @@ def screenshots(report: Path, out: Path, tab: int = 0, width: int = 1280) -> lis
     import shutil
 
     from bulletnav.errors import BulletnavError
+    from bulletnav.rl.io import atomic_write_bytes
 
     try:
         from playwright.sync_api import sync_playwright
@@ -293,9 +294,9 @@ def screenshots(report: Path, out: Path, tab: int = 0, width: int = 1280) -> lis
         try:
             page = browser.new_page(viewport={"width": width, "height": 900})
             page.goto(report.resolve().as_uri())
-            page.screenshot(path=str(paths[0]), full_page=True)
+            atomic_write_bytes(paths[0], page.screenshot(full_page=True))  # whole PNGs under the names, or none
             page.click(f"#tab-w{tab}")
-            page.screenshot(path=str(paths[1]), full_page=True)
+            atomic_write_bytes(paths[1], page.screenshot(full_page=True))
         finally:
             browser.close()
     return paths

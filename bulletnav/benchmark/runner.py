@@ -198,6 +198,11 @@ def run_suite(suite: Suite, out: Path, workers: int = 1, address: str | None = N
                                  f"not of {suite.source} ({suite.sha256[:12]}...): choose another --out")
     _write_json(meta_path, {"source": suite.source, "sha256": suite.sha256})
     rows = _read_done(log_path)
+    if log_path.is_file():
+        data = log_path.read_bytes()
+        if data and not data.endswith(b"\n"):  # a torn last line: cut it, or the first new row would join it and be lost
+            with log_path.open("r+b") as f:
+                f.truncate(data.rfind(b"\n") + 1)
     done = {cell_key(r["world"], r["controller"], r["episode"]) for r in rows}
     chunks = plan_chunks(suite, done, workers)
     total = suite.total

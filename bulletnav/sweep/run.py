@@ -27,6 +27,7 @@ from ray import tune
 
 from bulletnav.errors import ConfigError, RunError
 from bulletnav.provenance import git_commit, machine
+from bulletnav.rl.io import atomic_write_bytes
 from bulletnav.sweep.results import config_label, summarize_configs, write_results
 from bulletnav.sweep.spec import SweepSpec
 
@@ -218,7 +219,7 @@ def _trial(config: dict[str, Any], spec: dict[str, Any], base: dict[str, Any]) -
         checkpoint.to_directory(str(out))
         resume = (out / "checkpoints" / "last.zip").is_file()
     hp_file = out / "hyperparams.yml"  # the base hyperparameters, so no node needs the driver's files
-    hp_file.write_text(yaml.safe_dump({sweep.env_id: base}, sort_keys=False))
+    atomic_write_bytes(hp_file, yaml.safe_dump({sweep.env_id: base}, sort_keys=False).encode())
 
     def report(row: dict[str, Any]) -> None:
         if row["timesteps"] >= sweep.timesteps:
@@ -241,8 +242,8 @@ def _trial(config: dict[str, Any], spec: dict[str, Any], base: dict[str, Any]) -
         overrides=overrides or None, on_evaluation=report))
     held_out = evaluate_model(out / "model.zip", sweep.env_id, sweep.evaluation_episodes, sweep.evaluation_seed)
     keep = {k: v for k, v in held_out.items() if k != "per_episode"}
-    (out / "heldout.json").write_text(json.dumps({"episodes": sweep.evaluation_episodes, "seed": sweep.evaluation_seed,
-                                                  **keep}, indent=2, default=float))
+    atomic_write_bytes(out / "heldout.json", json.dumps({"episodes": sweep.evaluation_episodes,
+                                                         "seed": sweep.evaluation_seed, **keep}, indent=2, default=float).encode())
     metrics = {k: float(held_out[k]) for k in ("success_rate", "collision_rate", "timeout_rate", "spl", "mean_reward",
                                                "mean_length") if k in held_out}
     with tempfile.TemporaryDirectory() as tmp:
@@ -297,7 +298,6 @@ def write_best_hyperparams(path: Path, spec: SweepSpec, base: dict[str, Any], be
     """The best trial's hyperparameters as a file ``bulletnav train --hyperparams`` takes
     (the base entry with the trial's values set, under the sweep's env id)."""
     from bulletnav.rl.hyperparams import apply_overrides
-    from bulletnav.rl.io import atomic_write_bytes
 
     hp = apply_overrides(base, best["config"], where=f"sweep {spec.name}")
     if spec.env_kwargs:
