@@ -1,0 +1,119 @@
+"""Nothing lost: a training and a benchmark killed (SIGKILL, no clean-up) at several moments leave
+only whole files under their names (temporary files are hidden, ``.name...``), and ``--resume``
+then finishes; the resumed benchmark's rows are an uninterrupted run's."""
+
+from __future__ import annotations
+
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+import zipfile
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+TINY = ROOT / "tests" / "data" / "benchmark_tiny.yaml"
+GOLDEN = ROOT / "tests" / "golden" / "benchmark_tiny.json"
+
+TRAIN = ["train", "--algo", "ppo", "--timesteps", "4096", "--n-envs", "2", "--vec-env", "dummy",
+         "--checkpoint-freq", "512", "--eval-freq", "1024", "--eval-episodes", "1", "--no-progress"]
+
+
+def _start(*args: str) -> subprocess.Popen:
+    """The CLI in its own process group, so that a kill takes its workers with it."""
+    return subprocess.Popen([sys.executable, "-m", "bulletnav.cli", *args], cwd=ROOT, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+
+
+def _kill(proc: subprocess.Popen) -> bool:
+    """SIGKILL the run and its workers; whether it was still running."""
+    running = proc.poll() is None
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass  # it had finished
+    proc.communicate(timeout=30)
+    return running
+
+
+def _wait_for(proc: subprocess.Popen, ready, timeout: float = 60.0) -> None:
+    t_end = time.monotonic() + timeout
+    while not ready() and proc.poll() is None:
+        assert time.monotonic() < t_end, "the run never got there"
+        time.sleep(0.02)
+
+
+def _check_whole(folder: Path) -> int:
+    """Every file whose name does not start with '.' is complete; returns how many were checked."""
+    checked = 0
+    for path in folder.rglob("*"):
+        if not path.is_file() or path.name.startswith(".") or any(p.startswith(".") for p in path.relative_to(folder).parts):
+            continue
+        if path.suffix == ".json":
+            json.loads(path.read_text())
+        elif path.suffix == ".zip":
+            with zipfile.ZipFile(path) as zf:
+                assert zf.testzip() is None, path
+        elif path.suffix == ".safetensors":
+            from safetensors.numpy import load_file
+
+            load_file(str(path))
+        elif path.suffix == ".png":
+            from PIL import Image
+
+            with Image.open(path) as im:
+                im.load()
+        elif path.suffix == ".jsonl":  # append-only: only a torn last line may be incomplete (dropped on resume)
+            for line in path.read_text().splitlines()[:-1]:
+                json.loads(line)
+        else:
+            continue
+        checked += 1
+    return checked
+
+
+@pytest.mark.slow
+def test_a_killed_training_leaves_whole_files_and_resumes(tmp_path):
+    out = tmp_path / "run"
+    rng = random.Random(2024)
+    killed = []
+    first = _start(*TRAIN, "--out", str(out))  # killed as its first checkpoint appears
+    _wait_for(first, lambda: (out / "checkpoints" / "last.zip").exists())
+    assert _kill(first)
+    assert _check_whole(out) >= 2
+    for delay in (rng.uniform(0.5, 3.0), rng.uniform(3.0, 6.0)):  # killed at seeded moments of a resumed run
+        proc = _start(*TRAIN, "--out", str(out), "--resume")
+        time.sleep(delay)
+        killed.append(_kill(proc))
+        _check_whole(out)
+    done = _start(*TRAIN, "--out", str(out), "--resume")
+    _, err = done.communicate(timeout=120)
+    assert done.returncode == 0, err[-2000:]
+    assert _check_whole(out) >= 5
+    assert json.loads((out / "run.json").read_text())["total_timesteps"] >= 4096
+    assert (out / "model.zip").is_file()
+    assert killed == [True, True]  # both resumed runs were killed while running
+
+
+@pytest.mark.slow
+def test_a_killed_benchmark_leaves_whole_files_and_resumes_to_the_same_rows(tmp_path):
+    out = tmp_path / "bench"
+    argv = ["benchmark", str(TINY), "--out", str(out), "--workers", "1", "--json"]
+    log = out / "episodes.jsonl"
+    for rows in (1, 5):  # killed once some rows are written, then again in the resumed run
+        proc = _start(*argv, *(["--resume"] if log.exists() else []))
+        _wait_for(proc, lambda n=rows: log.is_file() and log.read_text().count("\n") >= n)
+        assert _kill(proc)
+        assert not (out / "results.json").exists() or json.loads((out / "results.json").read_text())
+        _check_whole(out)
+    done = _start(*argv, "--resume")
+    _, err = done.communicate(timeout=180)
+    assert done.returncode == 0, err[-2000:]
+    _check_whole(out)
+    expected = json.loads(GOLDEN.read_text())["episodes"]
+    assert json.loads((out / "results.json").read_text())["episodes"] == expected
