@@ -243,7 +243,7 @@ def plot_trajectories(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory], 
         ValueError: nothing was logged.
     """
     fig = trajectory_figure(log_or_episodes, title, max_panels, dpi)
-    return _save_atomic(fig, Path(path), dpi)
+    return save_figure_atomic(fig, Path(path), dpi)
 
 
 def trajectory_figure(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory], title: str = "",
@@ -474,7 +474,7 @@ def _dynamic_handles(episodes: list[EpisodeTrajectory]) -> list[Any]:
     return handles
 
 
-def _save_atomic(fig: Any, path: Path, dpi: int) -> Path:
+def save_figure_atomic(fig: Any, path: Path, dpi: int) -> Path:
     """Write to a temp file in the target folder, then rename: readers never see half a PNG."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
