@@ -85,12 +85,16 @@ def make_cell(world: WorldSpec, controller: ControllerSpec, root: Path = PROJECT
         from bulletnav.rl.policy import SB3Policy
 
         torch.set_num_threads(1)  # one thread: the same arithmetic in every worker, no oversubscription
-        model, meta, vecnorm = load_model(controller.model_path(world.env, root))
+        from bulletnav.rl.compat import check_model_fits
+
+        model_path = controller.model_path(world.env, root)
+        model, meta, vecnorm = load_model(model_path)
         kwargs = evaluation_env_kwargs(meta.get("env_kwargs", {}))
         if world.env == "bulletnav/Warehouse-v0":
             kwargs["num_obstacles"] = EVALUATE_OBSTACLES  # what `bulletnav evaluate` uses, unless the world says
 
         def policy_factory(env):
+            check_model_fits(model, env, model_path, world.env)
             return SB3Policy(model, vecnorm)
     else:
         module_name, _, class_name = controller.cls.partition(":")

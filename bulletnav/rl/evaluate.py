@@ -8,6 +8,7 @@ from typing import Any
 
 from bulletnav import ENV_ID
 from bulletnav.evaluation import run_episodes, summarize
+from bulletnav.rl.compat import check_model_fits
 from bulletnav.rl.envs import EVALUATE_OBSTACLES, evaluation_env_kwargs, make_env
 from bulletnav.rl.io import load_model
 from bulletnav.rl.policy import SB3Policy
@@ -33,6 +34,7 @@ def evaluate_model(path: str | Path, env_id: str = ENV_ID, episodes: int = 200, 
     env_kwargs.update(env_overrides or {})
     env = make_env(env_id, env_kwargs, shield)
     try:
+        check_model_fits(model, env, path, env_id)
         results = run_episodes(env, SB3Policy(model, vecnorm), episodes, seed)
     finally:
         env.close()
