@@ -32,10 +32,9 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from bulletnav import limits
 from bulletnav.errors import BulletnavError, LimitError
+from bulletnav.yamlfile import read_yaml, show
 
 SUITES_DIR = Path(str(resources.files("bulletnav").joinpath("benchmark", "suites")))
 """The shipped suites (``quick``, ``standard``)."""
@@ -137,7 +136,7 @@ def resolve_suite(name_or_path: str) -> Path:
     path = Path(name_or_path)
     if not path.is_file():
         names = sorted(p.stem for p in SUITES_DIR.glob("*.yaml"))
-        raise SuiteError(f"no suite {name_or_path!r}: neither a shipped suite ({', '.join(names)}) nor a file")
+        raise SuiteError(f"no suite {show(name_or_path)}: neither a shipped suite ({', '.join(names)}) nor a file")
     return path
 
 
@@ -148,29 +147,29 @@ def load_suite(name_or_path: str) -> Suite:
         SuiteError: the file is missing, not YAML, or a field is wrong (named in the message).
     """
     path = resolve_suite(name_or_path)
-    data = path.read_bytes()
     try:
-        raw = yaml.safe_load(data)
-    except yaml.YAMLError as exc:
-        raise SuiteError(f"{path}: not valid YAML: {exc}") from None
+        data = path.read_bytes()
+    except OSError as exc:
+        raise SuiteError(f"{path}: cannot read suite file ({exc.strerror or exc})") from exc
+    raw = read_yaml(path, "suite file", SuiteError, data)
     return parse_suite(raw, str(path), hashlib.sha256(data).hexdigest())
 
 
 def _int(value: Any, where: str, name: str, lo: int, hi: int) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-        raise SuiteError(f"{where}: field '{name}' must be an integer from {lo} to {hi}, got {value!r}")
+        raise SuiteError(f"{where}: field '{name}' must be an integer from {lo} to {hi}, got {show(value)}")
     return value
 
 
 def _str(value: Any, where: str, name: str) -> str:
     if not isinstance(value, str) or not value.strip():
-        raise SuiteError(f"{where}: field '{name}' must be a non-empty string, got {value!r}")
+        raise SuiteError(f"{where}: field '{name}' must be a non-empty string, got {show(value)}")
     return value
 
 
 def _mapping(value: Any, where: str, name: str, allowed: set[str]) -> dict[str, Any]:
     if not isinstance(value, dict):
-        raise SuiteError(f"{where}: {name} must be a mapping, got {value!r}")
+        raise SuiteError(f"{where}: {name} must be a mapping, got {show(value)}")
     unknown = sorted(str(k) for k in set(value) - allowed)
     if unknown:
         raise SuiteError(f"{where}: {name} has unknown field(s) {unknown}; allowed: {sorted(allowed)}")
@@ -197,7 +196,7 @@ def parse_suite(raw: Any, where: str = "<suite>", sha256: str = "") -> Suite:
     worlds_raw, controllers_raw = top["worlds"], top["controllers"]
     for key, items in (("worlds", worlds_raw), ("controllers", controllers_raw)):
         if not isinstance(items, list) or not 1 <= len(items) <= LIMITS[key]:
-            raise SuiteError(f"{where}: field '{key}' must be a list of 1 to {LIMITS[key]} entries, got {items!r}")
+            raise SuiteError(f"{where}: field '{key}' must be a list of 1 to {LIMITS[key]} entries, got {show(items)}")
     worlds = []
     for i, w in enumerate(worlds_raw):
         tag = f"worlds[{i}]"
@@ -205,7 +204,7 @@ def parse_suite(raw: Any, where: str = "<suite>", sha256: str = "") -> Suite:
         env = _str(w.get("env"), where, f"{tag}.env")
         if env not in gym.registry or not env.startswith("bulletnav/"):
             known = sorted(e for e in gym.registry if e.startswith("bulletnav/"))
-            raise SuiteError(f"{where}: field '{tag}.env' must be a bulletnav env id ({', '.join(known)}), got {env!r}")
+            raise SuiteError(f"{where}: field '{tag}.env' must be a bulletnav env id ({', '.join(known)}), got {show(env)}")
         kwargs = _mapping(w.get("kwargs") or {}, where, f"{tag}.kwargs", set(WORLD_KWARGS))
         for key, name in (("num_obstacles", "obstacles"), ("goals", "goals")):
             if key in kwargs:
@@ -228,15 +227,15 @@ def parse_suite(raw: Any, where: str = "<suite>", sha256: str = "") -> Suite:
         c = _mapping(c, where, tag, {"name", "type", "planner", "model", "class", "kwargs", "shield"})
         kind = c.get("type")
         if kind not in ("navigator", "model", "policy"):
-            raise SuiteError(f"{where}: field '{tag}.type' must be 'navigator', 'model' or 'policy', got {kind!r}")
+            raise SuiteError(f"{where}: field '{tag}.type' must be 'navigator', 'model' or 'policy', got {show(kind)}")
         shield = c.get("shield", False)
         if not isinstance(shield, bool):
-            raise SuiteError(f"{where}: field '{tag}.shield' must be true or false, got {shield!r}")
+            raise SuiteError(f"{where}: field '{tag}.shield' must be true or false, got {show(shield)}")
         spec: dict[str, Any] = {"type": kind, "shield": shield}
         if kind == "navigator":
             planner = c.get("planner", "astar")
             if planner not in PLANNERS:
-                raise SuiteError(f"{where}: field '{tag}.planner' must be one of {list(PLANNERS)}, got {planner!r}")
+                raise SuiteError(f"{where}: field '{tag}.planner' must be one of {list(PLANNERS)}, got {show(planner)}")
             spec["planner"] = planner
             default = {"none": "PID", "astar": "PID + A*", "rrt": "PID + RRT"}[planner]
         elif kind == "model":
@@ -245,7 +244,7 @@ def parse_suite(raw: Any, where: str = "<suite>", sha256: str = "") -> Suite:
         else:
             target = _str(c.get("class"), where, f"{tag}.class")
             if target.count(":") != 1 or not all(target.split(":")):
-                raise SuiteError(f"{where}: field '{tag}.class' must be 'module:Class', got {target!r}")
+                raise SuiteError(f"{where}: field '{tag}.class' must be 'module:Class', got {show(target)}")
             spec["cls"] = target
             spec["kwargs"] = dict(_mapping(c.get("kwargs") or {}, where, f"{tag}.kwargs", set(c.get("kwargs") or {})))
             default = target.split(":")[1]
@@ -280,5 +279,5 @@ def replay_command(suite: Suite, world: WorldSpec, controller: ControllerSpec, s
         except ValueError:
             shown = path
         return f"bulletnav evaluate --model {shown} " + " ".join(flags) + " --video episode.mp4"
-    return (f"python -c \"from bulletnav.benchmark.runner import replay; print(replay({suite.source!r}, "
-            f"{world.name!r}, {controller.name!r}, {seed}))\"")
+    return (f"python -c \"from bulletnav.benchmark.runner import replay; print(replay({show(suite.source)}, "
+            f"{show(world.name)}, {show(controller.name)}, {seed}))\"")

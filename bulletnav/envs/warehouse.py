@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import math
+import numbers
 import time
 from dataclasses import fields, replace
-from typing import Any
+from os import PathLike
+from types import UnionType
+from typing import Any, Union, get_args, get_origin, get_type_hints
 
 import gymnasium as gym
 import numpy as np
@@ -20,6 +23,7 @@ from bulletnav.envs.shifts import describe, perturbation
 from bulletnav.sim.generators import world_generator
 from bulletnav.sim.layout import Layout, load_layout
 from bulletnav.tasks import make_task
+from bulletnav.yamlfile import show
 
 _KWARGS = {
     # keyword -> (config section path, field)
@@ -86,37 +90,97 @@ def make_config(config: EnvConfig | None = None, **kwargs: Any) -> EnvConfig:
         TypeError: an unknown keyword (the message lists the known ones).
         ValueError: an unknown physics profile name.
     """
+    if config is not None and not isinstance(config, EnvConfig):
+        raise TypeError(f"bulletnav/Warehouse-v0 keyword 'config' must be an EnvConfig, got {show(config)}")
     cfg = config or EnvConfig()
     if "physics" in kwargs:  # a named profile first, so physics_hz & co. apply on top in any order
         kwargs = dict(kwargs)
-        cfg = replace(cfg, physics=physics_profile(kwargs.pop("physics")))
+        cfg = _apply(cfg, "physics", kwargs.pop("physics"))
     for key, value in kwargs.items():
-        if key == "world":
-            cfg = replace(cfg, layout_file=None if value is None else str(value))
-        elif key == "randomize":
-            cfg = replace(cfg, randomize=value if _parsed(value) else parse_randomize(value))
-        elif key == "perturb":
-            cfg = replace(cfg, shift=ShiftConfig() if value is None else perturbation(value))
-        elif key.startswith("shift_") and key[6:] in _SHIFT_FIELDS:
-            if key in ("shift_imu_accel_bias", "shift_imu_gyro_bias"):
-                value = tuple(float(v) for v in value)
-            cfg = replace(cfg, shift=replace(cfg.shift, **{key[6:]: value}))
-        elif key.startswith("reward_") and key[7:] in _REWARD_FIELDS:
-            cfg = replace(cfg, task=replace(cfg.task, reward=replace(cfg.task.reward, **{key[7:]: value})))
-        elif key in _KWARGS:
-            path, name = _KWARGS[key]
-            if key in ("world_size", "blocked_by"):
-                value = (value,) if isinstance(value, str) else tuple(value)
-            elif key in ("forklifts", "workers"):
-                value = (int(value), int(value)) if isinstance(value, (int, np.integer)) else tuple(value)
-            elif key in ("forklift_speed", "worker_speed"):
-                value = (float(value), float(value)) if isinstance(value, (int, float)) else tuple(value)
-            cfg = _replace_at(cfg, path, name, value)
-        else:
-            known = sorted([*_KWARGS, "world", "config", "render_mode", "perturb", "randomize", "physics",
-                            *(f"reward_{f}" for f in _REWARD_FIELDS), *(f"shift_{f}" for f in _SHIFT_FIELDS)])
-            raise TypeError(f"bulletnav/Warehouse-v0 got an unknown keyword argument {key!r}; known: {', '.join(known)}")
+        cfg = _apply(cfg, key, value)
     return cfg
+
+
+def _apply(cfg: EnvConfig, key: str, value: Any) -> EnvConfig:
+    """``cfg`` with keyword ``key`` set; any TypeError or ValueError names the keyword."""
+    try:
+        return _set(cfg, key, value)
+    except (TypeError, ValueError) as exc:
+        message = str(exc)
+        if f"'{key}'" in message or f"{key}=" in message:
+            raise
+        try:
+            named = type(exc)(f"bulletnav/Warehouse-v0 keyword {key}={show(value)}: {message}")
+        except Exception:  # noqa: BLE001  (an exception type with other arguments: keep it as it is)
+            raise exc from None
+        raise named from exc
+
+
+def _set(cfg: EnvConfig, key: str, value: Any) -> EnvConfig:
+    if key == "physics":
+        return replace(cfg, physics=physics_profile(value))
+    if key == "world":
+        if value is not None and not isinstance(value, (str, PathLike)):
+            raise TypeError(f"must be a layout file path or None, got {type(value).__name__}")
+        return replace(cfg, layout_file=None if value is None else str(value))
+    if key == "randomize":
+        return replace(cfg, randomize=value if _parsed(value) else parse_randomize(value))
+    if key == "perturb":
+        return replace(cfg, shift=ShiftConfig() if value is None else perturbation(value))
+    if key.startswith("shift_") and key[6:] in _SHIFT_FIELDS:
+        if key in ("shift_imu_accel_bias", "shift_imu_gyro_bias"):
+            value = tuple(float(v) for v in value)
+        return replace(cfg, shift=_replace_checked(cfg.shift, key[6:], value))
+    if key.startswith("reward_") and key[7:] in _REWARD_FIELDS:
+        return replace(cfg, task=replace(cfg.task, reward=_replace_checked(cfg.task.reward, key[7:], value)))
+    if key in _KWARGS:
+        path, name = _KWARGS[key]
+        if key in ("world_size", "blocked_by"):
+            value = (value,) if isinstance(value, str) else tuple(value)
+        elif key in ("forklifts", "workers"):
+            value = (int(value), int(value)) if isinstance(value, (int, np.integer)) else tuple(value)
+        elif key in ("forklift_speed", "worker_speed"):
+            value = (float(value), float(value)) if isinstance(value, (int, float)) else tuple(value)
+        return _replace_at(cfg, path, name, value)
+    known = sorted([*_KWARGS, "world", "config", "render_mode", "perturb", "randomize", "physics",
+                    *(f"reward_{f}" for f in _REWARD_FIELDS), *(f"shift_{f}" for f in _SHIFT_FIELDS)])
+    raise TypeError(f"bulletnav/Warehouse-v0 got an unknown keyword argument {key!r}; known: {', '.join(known)}")
+
+
+def _conforms(value: Any, hint: Any) -> bool:
+    """``value`` has the type a config field is annotated with (numbers of any width; an int
+    where a float is expected)."""
+    if hint is Any:
+        return True
+    origin, args = get_origin(hint), get_args(hint)
+    if origin in (Union, UnionType):
+        return any(_conforms(value, a) for a in args)
+    if hint is type(None):
+        return value is None
+    if hint is bool:
+        return isinstance(value, (bool, np.bool_))
+    if hint is int:
+        return isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_))
+    if hint is float:
+        return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+    if origin is tuple:
+        if not isinstance(value, tuple):
+            return False
+        if len(args) == 2 and args[1] is Ellipsis:
+            return all(_conforms(v, args[0]) for v in value)
+        return len(value) == len(args) and all(_conforms(v, a) for v, a in zip(value, args))
+    if isinstance(hint, type):
+        return isinstance(value, hint)
+    return True
+
+
+def _replace_checked(obj: Any, name: str, value: Any) -> Any:
+    """``replace(obj, name=value)`` after checking ``value`` against the field's annotation."""
+    hint = get_type_hints(type(obj))[name]
+    if not _conforms(value, hint):
+        shown = hint.__name__ if isinstance(hint, type) and not get_args(hint) else str(hint).replace("typing.", "")
+        raise TypeError(f"must be {shown}, got {show(value)} ({type(value).__name__})")
+    return replace(obj, **{name: value})
 
 
 def _parsed(value: Any) -> bool:
@@ -126,7 +190,7 @@ def _parsed(value: Any) -> bool:
 
 def _replace_at(obj: Any, path: tuple[str, ...], name: str, value: Any) -> Any:
     if not path:
-        return replace(obj, **{name: value})
+        return _replace_checked(obj, name, value)
     child = getattr(obj, path[0])
     return replace(obj, **{path[0]: _replace_at(child, path[1:], name, value)})
 
@@ -335,7 +399,7 @@ class WarehouseEnv(gym.Env):
         Raises:
             ValueError: a keyword outside :data:`STAGE_KWARGS` (the message lists them).
         """
-        bad = sorted(set(kwargs) - STAGE_KWARGS)
+        bad = sorted(set(kwargs) - STAGE_KWARGS, key=str)
         if bad:
             raise ValueError(f"set_episode_config: {', '.join(bad)} cannot change between episodes "
                              f"(they change the spaces, the task or the reward); allowed: {', '.join(sorted(STAGE_KWARGS))}")
@@ -349,6 +413,8 @@ class WarehouseEnv(gym.Env):
     # ------------------------------------------------------------------ gym API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
+        if options is not None and not isinstance(options, dict):
+            raise ValueError(f"options must be a dict (start, goal, goals) or None, got {show(options)}")
         options = options or {}
         cfg = self.config
         rng = self.np_random
@@ -404,7 +470,7 @@ class WarehouseEnv(gym.Env):
         else:
             try:
                 arr = np.asarray(action, dtype=np.float64)
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, OverflowError):  # OverflowError: an int beyond float64
                 arr = None
             if arr is None or arr.shape != (2,) or np.iscomplexobj(action):
                 raise ValueError(f"action must be 2 numbers (v, w), got {action!r} of type {type(action).__name__}"

@@ -63,16 +63,17 @@ class Curriculum:
 
         if not isinstance(spec, Mapping):
             raise ValueError(f"{where} must be a mapping with stages, window, promote, got {spec!r}")
-        unknown = sorted(set(spec) - {"stages", "window", "promote", "demote", "min_episodes"})
+        unknown = sorted(set(spec) - {"stages", "window", "promote", "demote", "min_episodes"}, key=str)
         if unknown:
-            raise ValueError(f"{where}: unknown field(s) {', '.join(unknown)}; known: demote, min_episodes, promote, stages, window")
+            raise ValueError(f"{where}: unknown field(s) {', '.join(map(str, unknown))}; "
+                             "known: demote, min_episodes, promote, stages, window")
         stages = spec.get("stages")
         if not isinstance(stages, list) or len(stages) < 2 or not all(isinstance(s, Mapping) for s in stages):
             raise ValueError(f"{where}.stages must be a list of at least 2 env-kwarg mappings, got {stages!r}")
         for i, stage in enumerate(stages):
-            bad = sorted(set(stage) - STAGE_KWARGS)
+            bad = sorted(set(stage) - STAGE_KWARGS, key=str)
             if bad:
-                raise ValueError(f"{where}.stages[{i}]: {', '.join(bad)} cannot change between episodes; "
+                raise ValueError(f"{where}.stages[{i}]: {', '.join(map(str, bad))} cannot change between episodes; "
                                  f"allowed: {', '.join(sorted(STAGE_KWARGS))}")
         window = spec.get("window", 50)
         min_episodes = spec.get("min_episodes", window)

@@ -11,10 +11,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from bulletnav import ENV_ID
 from bulletnav.errors import ConfigError
+from bulletnav.yamlfile import read_yaml, show
 
 log = logging.getLogger(__name__)
 
@@ -37,16 +37,11 @@ def load_hyperparams(algo: str, env_id: str = ENV_ID, path: str | Path | None = 
     """
     if path is None:
         path = Path(str(resources.files("bulletnav").joinpath("rl", "hyperparams", f"{algo}.yml")))
-    try:
-        data = yaml.safe_load(Path(path).read_text())
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read hyperparameter file ({exc.strerror or exc})") from exc
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: not valid YAML ({exc})") from exc
+    data = read_yaml(path, "hyperparameter file", ConfigError)
     if not isinstance(data, dict) or env_id not in data:
-        raise ConfigError(f"{path}: no hyperparameters for env id {env_id!r}")
+        raise ConfigError(f"{path}: no hyperparameters for env id {show(env_id)}")
     if not isinstance(data[env_id], dict):
-        raise ConfigError(f"{path}: {env_id!r} must map hyperparameter names to values")
+        raise ConfigError(f"{path}: {show(env_id)} must map hyperparameter names to values")
     hp = upgrade_hyperparams(dict(data[env_id]), str(path))
     if hp.get("randomize"):  # checked now: a typo fails before any env starts
         from bulletnav.envs.randomization import parse_randomize
@@ -106,7 +101,7 @@ def model_kwargs(hp: dict[str, Any], n_actions: int) -> dict[str, Any]:
     sigma = float(noise["sigma"]) if noise else None
     if hp.get("noise_type") is not None:  # RL Zoo's form: noise_type: normal, noise_std: 0.2
         if hp["noise_type"] != "normal":
-            raise ConfigError(f"hyperparameters: noise_type {hp['noise_type']!r} is not supported (only 'normal')")
+            raise ConfigError(f"hyperparameters: noise_type {show(hp['noise_type'])} is not supported (only 'normal')")
         sigma = float(hp.get("noise_std", 0.1))
     if sigma:
         from stable_baselines3.common.noise import NormalActionNoise
@@ -136,7 +131,7 @@ def apply_overrides(hp: dict[str, Any], overrides: dict[str, Any] | None, where:
         for part in parents:
             child = node.setdefault(part, {})
             if not isinstance(child, dict):
-                raise ConfigError(f"{where}: {key!r}: {part!r} is {child!r}, not a mapping")
+                raise ConfigError(f"{where}: {show(key)}: {show(part)} is {show(child)}, not a mapping")
             node = child
         node[leaf] = copy.deepcopy(value)
     return out
@@ -148,4 +143,4 @@ def import_name(dotted: str) -> Any:
     try:
         return getattr(importlib.import_module(module), name)
     except (ImportError, AttributeError, ValueError) as exc:
-        raise ConfigError(f"hyperparameters name {dotted!r}, which cannot be imported ({exc})") from exc
+        raise ConfigError(f"hyperparameters name {show(dotted)}, which cannot be imported ({exc})") from exc

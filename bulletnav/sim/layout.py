@@ -31,12 +31,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import yaml
 
 from bulletnav import limits
 from bulletnav.config import WorldConfig
 from bulletnav.errors import LayoutError, LimitError
 from bulletnav.sim.kernels import BOX, CYLINDER, any_within, mark_levels, mark_within
+from bulletnav.yamlfile import read_yaml, show
 
 if TYPE_CHECKING:
     from bulletnav.sim.events import EventSpec
@@ -186,13 +186,13 @@ class Layout:
 
 def _num(value: Any, where: str, field_name: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise LayoutError(f"{where}: field '{field_name}' must be a finite number, got {value!r}")
+        raise LayoutError(f"{where}: field '{field_name}' must be a finite number, got {show(value)}")
     return float(value)
 
 
 def _vec(value: Any, n: int, where: str, field_name: str) -> tuple[float, ...]:
     if not isinstance(value, (list, tuple)) or len(value) != n:
-        raise LayoutError(f"{where}: field '{field_name}' must be a list of {n} numbers, got {value!r}")
+        raise LayoutError(f"{where}: field '{field_name}' must be a list of {n} numbers, got {show(value)}")
     return tuple(_num(v, where, f"{field_name}[{i}]") for i, v in enumerate(value))
 
 
@@ -205,12 +205,12 @@ def _positive(value: float, where: str, field_name: str) -> float:
 def _parse_obstacle(raw: Any, where: str, index: int, tag: str = "") -> Obstacle:
     tag = tag or f"obstacles[{index}]"
     if not isinstance(raw, dict):
-        raise LayoutError(f"{where}: {tag} must be a mapping, got {raw!r}")
+        raise LayoutError(f"{where}: {tag} must be a mapping, got {show(raw)}")
     kind = raw.get("type")
     if kind not in ("box", "cylinder"):
-        raise LayoutError(f"{where}: field '{tag}.type' must be 'box' or 'cylinder', got {kind!r}")
+        raise LayoutError(f"{where}: field '{tag}.type' must be 'box' or 'cylinder', got {show(kind)}")
     allowed = {"type", "center", "yaw", "label"} | ({"size"} if kind == "box" else {"radius", "height"})
-    unknown = sorted(set(raw) - allowed)
+    unknown = sorted(set(raw) - allowed, key=str)
     if unknown:
         raise LayoutError(f"{where}: {tag} ({kind}) has unknown field(s) {unknown}; allowed: {sorted(allowed)}")
     for required in ("center", "size") if kind == "box" else ("center", "radius", "height"):
@@ -238,7 +238,7 @@ def parse_layout(data: Any, where: str = "<layout>") -> Layout:
     if not isinstance(data, dict):
         raise LayoutError(f"{where}: top level must be a mapping with 'size' and 'obstacles', got {type(data).__name__}")
     unknown = sorted(set(data) - {"name", "size", "wall_height", "obstacles", "start", "goal", "goals", "dynamic",
-                                  "events"})
+                                  "events"}, key=str)
     if unknown:
         raise LayoutError(f"{where}: unknown top-level field(s) {unknown}")
     if "size" not in data:
@@ -288,7 +288,7 @@ def parse_layout(data: Any, where: str = "<layout>") -> Layout:
     if data.get("goals") is not None:
         raw = data["goals"]
         if not isinstance(raw, list) or not raw:
-            raise LayoutError(f"{where}: field 'goals' must be a non-empty list of [x, y] points, got {raw!r}")
+            raise LayoutError(f"{where}: field 'goals' must be a non-empty list of [x, y] points, got {show(raw)}")
         _limit("goals", len(raw), where, "goals (entries)")
         goals = tuple(_vec(g, 2, where, f"goals[{i}]") for i, g in enumerate(raw))
         for i, g in enumerate(goals):
@@ -299,7 +299,7 @@ def parse_layout(data: Any, where: str = "<layout>") -> Layout:
 
 def _points(value: Any, where: str, field_name: str, layout: Layout) -> tuple[tuple[float, float], ...]:
     if not isinstance(value, list) or len(value) < 2:
-        raise LayoutError(f"{where}: field '{field_name}' must be a list of at least 2 [x, y] points, got {value!r}")
+        raise LayoutError(f"{where}: field '{field_name}' must be a list of at least 2 [x, y] points, got {show(value)}")
     pts = tuple(_vec(v, 2, where, f"{field_name}[{i}]") for i, v in enumerate(value))
     for i, xy in enumerate(pts):
         _check_free(layout, xy, where, f"{field_name}[{i}]")
@@ -320,13 +320,13 @@ def _parse_dynamic(raw: Any, layout: Layout, where: str) -> tuple[MoverSpec, ...
     for i, entry in enumerate(raw):
         tag = f"dynamic[{i}]"
         if not isinstance(entry, dict):
-            raise LayoutError(f"{where}: {tag} must be a mapping, got {entry!r}")
+            raise LayoutError(f"{where}: {tag} must be a mapping, got {show(entry)}")
         kind = entry.get("type")
         allowed = {"forklift": {"type", "route", "speed", "size", "accel", "yield_to_robot"},
                    "worker": {"type", "waypoints", "speed", "radius", "height", "pause", "yield_to_robot"}}
         if kind not in allowed:
-            raise LayoutError(f"{where}: field '{tag}.type' must be 'forklift' or 'worker', got {kind!r}")
-        unknown = sorted(set(entry) - allowed[kind])
+            raise LayoutError(f"{where}: field '{tag}.type' must be 'forklift' or 'worker', got {show(kind)}")
+        unknown = sorted(set(entry) - allowed[kind], key=str)
         if unknown:
             raise LayoutError(f"{where}: {tag} ({kind}) has unknown field(s) {unknown}; allowed: {sorted(allowed[kind])}")
         path_key = "route" if kind == "forklift" else "waypoints"
@@ -335,7 +335,7 @@ def _parse_dynamic(raw: Any, layout: Layout, where: str) -> tuple[MoverSpec, ...
         path = _points(entry[path_key], where, f"{tag}.{path_key}", layout)
         yield_ = entry.get("yield_to_robot", True)
         if not isinstance(yield_, bool):
-            raise LayoutError(f"{where}: field '{tag}.yield_to_robot' must be true or false, got {yield_!r}")
+            raise LayoutError(f"{where}: field '{tag}.yield_to_robot' must be true or false, got {show(yield_)}")
         speed = _positive(_num(entry.get("speed", 0.5 if kind == "forklift" else 1.0), where, f"{tag}.speed"),
                           where, f"{tag}.speed")
         if kind == "forklift":
@@ -368,8 +368,8 @@ def _parse_events(raw: Any, layout: Layout, where: str) -> tuple[EventSpec, ...]
     for i, entry in enumerate(raw):
         tag = f"events[{i}]"
         if not isinstance(entry, dict):
-            raise LayoutError(f"{where}: {tag} must be a mapping, got {entry!r}")
-        unknown = sorted(set(entry) - {"at", "add", "remove"})
+            raise LayoutError(f"{where}: {tag} must be a mapping, got {show(entry)}")
+        unknown = sorted(set(entry) - {"at", "add", "remove"}, key=str)
         if unknown:
             raise LayoutError(f"{where}: {tag} has unknown field(s) {unknown}; allowed: ['add', 'at', 'remove']")
         if "at" not in entry:
@@ -390,7 +390,7 @@ def _parse_events(raw: Any, layout: Layout, where: str) -> tuple[EventSpec, ...]
             label = entry["remove"]
             if not isinstance(label, str) or label not in labels:
                 raise LayoutError(f"{where}: field '{tag}.remove' must name the label of an obstacle or of an earlier "
-                                  f"'add', got {label!r}; labels: {sorted(labels)}")
+                                  f"'add', got {show(label)}; labels: {sorted(labels)}")
             out.append(EventSpec(at, remove=label))
     return tuple(sorted(out, key=lambda e: e.at))
 
@@ -419,14 +419,7 @@ def load_layout(path: str | Path) -> Layout:
         LayoutError: the file is missing, is not YAML, or a field is wrong (named in the message).
     """
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise LayoutError(f"{path}: cannot read layout file ({exc.strerror or exc})") from exc
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise LayoutError(f"{path}: not valid YAML ({exc})") from exc
+    data = read_yaml(path, "layout file", LayoutError)
     return parse_layout(data, str(path))
 
 

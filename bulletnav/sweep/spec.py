@@ -37,10 +37,9 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from bulletnav import ENV_ID, limits
 from bulletnav.errors import ConfigError, LimitError
+from bulletnav.yamlfile import read_yaml, show
 
 ALGOS = ("ppo", "sac", "td3", "a2c")
 DISTRIBUTIONS = ("uniform", "loguniform", "randint", "choice")
@@ -103,12 +102,7 @@ class SweepSpec:
                 (the message names the file and the field).
         """
         path = Path(path)
-        try:
-            data = yaml.safe_load(path.read_text())
-        except OSError as exc:
-            raise ConfigError(f"{path}: cannot read sweep file ({exc.strerror or exc})") from exc
-        except yaml.YAMLError as exc:
-            raise ConfigError(f"{path}: not valid YAML ({exc})") from exc
+        data = read_yaml(path, "sweep file", ConfigError)
         return cls.from_dict(data, where=str(path), default_name=path.stem)
 
     @classmethod
@@ -116,12 +110,12 @@ class SweepSpec:
         """Validate a sweep given as a mapping (what :meth:`from_file` reads)."""
         if not isinstance(data, dict):
             raise ConfigError(f"{where}: a sweep file is a mapping of fields ({', '.join(FIELDS)})")
-        unknown = sorted(set(data) - set(FIELDS))
+        unknown = sorted(set(data) - set(FIELDS), key=str)
         if unknown:
             raise ConfigError(f"{where}: unknown field(s) {', '.join(map(repr, unknown))}; valid: {', '.join(FIELDS)}")
 
         def bad(name: str, why: str) -> ConfigError:
-            return ConfigError(f"{where}: field {name!r}: {why} (got {data.get(name)!r})")
+            return ConfigError(f"{where}: field {show(name)}: {why} (got {show(data.get(name))})")
 
         if "algo" not in data:
             raise ConfigError(f"{where}: field 'algo' is required (one of {', '.join(ALGOS)})")
@@ -149,7 +143,7 @@ class SweepSpec:
             res = {}
             for key, value in data["resources"].items():
                 if not isinstance(value, (int, float)) or isinstance(value, bool) or value < 0:
-                    raise bad("resources", f"{key!r} must be a number >= 0")
+                    raise bad("resources", f"{show(key)} must be a number >= 0")
                 res[str(key)] = float(value)
             kw["resources"] = res
         for name, low in (("timesteps", 1), ("eval_freq", 1), ("eval_episodes", 1), ("checkpoint_freq", 1)):
@@ -176,7 +170,7 @@ class SweepSpec:
             grid = {}
             for key, values in data["grid"].items():
                 if not isinstance(values, list) or not values:
-                    raise ConfigError(f"{where}: field 'grid': {key!r} must be a non-empty list of values (got {values!r})")
+                    raise ConfigError(f"{where}: field 'grid': {show(key)} must be a non-empty list of values (got {show(values)})")
                 grid[str(key)] = tuple(values)
             kw["grid"] = grid
         trials = math.prod(len(v) for v in kw.get("grid", {}).values()) * len(kw.get("seeds", (0,)))
@@ -187,7 +181,7 @@ class SweepSpec:
         if data.get("search") is not None:
             if not isinstance(data["search"], dict):
                 raise bad("search", f"must map hyperparameter names to distributions ({', '.join(DISTRIBUTIONS)})")
-            kw["search"] = {str(k): _distribution(v, f"{where}: field 'search': {k!r}") for k, v in data["search"].items()}
+            kw["search"] = {str(k): _distribution(v, f"{where}: field 'search': {show(k)}") for k, v in data["search"].items()}
             clash = sorted(set(kw["search"]) & set(kw.get("grid", {})))
             if clash:
                 raise bad("search", f"{', '.join(clash)} also in 'grid'")
@@ -250,18 +244,18 @@ def _int(value: Any, low: int, bad, name: str) -> int:
 def _distribution(spec: Any, where: str) -> dict[str, Any]:
     if not isinstance(spec, dict) or len(spec) != 1 or next(iter(spec)) not in DISTRIBUTIONS:
         raise ConfigError(f"{where}: must be one of {{uniform|loguniform|randint: [lo, hi]}} or {{choice: [values]}} "
-                          f"(got {spec!r})")
+                          f"(got {show(spec)})")
     kind, args = next(iter(spec.items()))
     if kind == "choice":
         if not isinstance(args, list) or not args:
-            raise ConfigError(f"{where}: choice needs a non-empty list (got {args!r})")
+            raise ConfigError(f"{where}: choice needs a non-empty list (got {show(args)})")
         return {kind: list(args)}
     if (not isinstance(args, list) or len(args) != 2
             or not all(isinstance(a, (int, float)) and not isinstance(a, bool) and math.isfinite(a) for a in args)
             or not args[0] < args[1]):
-        raise ConfigError(f"{where}: {kind} needs [lo, hi] with lo < hi (got {args!r})")
+        raise ConfigError(f"{where}: {kind} needs [lo, hi] with lo < hi (got {show(args)})")
     if kind == "loguniform" and args[0] <= 0:
-        raise ConfigError(f"{where}: loguniform needs lo > 0 (got {args!r})")
+        raise ConfigError(f"{where}: loguniform needs lo > 0 (got {show(args)})")
     if kind == "randint" and not all(isinstance(a, int) for a in args):
-        raise ConfigError(f"{where}: randint needs integers (got {args!r})")
+        raise ConfigError(f"{where}: randint needs integers (got {show(args)})")
     return {kind: list(args)}
