@@ -320,6 +320,17 @@ def cmd_bench(args: argparse.Namespace) -> int:
                  f"  throttled dashboard    {result['fps_throttled']:6.2f}",
                  f"  unthrottled dashboard  {result['fps_unthrottled']:6.2f}",
                  f"  no dashboard           {result['fps_no_dashboard']:6.2f}"]
+    elif args.what == "fleet":
+        from bulletnav.bench.fleet_bench import bench_fleet
+
+        result = bench_fleet(steps=args.steps or 480, seed=args.seed)
+        lines = [f"fleet wall time per control step ({result['controller']}; {result['steps']} steps after "
+                 f"{result['warmup']} warm-up, seed {result['seed']}):",
+                 f"{'robots':>6s} {'step ms':>8s} {'env ms':>7s} {'ctrl ms':>8s} {'ms/robot':>9s} {'vs N=1':>7s} {'x real time':>11s}"]
+        for row in result["sizes"]:
+            ratio = "-" if row["per_robot_ratio"] is None else f"{row['per_robot_ratio']:.2f}"
+            lines.append(f"{row['robots']:6d} {row['step_ms']:8.2f} {row['env_ms']:7.2f} {row['controller_ms']:8.2f} "
+                         f"{row['per_robot_ms']:9.2f} {ratio:>7s} {row['realtime_factor']:11.1f}")
     else:  # pragma: no cover - argparse restricts the choices
         raise AssertionError(args.what)
     from bulletnav.provenance import provenance
@@ -972,6 +983,52 @@ def cmd_convert_model(args: argparse.Namespace) -> int:
     return 0
 
 
+FLEET_ROBOTS = _int_type(1, 16, "a robot count, a whole number")
+"""Robots in a fleet: 1 to 16 (``bulletnav.fleet.MAX_ROBOTS``)."""
+
+
+def cmd_fleet(args: argparse.Namespace) -> int:
+    """Run a fleet controller on seeded fleet episodes; print the metrics (``--json``) or a table."""
+    from bulletnav.errors import ConfigError
+    from bulletnav.fleet.controllers import DEFAULT_MODEL, make_controller, model_env_kwargs
+    from bulletnav.fleet.metrics import run_fleet_episodes
+
+    if args.model is not None and args.controller != "policy":
+        raise ConfigError(f"--model is for --controller policy, not {args.controller}")
+    model = args.model or DEFAULT_MODEL
+    env_kwargs = dict(model_env_kwargs(model)) if args.controller == "policy" else {}
+    env_kwargs.update(num_robots=args.robots, duration_s=args.duration, dynamic=args.dynamic)
+    result = run_fleet_episodes(
+        env_kwargs, lambda env: make_controller(args.controller, env, shield=args.shield,
+                                                model=model if args.controller == "policy" else None),
+        episodes=args.episodes, seed=args.seed)
+    s = result["summary"]
+    keys = ("throughput_per_hour", "throughput_per_robot_per_hour", "errands", "legs", "collisions_robot_robot",
+            "collisions_static", "collisions_mover", "collisions_person", "deadlocks", "min_separation_m",
+            "errand_time_s", "near_misses", "intimate_s", "personal_s", "shield_rate")
+    out = {"command": "fleet", "controller": args.controller, "shield": args.shield, "robots": args.robots,
+           "duration_s": args.duration, "dynamic": args.dynamic, "episodes": args.episodes, "seed": args.seed,
+           "model": model if args.controller == "policy" else None, **{k: s[k] for k in keys},
+           "rows": result["episodes"]}
+    if args.json:
+        print(_json(out))
+        return 0
+    print(f"fleet: {args.robots} robots, {args.controller}{' + shield' if args.shield else ''}, "
+          f"{args.episodes} episodes of {args.duration:g} s{' (dynamic)' if args.dynamic else ''}, seeds {args.seed}..")
+    print(f"{'ep':>3s} {'seed':>6s} {'errands':>7s} {'per h':>7s} {'robot':>5s} {'static':>6s} {'mover':>5s} "
+          f"{'person':>6s} {'dlock':>5s} {'min sep m':>9s} {'errand s':>8s}")
+    for r in result["episodes"]:
+        print(f"{r['episode']:3d} {r['seed']:6d} {r['errands']:7d} {r['throughput_per_hour']:7.1f} "
+              f"{r['collisions_robot_robot']:5d} {r['collisions_static']:6d} {r['collisions_mover']:5d} "
+              f"{r['collisions_person']:6d} {r['deadlocks']:5d} {_fmt(r['min_separation_m']):>9s} "
+              f"{_fmt(r['errand_time_s'], '.1f'):>8s}")
+    print(f"all: {s['throughput_per_hour']:.1f} errands/h ({s['throughput_per_robot_per_hour']:.1f} per robot), "
+          f"collisions robot {s['collisions_robot_robot']}, static {s['collisions_static']}, mover "
+          f"{s['collisions_mover']}, person {s['collisions_person']}; deadlocks {s['deadlocks']}; "
+          f"min separation {_fmt(s['min_separation_m'])} m; errand time {_fmt(s['errand_time_s'], '.1f')} s")
+    return 0
+
+
 def _hz_list(text: str) -> tuple[int, ...]:
     """``--rates``: comma-separated positive integers (Hz)."""
     try:
@@ -1134,11 +1191,30 @@ def build_parser() -> argparse.ArgumentParser:
     bm.add_argument("--screenshot-tab", type=NON_NEGATIVE, default=0, metavar="K", help="the world tab of world.png (default 0)")
     bm.set_defaults(func=cmd_benchmark)
 
+    fl = add("fleet", "a fleet of robots running pick-and-drop errands: throughput, collisions, deadlocks")
+    fl.add_argument("--robots", type=FLEET_ROBOTS, default=4, help="robots in the warehouse, 1 to 16 (default 4)")
+    fl.add_argument("--controller", choices=["independent", "coordinated", "policy"], default="independent",
+                    help="independent: PID + A* on each robot's lidar map; coordinated: windowed prioritized "
+                         "space-time planning (WHCA*) tracked by PID; policy: a single-robot model on every robot "
+                         "(default independent)")
+    fl.add_argument("--model", default=None, metavar="PATH", type=_file_type((".zip",), "a model"),
+                    help="policy: the model (default models/ppo_dynamic.zip); the fleet takes its env settings")
+    fl.add_argument("--shield", action="store_true",
+                    help="every robot behind the safety shield, the other robots shown to it as movers")
+    fl.add_argument("--episodes", type=COUNT, default=1, help="episodes (default 1), episode k seeded SEED + k")
+    fl.add_argument("--seed", type=SEED, default=0, help="first episode's seed (default 0)")
+    fl.add_argument("--duration", type=_positive_seconds, default=180.0, metavar="S",
+                    help="simulated seconds per episode (default 180)")
+    fl.add_argument("--dynamic", action="store_true", help="add forklifts, walking workers and pallet events")
+    fl.add_argument("--json", action="store_true", help="print one JSON object (summary keys plus per-episode rows)")
+    fl.set_defaults(func=cmd_fleet)
+
     bench = add("bench", "benchmarks (print JSON with --json)")
-    bench.add_argument("what", choices=["env", "physics", "planners", "gui", "shield"],
+    bench.add_argument("what", choices=["env", "physics", "planners", "gui", "shield", "fleet"],
                        help="env: env vs raw PyBullet loop; physics: solver settings and physics rates; planners: A* vs RRT; "
                             "gui: dashboard frame rate (needs a display: xvfb-run -a); shield: the safety "
-                            "shield's decision time per step against the env step (default env WarehouseDynamic-v0)")
+                            "shield's decision time per step against the env step (default env WarehouseDynamic-v0); fleet: wall "
+                            "time per control step at 1, 2, 4, 8, 16 robots, each on PID + A* (default 480 steps)")
     bench.add_argument("--episodes", type=COUNT, default=50, help="navigation episodes per planner (planners)")
     bench.add_argument("--json", action="store_true", help="print one JSON object")
     bench.add_argument("--steps", type=NON_NEGATIVE, default=0, help="steps to time (default: the benchmark's own)")
