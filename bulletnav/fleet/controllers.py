@@ -116,7 +116,7 @@ def model_env_kwargs(model_path: str | Path) -> dict[str, Any]:
     minus reward overrides and learning-only options, and minus the single-robot-only ones).
 
     Raises:
-        ModelError: no readable sidecar beside the model.
+        ModelError: no model file, or no readable sidecar beside it.
     """
     import json
 
@@ -124,6 +124,8 @@ def model_env_kwargs(model_path: str | Path) -> dict[str, Any]:
     from bulletnav.rl.envs import evaluation_env_kwargs
     from bulletnav.rl.io import sidecar_path
 
+    if not Path(model_path).is_file():
+        raise ModelError(f"{model_path}: model file not found")
     side = sidecar_path(model_path)
     try:
         meta = json.loads(side.read_text())

@@ -1,0 +1,344 @@
+"""Fleet controllers and metrics (``bulletnav.fleet.controllers``, ``spacetime``, ``metrics``):
+the reservation table's conflicts, the space-time planner against a brute-force search,
+rotating priorities, a coordinated episode without robot-robot collisions, the shield seeing
+other robots, the deadlock detector and throughput on synthetic traces, and the CLI."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bulletnav.fleet import fleet_v0
+from bulletnav.fleet.controllers import CoordinatedController, ErrandNavigator, ShieldedController, make_controller
+from bulletnav.fleet.metrics import FleetTrace, deadlock_events, episode_metrics, errand_times, separation, summarize
+from bulletnav.fleet.spacetime import MOVES, ReservationTable, distance_map, path_cost, space_time_astar
+from bulletnav.fleet.view import FleetView
+
+ROOT = Path(__file__).resolve().parent.parent
+EMPTY = str(ROOT / "bulletnav" / "assets" / "worlds" / "empty.yaml")
+ROOM_STATIONS = {"pick_stations": [(2.0, 3.0), (-2.0, 3.0)], "drop_stations": [(3.0, -3.5), (-3.0, -3.5)]}
+
+
+# ------------------------------------------------------------------ reservation table
+def test_reservation_table_refuses_vertex_and_swap_conflicts():
+    table = ReservationTable()
+    table.reserve_path([(0, 0), (1, 0), (2, 0)], agent=0)
+    assert not table.move_allowed((1, 1), (1, 0), 0, agent=1)  # (1, 0) is robot 0's at t=1: vertex conflict
+    assert table.move_allowed((1, 1), (1, 0), 0, agent=0)  # its own reservation
+    assert not table.move_allowed((1, 0), (0, 0), 0, agent=1)  # 0 moves (0,0)->(1,0) in step 0: a swap
+    assert table.move_allowed((1, 0), (0, 0), 1, agent=1)  # a step later (0, 0) is free again
+    assert table.move_allowed((3, 0), (3, 0), 0, agent=1)  # waiting elsewhere is fine
+    assert table.owner((2, 0), 2) == 0 and table.owner((2, 0), 3) is None
+
+
+def test_robust_reservations_keep_a_cell_after_it_is_left():
+    table = ReservationTable(robustness=1)
+    table.reserve_path([(0, 0), (1, 0)], agent=0)
+    assert not table.move_allowed((0, 1), (0, 0), 0, agent=1)  # (0, 0) still held at t=1
+    assert table.move_allowed((0, 1), (0, 0), 1, agent=1)  # free at t=2
+    # leaving a cell another robot enters in the next step is refused too (we still hold it)
+    table2 = ReservationTable(robustness=1)
+    table2.reserve_path([(2, 0), (2, 0), (1, 0)], agent=0)
+    assert not table2.move_allowed((1, 0), (1, 1), 1, agent=1)
+
+
+# ------------------------------------------------------------------ space-time planning
+def _brute_force_cost(blocked, start, goal, table, agent, window):
+    """Exact minimum cost by dynamic programming over every (cell, time) layer: the same cost
+    as the planner's (each step 1, waiting on the goal 0, plus the static distance to the goal
+    at the window's end), found without a heuristic or a priority queue."""
+    h = distance_map(blocked, goal)
+    nx, ny = blocked.shape
+    best = {start: 0.0}
+    for t in range(window):
+        nxt: dict = {}
+        for (x, y), g in best.items():
+            for dx, dy in MOVES:
+                u, v = x + dx, y + dy
+                if not (0 <= u < nx and 0 <= v < ny) or (blocked[u, v] and (u, v) != start):
+                    continue
+                if not table.move_allowed((x, y), (u, v), t, agent):
+                    continue
+                c = g + (0.0 if (dx, dy) == (0, 0) and (x, y) == goal else 1.0)
+                if c < nxt.get((u, v), math.inf):
+                    nxt[(u, v)] = c
+        best = nxt
+    return min((g + h[c] for c, g in best.items()), default=math.inf)
+
+
+def _corridor():
+    """A 7 x 3 grid: a one-cell corridor along y = 1 with one side cell (a niche) at (4, 2)."""
+    blocked = np.ones((7, 3), dtype=bool)
+    blocked[:, 1] = False
+    blocked[4, 2] = False
+    return blocked
+
+
+def test_space_time_planner_passes_in_a_corridor_and_matches_brute_force():
+    blocked = _corridor()
+    window = 12
+    table = ReservationTable()
+    a, a_goal = (0, 1), (6, 1)
+    b, b_goal = (6, 1), (0, 1)
+    table.reserve_cell(a, 0, 0)
+    table.reserve_cell(b, 0, 1)
+    path_a, cost_a = space_time_astar(blocked, a, a_goal, table, 0, window)
+    assert cost_a == 6.0 and path_a[6] == a_goal  # the first robot drives straight through
+    table.reserve_path(path_a, 0)
+    path_b, cost_b = space_time_astar(blocked, b, b_goal, table, 1, window)
+    # no shared cell at any step, no swap
+    for t in range(window + 1):
+        assert path_a[t] != path_b[t]
+    for t in range(window):
+        assert not (path_a[t] == path_b[t + 1] and path_a[t + 1] == path_b[t])
+    assert (4, 2) in path_b  # into the niche while the other passes
+    assert path_b[-1] == b_goal
+    # 6 corridor moves + into and out of the niche + one wait in it
+    assert cost_b == _brute_force_cost(blocked, b, b_goal, table, 1, window) == 9.0
+    assert cost_b == path_cost(path_b, b_goal, distance_map(blocked, b_goal))
+
+
+def test_space_time_planner_equals_brute_force_on_random_grids():
+    rng = np.random.default_rng(7)
+    for trial in range(12):
+        blocked = rng.random((6, 5)) < 0.25
+        free = np.argwhere(~blocked)
+        if len(free) < 4:
+            continue
+        picks = rng.choice(len(free), 4, replace=False)
+        s0, g0, s1, g1 = (tuple(int(v) for v in free[k]) for k in picks)
+        if not np.isfinite(distance_map(blocked, g1)[s1]) or not np.isfinite(distance_map(blocked, g0)[s0]):
+            continue
+        table = ReservationTable(robustness=int(trial % 2))
+        table.reserve_cell(s1, 0, 1)
+        found0 = space_time_astar(blocked, s0, g0, table, 0, 8)
+        if found0 is None:
+            continue
+        table.reserve_path(found0[0], 0)
+        found1 = space_time_astar(blocked, s1, g1, table, 1, 8)
+        brute = _brute_force_cost(blocked, s1, g1, table, 1, 8)
+        if found1 is None:
+            assert brute == math.inf
+        else:
+            assert found1[1] == brute
+
+
+def test_free_grid_cost_is_the_static_distance():
+    blocked = np.zeros((8, 8), dtype=bool)
+    path, cost = space_time_astar(blocked, (0, 0), (5, 3), ReservationTable(), 0, 10)
+    assert cost == 8.0 and path[8] == (5, 3) and path[-1] == (5, 3)
+
+
+# ------------------------------------------------------------------ coordinated controller
+def test_priorities_rotate_round_robin():
+    env = fleet_v0.parallel_env(num_robots=3, duration_s=2.0)
+    try:
+        ctl = CoordinatedController(env)
+        _, infos = env.reset(seed=1)
+        ctl.reset(infos)
+        orders = [ctl.order]
+        for _ in range(3):
+            ctl._plan(infos)  # noqa: SLF001 - a replan, as the rolling horizon makes one
+            orders.append(ctl.order)
+        assert orders == [[0, 1, 2], [1, 2, 0], [2, 0, 1], [0, 1, 2]]
+    finally:
+        env.close()
+
+
+def test_coordinated_two_robots_no_robot_collision():
+    env = fleet_v0.parallel_env(num_robots=2, duration_s=20.0)
+    try:
+        ctl = CoordinatedController(env)
+        obs, infos = env.reset(seed=3)
+        ctl.reset(infos)
+        sep = math.inf
+        view = FleetView(env)
+        while env.agents:
+            obs, _, _, _, infos = env.step(ctl.act(obs, infos))
+            sep = min(sep, math.dist(view.pose(0)[:2], view.pose(1)[:2]))
+        assert sum(i["collisions_robot"] for i in infos.values()) == 0
+        assert sum(i["collisions_static"] for i in infos.values()) == 0
+        assert sum(i["legs_completed"] for i in infos.values()) >= 1  # it does drive its errands
+        assert ctl.replans > 1 and sep > 0.4
+    finally:
+        env.close()
+
+
+# ------------------------------------------------------------------ independent + shield
+def test_errand_navigator_replans_for_a_new_goal():
+    env = fleet_v0.parallel_env(num_robots=1, duration_s=5.0, world=EMPTY, **ROOM_STATIONS)
+    try:
+        view = FleetView(env)
+        nav = ErrandNavigator(view.robot(0))
+        obs, infos = env.reset(seed=0)
+        nav.reset(infos["robot_0"])
+        nav.act(obs["robot_0"], infos["robot_0"])
+        old_end = nav.navigator.path[-1]
+        info = dict(infos["robot_0"], goal=(-3.0, -3.5))
+        nav.act(obs["robot_0"], info)
+        assert nav.goal_changes == 1 and nav.navigator.goal == (-3.0, -3.5)
+        assert math.dist(nav.navigator.path[-1], (-3.0, -3.5)) < 0.2 and nav.navigator.path[-1] != old_end
+    finally:
+        env.close()
+
+
+class _Forward:
+    """Full speed ahead for every robot."""
+
+    def __init__(self, env):
+        self.agents = env.possible_agents
+
+    def reset(self, infos):
+        pass
+
+    def act(self, observations, infos):
+        return {a: np.array([0.5, 0.0], dtype=np.float32) for a in observations}
+
+
+def test_shield_sees_other_robots_as_movers_and_stops_short():
+    env = fleet_v0.parallel_env(num_robots=2, duration_s=4.0, world=EMPTY, **ROOM_STATIONS)
+    try:
+        ctl = ShieldedController(_Forward(env), env)
+        obs, infos = env.reset(seed=0)
+        env._scene.robots[0].reset_pose((-1.5, 0.0, 0.0))  # test-only: face to face, 3 m apart
+        env._scene.robots[1].reset_pose((1.5, 0.0, math.pi))
+        view = FleetView(env)
+        movers = view.robot(0, others_as_movers=True).movers
+        assert len(movers) == 1 and movers[0].kind == "robot" and movers[0].index == 1
+        assert math.dist(movers[0].pose[:2], (1.5, 0.0)) < 1e-6
+        assert view.robot(0).movers == ()  # the navigator's view keeps robots out of its mover list
+        ctl.reset(infos)
+        while env.agents:
+            obs, _, _, _, infos = env.step(ctl.act(obs, infos))
+        assert sum(i["collisions_robot"] for i in infos.values()) == 0
+        assert ctl.interventions > 0
+        assert math.dist(view.pose(0)[:2], view.pose(1)[:2]) > 0.3
+    finally:
+        env.close()
+
+
+def test_make_controller_refuses_bad_names():
+    from bulletnav.errors import ConfigError
+
+    env = fleet_v0.parallel_env(num_robots=1, duration_s=1.0)
+    try:
+        with pytest.raises(ConfigError, match="one of"):
+            make_controller("bogus", env)
+        with pytest.raises(ConfigError, match="takes no model"):
+            make_controller("coordinated", env, model="models/ppo_dynamic.zip")
+    finally:
+        env.close()
+
+
+# ------------------------------------------------------------------ metrics on synthetic traces
+def test_deadlock_detector():
+    dt, steps = 0.5, 121  # 60 s
+    t = np.arange(steps) * dt
+    xy = np.zeros((steps, 3, 2))
+    xy[:, 0] = (0.0, 0.0)
+    xy[:, 1] = (1.0, 0.0)  # within 2 m of robot 0
+    xy[:, 2] = (10.0, 0.0)
+    legs = np.zeros((steps, 3), dtype=int)
+    distance = np.empty((steps, 3))
+    distance[:, 0] = 5.0  # stalled
+    distance[:, 1] = 5.0  # stalled
+    distance[:, 2] = 20.0 - 0.3 * t  # progressing
+    events = deadlock_events(xy, distance, legs, dt)
+    assert events == [(20.0, (0, 1))]  # counted once, at 20 s, for the stalled pair only
+    # the progressing robot moved next to the pair is not part of a deadlock
+    xy[:, 2] = (0.5, 1.0)
+    assert deadlock_events(xy, distance, legs, dt) == [(20.0, (0, 1))]
+    # a stalled pair more than 2 m apart is not a deadlock
+    xy2 = xy.copy()
+    xy2[:, 1] = (3.0, 0.0)
+    distance2 = distance.copy()
+    distance2[:, 2] = 20.0 - 0.3 * t
+    assert deadlock_events(xy2, distance2, legs, dt) == []
+    # progress (>= 0.1 m closer) at 30 s ends the pair's event; stalled again 20 s later: a new event
+    d3 = distance.copy()
+    d3[t >= 30.0, :2] = 4.85
+    events = deadlock_events(xy, d3, legs, dt)
+    assert events == [(20.0, (0, 1)), (50.0, (0, 1))]
+    # small wiggles (< 0.1 m) are not progress
+    d4 = distance.copy()
+    d4[:, 0] = 5.0 - 0.05 * np.sin(t)
+    assert len(deadlock_events(xy, d4, legs, dt)) == 1
+    # a completed leg is progress even when the new goal is farther
+    legs5 = legs.copy()
+    legs5[t >= 10.0, 0] = 1
+    assert deadlock_events(xy, distance, legs5, dt) == [(30.0, (0, 1))]
+
+
+def _infos(errands, legs, robot=0, static=0):
+    return {f"robot_{i}": {"errands_completed": e, "legs_completed": l, "collisions_robot": robot,
+                           "collisions_static": static, "collisions_mover": 0, "collisions_person": 0,
+                           "pose": (float(i), 0.0, 0.0), "distance_to_goal": 1.0}
+            for i, (e, l) in enumerate(zip(errands, legs))}
+
+
+def test_throughput_arithmetic_and_errand_times():
+    dt = 1.0
+    trace = FleetTrace(dt)
+    # two robots, 120 s: robot 0 completes errands at 30 s and 90 s, robot 1 one at 100 s
+    for k in range(121):
+        e0 = int(k >= 30) + int(k >= 90)
+        e1 = int(k >= 100)
+        trace.record(_infos([e0, e1], [2 * e0, 2 * e1]), workers=[(0.0, 1.0)])
+    row = episode_metrics(trace, _infos([2, 1], [4, 2], robot=1, static=2), duration_s=120.0)
+    assert row["errands"] == 3 and row["legs"] == 6
+    assert row["throughput_per_hour"] == pytest.approx(3 * 30.0)  # 3 errands in 1/30 h
+    assert row["throughput_per_robot_per_hour"] == pytest.approx(45.0)
+    assert row["errand_time_s"] == pytest.approx((30 + 60 + 100) / 3)
+    assert sorted(errand_times(np.stack(trace.errands), dt)) == [30.0, 60.0, 100.0]
+    assert row["collisions_robot_robot"] == 2 and row["collisions_static"] == 4
+    assert row["min_separation_m"] == pytest.approx(1.0) and row["near_misses"] == 0
+    # robot 0 at distance 1 m of the worker: personal zone (1.2 m) all 120 s, never intimate
+    assert row["personal_s"] == pytest.approx(120.0) and row["intimate_s"] == 0.0
+    s = summarize([row, {**row, "errands": 1, "throughput_per_hour": 30.0, "min_separation_m": 0.5}])
+    assert s["errands"] == 4 and s["throughput_per_hour"] == pytest.approx(60.0) and s["min_separation_m"] == 0.5
+
+
+def test_near_miss_entries():
+    xy = np.zeros((5, 2, 2))
+    xy[:, 1, 0] = [1.0, 0.5, 0.5, 1.0, 0.4]
+    sep, entries = separation(xy)
+    assert sep == pytest.approx(0.4) and entries == 2
+
+
+# ------------------------------------------------------------------ CLI
+def _cli(*args, timeout=120):
+    return subprocess.run([sys.executable, "-m", "bulletnav.cli", *args], capture_output=True, text=True,
+                          timeout=timeout, cwd=ROOT)
+
+
+def test_cli_fleet_json():
+    r = _cli("fleet", "--robots", "2", "--duration", "10", "--episodes", "1", "--controller", "coordinated", "--json")
+    assert r.returncode == 0, r.stderr
+    line = next(x for x in r.stdout.splitlines() if x.startswith("{"))
+    out = json.loads(line)
+    for key in ("throughput_per_hour", "collisions_robot_robot", "collisions_static", "collisions_mover",
+                "collisions_person", "deadlocks", "min_separation_m", "errand_time_s", "rows"):
+        assert key in out
+    assert len(out["rows"]) == 1 and out["rows"][0]["seed"] == 0 and out["robots"] == 2
+
+
+@pytest.mark.parametrize("args, message", [
+    (("--robots", "0"), "--robots: expected a robot count, a whole number from 1 to 16, got 0"),
+    (("--robots", "17"), "from 1 to 16, got 17"),
+    (("--controller", "bogus"), "--controller: invalid choice: 'bogus'"),
+    (("--duration", "-3"), "--duration: expected seconds > 0"),
+    (("--episodes", "0"), "--episodes: expected a whole number >= 1, got 0"),
+    (("--controller", "coordinated", "--model", "models/ppo_dynamic.zip"), "--model is for --controller policy"),
+    (("--controller", "policy", "--model", "nothere.zip"), "model file not found"),
+])
+def test_cli_fleet_bad_arguments(args, message):
+    r = _cli("fleet", *args)
+    assert r.returncode == 2
+    errors = [x for x in r.stderr.splitlines() if "error" in x]
+    assert len(errors) == 1 and message in errors[0], r.stderr
