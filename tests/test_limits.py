@@ -165,7 +165,7 @@ def test_benchmark_suite_world_kwargs(tmp_path):
     def suite(**kwargs):
         return {"worlds": [{"env": "bulletnav/Warehouse-v0", "kwargs": kwargs}], "controllers": [{"type": "navigator"}]}
 
-    parse_suite(suite(num_obstacles=D.obstacles, goals=D.goals), "s.yaml")
+    assert parse_suite(suite(num_obstacles=D.obstacles, goals=D.goals), "s.yaml").name == "s"
     with pytest.raises(SuiteError, match=r"s.yaml: field 'worlds\[0\].kwargs.num_obstacles' = 1001 exceeds the limit"):
         parse_suite(suite(num_obstacles=D.obstacles + 1), "s.yaml")
     with pytest.raises(SuiteError, match=r"field 'worlds\[0\].kwargs.goals' = 9 exceeds the limit 8"):

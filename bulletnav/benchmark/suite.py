@@ -206,11 +206,11 @@ def parse_suite(raw: Any, where: str = "<suite>", sha256: str = "") -> Suite:
             known = sorted(e for e in gym.registry if e.startswith("bulletnav/"))
             raise SuiteError(f"{where}: field '{tag}.env' must be a bulletnav env id ({', '.join(known)}), got {show(env)}")
         kwargs = _mapping(w.get("kwargs") or {}, where, f"{tag}.kwargs", set(WORLD_KWARGS))
-        for key, name in (("num_obstacles", "obstacles"), ("goals", "goals")):
+        for key, limit in (("num_obstacles", "obstacles"), ("goals", "goals")):
             if key in kwargs:
                 count = _int(kwargs[key], where, f"{tag}.kwargs.{key}", 0 if key == "num_obstacles" else 1, 2**31)
                 try:
-                    limits.check(name, count, f"field '{tag}.kwargs.{key}'")
+                    limits.check(limit, count, f"field '{tag}.kwargs.{key}'")
                 except LimitError as exc:
                     raise SuiteError(f"{where}: {exc}") from None
         if "world" in kwargs:

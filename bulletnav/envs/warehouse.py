@@ -105,12 +105,13 @@ def _apply(cfg: EnvConfig, key: str, value: Any) -> EnvConfig:
     """``cfg`` with keyword ``key`` set; any TypeError or ValueError names the keyword."""
     try:
         return _set(cfg, key, value)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:  # OverflowError: an int beyond float64 (a ValueError here)
         message = str(exc)
         if f"'{key}'" in message or f"{key}=" in message:
             raise
+        kind = ValueError if isinstance(exc, OverflowError) else type(exc)
         try:
-            named = type(exc)(f"bulletnav/Warehouse-v0 keyword {key}={show(value)}: {message}")
+            named = kind(f"bulletnav/Warehouse-v0 keyword {key}={show(value)}: {message}")
         except Exception:  # noqa: BLE001  (an exception type with other arguments: keep it as it is)
             raise exc from None
         raise named from exc

@@ -42,6 +42,10 @@ def load_hyperparams(algo: str, env_id: str = ENV_ID, path: str | Path | None = 
         raise ConfigError(f"{path}: no hyperparameters for env id {show(env_id)}")
     if not isinstance(data[env_id], dict):
         raise ConfigError(f"{path}: {show(env_id)} must map hyperparameter names to values")
+    for key in ("env_kwargs", "normalize", "policy_kwargs", "action_noise"):
+        value = data[env_id].get(key)
+        if value is not None and value is not False and not isinstance(value, dict):  # train does **value
+            raise ConfigError(f"{path}: {env_id}.{key} must be a mapping, got {show(value)}")
     hp = upgrade_hyperparams(dict(data[env_id]), str(path))
     if hp.get("randomize"):  # checked now: a typo fails before any env starts
         from bulletnav.envs.randomization import parse_randomize

@@ -324,7 +324,7 @@ def _parse_dynamic(raw: Any, layout: Layout, where: str) -> tuple[MoverSpec, ...
         kind = entry.get("type")
         allowed = {"forklift": {"type", "route", "speed", "size", "accel", "yield_to_robot"},
                    "worker": {"type", "waypoints", "speed", "radius", "height", "pause", "yield_to_robot"}}
-        if kind not in allowed:
+        if not isinstance(kind, str) or kind not in allowed:
             raise LayoutError(f"{where}: field '{tag}.type' must be 'forklift' or 'worker', got {show(kind)}")
         unknown = sorted(set(entry) - allowed[kind], key=str)
         if unknown:

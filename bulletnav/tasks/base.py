@@ -86,7 +86,7 @@ def pose_option(value: Any, n: int, name: str) -> tuple[float, ...]:
     """
     try:
         out = tuple(float(v) for v in value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # OverflowError: an int beyond float64
         raise ValueError(f"options[{name!r}] must be {n} numbers, got {value!r}") from None
     if len(out) != n or not all(math.isfinite(v) for v in out):
         raise ValueError(f"options[{name!r}] must be {n} finite numbers, got {value!r}")
