@@ -31,7 +31,7 @@ import numpy as np
 import pybullet as p
 import pytest
 import yaml
-from hypothesis import event, given, settings
+from hypothesis import event, example, given, settings
 from hypothesis import strategies as st
 from hypothesis.control import currently_in_test_context
 
@@ -42,6 +42,7 @@ from bulletnav.rl.hyperparams import load_hyperparams
 from bulletnav.sim.layout import load_layout
 from bulletnav.sweep.spec import SweepSpec
 from fuzz_strategies import (
+    BILLION_LAUGHS,
     ENV_ID,
     examples,
     hyperparams,
@@ -86,6 +87,12 @@ def _expect(exc: BaseException, kinds: tuple[type[BaseException], ...], path: Pa
 
 @settings(max_examples=examples(300))
 @given(raw_files(mutated(layouts)))
+# inputs that once failed (kept as regressions): UnicodeDecodeError, RecursionError after 2 s,
+# ValueError from PyYAML's int constructor, TypeError from a list as a mover type
+@example(b"size: [10, 10]\nname: \xff\xfe\xfa\n")
+@example(b"[" * 3000 + b"]" * 3000)
+@example(b"!<tag:yaml.org,2002:int> x\n")
+@example(b"size: [10.0, 8.0]\ndynamic:\n- {type: [], waypoints: [[0, 0], [0, 1]]}\n")
 def test_layout_files(data):
     """examples: 300. A layout file (with ``dynamic:``, ``events:``, ``goals:``) loads or
     fails with a LayoutError naming the file."""
@@ -103,6 +110,9 @@ def test_layout_files(data):
 
 @settings(max_examples=examples(200))
 @given(raw_files(mutated(sweeps)))
+@example(b"(:\nnull:")  # keys of two types: sorted() raised TypeError
+@example(("algo: ppo\nseeds: [0, 1]\ngrid: {" + ", ".join(f"k{i}: [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]" for i in range(20))
+          + "}\n").encode())  # 10^20 configurations: refused before they are expanded
 def test_sweep_files(data):
     """examples: 200. A sweep file parses or fails with a ConfigError naming the file; a
     parsed one has a finite number of trials within the limit."""
@@ -119,6 +129,8 @@ def test_sweep_files(data):
 
 @settings(max_examples=examples(150))
 @given(raw_files(mutated(hyperparams)))
+@example(BILLION_LAUGHS.encode())  # a repr in parse_randomize's message ran out of memory
+@example(b"bulletnav/Warehouse-v0:\n  collision_terminal: false\n  env_kwargs: '0'\n")  # dict('0'): ValueError
 def test_hyperparameter_files(data):
     """examples: 150. A hyperparameter file loads (a mapping) or fails with a ConfigError
     naming the file."""
@@ -134,6 +146,7 @@ def test_hyperparameter_files(data):
 
 @settings(max_examples=examples(150))
 @given(raw_files(mutated(suites)))
+@example(b"controllers:\n- {class: 'mypkg.mod:MyPolicy', kwargs: [[{}]], type: policy}\nworlds:\n- env: bulletnav/Warehouse-v0\n")
 def test_benchmark_suite_files(data):
     """examples: 150. A suite file parses or fails with a SuiteError naming the file."""
     path = _write(data, "suite.yaml")
@@ -186,6 +199,10 @@ def _check_kwargs_error(exc: BaseException, kwargs: dict) -> None:
 
 @settings(max_examples=examples(300))
 @given(env_kwargs)
+@example({"lidar_rays": "abc"})  # TypeError "'<' not supported between 'str' and 'int'"
+@example({"world_size": None})  # TypeError "'NoneType' object is not iterable"
+@example({"config": (0, 0), "task_name": "mission"})  # TypeError "replace() should be called on dataclass instances"
+@example({"shift_imu_accel_bias": (0, 10**400)})  # OverflowError
 def test_env_kwargs_config(kwargs):
     """examples: 300. ``make_config(**kwargs)`` (what the env's constructor runs first, no
     world built) returns a config or raises TypeError / ValueError naming the keyword."""
@@ -263,6 +280,7 @@ def _stepped(env, action) -> None:
 
 @settings(max_examples=examples(200))
 @given(actions=st.lists(actions, min_size=1, max_size=4))
+@example(actions=[[2**70, 0]])  # OverflowError from np.asarray
 def test_actions(env, actions):
     """examples: 200 (sequences of up to 4 steps). ``env.step`` with NaN / infinite / huge
     values, wrong shapes and dtypes takes a valid step or raises a ValueError naming the
@@ -282,6 +300,8 @@ reset_options = st.one_of(
 
 @settings(max_examples=examples(60), deadline=5000)
 @given(options=reset_options)
+@example(options=True)  # TypeError "argument of type 'bool' is not iterable"
+@example(options={"goal": [10**400, 0]})  # OverflowError
 def test_reset_options(env, options):
     """examples: 60. ``env.reset(options=...)`` with random start / goal values resets or
     raises a ValueError (or the project's SamplingError) naming the option."""

@@ -246,7 +246,8 @@ def parse_suite(raw: Any, where: str = "<suite>", sha256: str = "") -> Suite:
             if target.count(":") != 1 or not all(target.split(":")):
                 raise SuiteError(f"{where}: field '{tag}.class' must be 'module:Class', got {show(target)}")
             spec["cls"] = target
-            spec["kwargs"] = dict(_mapping(c.get("kwargs") or {}, where, f"{tag}.kwargs", set(c.get("kwargs") or {})))
+            kwargs_ = c.get("kwargs") or {}
+            spec["kwargs"] = dict(_mapping(kwargs_, where, f"{tag}.kwargs", set(kwargs_) if isinstance(kwargs_, dict) else set()))
             default = target.split(":")[1]
         name_ = _str(c.get("name", default + (" + shield" if shield else "")), where, f"{tag}.name")
         controllers.append(ControllerSpec(name=name_, **spec))
