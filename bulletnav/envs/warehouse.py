@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import numbers
 import time
+import warnings
 from dataclasses import fields, replace
 from os import PathLike
 from types import UnionType
@@ -470,8 +471,10 @@ class WarehouseEnv(gym.Env):
             a0, a1 = action.tolist()  # the common case, fast
         else:
             try:
-                arr = np.asarray(action, dtype=np.float64)
-            except (TypeError, ValueError, OverflowError):  # OverflowError: an int beyond float64
+                with warnings.catch_warnings():  # a complex number inside an object array: refused, not cast
+                    warnings.simplefilter("error", np.exceptions.ComplexWarning)
+                    arr = np.asarray(action, dtype=np.float64)
+            except (TypeError, ValueError, OverflowError, np.exceptions.ComplexWarning):  # Overflow: an int beyond float64
                 arr = None
             if arr is None or arr.shape != (2,) or np.iscomplexobj(action):
                 raise ValueError(f"action must be 2 numbers (v, w), got {action!r} of type {type(action).__name__}"

@@ -85,16 +85,17 @@ def compare_runs(run_dirs: list[Path], out_png: Path, group_by: str = "algo") ->
     from matplotlib.ticker import FuncFormatter
 
     rows = []
-    fig, (ax1, ax3, ax2) = plt.subplots(1, 3, figsize=(15, 4), dpi=100)
     if group_by not in GROUPS:
         raise ValueError(f"group_by must be one of {', '.join(GROUPS)}, got {group_by!r}")
+    for run in run_dirs:  # before the figure exists: a refused call leaves no open figure behind
+        for name in ("eval_history.json", "run.json"):
+            if not (run / name).is_file():
+                raise RunError(f"{run}: not a finished training run (no {name})")
+    fig, (ax1, ax3, ax2) = plt.subplots(1, 3, figsize=(15, 4), dpi=100)
     colours: dict[str, Any] = {}  # one colour per group; its seeds share it, each its own line style
     styles = ("o-", "s--", "^:", "d-.")
     seen: dict[str, int] = {}
     for run in run_dirs:
-        for name in ("eval_history.json", "run.json"):
-            if not (run / name).is_file():
-                raise RunError(f"{run}: not a finished training run (no {name})")
         history = json.loads((run / "eval_history.json").read_text())
         record = json.loads((run / "run.json").read_text())
         group = run_group(record, group_by)
