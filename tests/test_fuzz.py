@@ -21,6 +21,7 @@ Examples per property are in each docstring (the ``ci`` profile, derandomized);
 from __future__ import annotations
 
 import contextlib
+import importlib
 import io
 import itertools
 import tempfile
@@ -131,6 +132,8 @@ def test_sweep_files(data):
 @given(raw_files(mutated(hyperparams)))
 @example(BILLION_LAUGHS.encode())  # a repr in parse_randomize's message ran out of memory
 @example(b"bulletnav/Warehouse-v0:\n  collision_terminal: false\n  env_kwargs: '0'\n")  # dict('0'): ValueError
+@example(b"bulletnav/Warehouse-v0:\n  n_envs: 1\n  0: 1\n")  # PPO(..., **{0: 1}): TypeError in training
+@example(b"bulletnav/Warehouse-v0:\n  n_envs: null\n")  # int(None): TypeError in training
 def test_hyperparameter_files(data):
     """examples: 150. A hyperparameter file loads (a mapping) or fails with a ConfigError
     naming the file."""
@@ -387,11 +390,11 @@ def test_cli_arguments(argv, monkeypatch_session):
 
 @pytest.fixture(scope="module")
 def monkeypatch_session():
-    """Real work replaced by :class:`_Reached` for the CLI property (module-scoped, as
+    """Real work (env resets, training, sweeps, benchmarks) replaced by :class:`_Reached` for the CLI property (module-scoped, as
     Hypothesis reuses one fixture value for all examples)."""
-    import bulletnav.evaluation
-    import bulletnav.rl.train  # noqa: F401  (torch and SB3 imported once here, not inside a timed example)
+    import bulletnav.evaluation  # noqa: F401  (torch and SB3 imported once here, not inside a timed example)
     from bulletnav.benchmark import runner
+    train = importlib.import_module("bulletnav.rl.train")
     from bulletnav.envs.warehouse import WarehouseEnv
     from bulletnav.sweep import run
 
@@ -402,6 +405,7 @@ def monkeypatch_session():
         mp.setattr(WarehouseEnv, "reset", reached)
         mp.setattr(run, "run_sweep", reached)
         mp.setattr(runner, "run_suite", reached)
+        mp.setattr(train, "train", reached)  # the hyperparameter file is test_hyperparameter_files' subject
         yield mp
 
 

@@ -42,6 +42,14 @@ def load_hyperparams(algo: str, env_id: str = ENV_ID, path: str | Path | None = 
         raise ConfigError(f"{path}: no hyperparameters for env id {show(env_id)}")
     if not isinstance(data[env_id], dict):
         raise ConfigError(f"{path}: {show(env_id)} must map hyperparameter names to values")
+    entry = data[env_id]
+    odd = [k for k in entry if not isinstance(k, str) or not k.isidentifier()]
+    if odd:  # they become keyword arguments of the algorithm's constructor
+        raise ConfigError(f"{path}: {env_id} has hyperparameter names that are not identifiers: {show(odd)}")
+    for key in ("n_envs", "n_timesteps"):
+        value = entry.get(key, 1)
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ConfigError(f"{path}: {env_id}.{key} must be an integer >= 1, got {show(value)}")
     for key in ("env_kwargs", "normalize", "policy_kwargs", "action_noise"):
         value = data[env_id].get(key)
         if value is not None and value is not False and not isinstance(value, dict):  # train does **value
