@@ -248,3 +248,20 @@ def test_broken_statistics_and_sidecars_are_clear_errors(tmp_path):
     (tmp_path / "ppo_warehouse.json").write_text('["a list"]')
     with pytest.raises(ModelError, match="must be a JSON object"):
         load_model(model, algo="ppo")
+
+
+@pytest.mark.parametrize("name,message", [
+    ("os.system", "may name classes of bulletnav"),
+    ("subprocess.Popen", "may name classes of bulletnav"),
+    ("torch.nn.functional.relu", "not a class"),
+    ("bulletnav.rl.policies.NoSuchPolicy", "cannot be imported"),
+])
+def test_hyperparameter_files_name_only_allowed_classes(tmp_path, name, message):
+    from bulletnav.errors import ConfigError
+    from bulletnav.rl.hyperparams import import_name, policy_class
+
+    with pytest.raises(ConfigError, match=message):
+        import_name(name)
+    with pytest.raises(ConfigError, match=message):
+        policy_class({"policy": name})
+    assert import_name("torch.nn.ReLU") is torch.nn.ReLU

@@ -149,10 +149,26 @@ def apply_overrides(hp: dict[str, Any], overrides: dict[str, Any] | None, where:
     return out
 
 
+IMPORTABLE = ("bulletnav.", "stable_baselines3.", "sb3_contrib.", "torch.nn.", "torch.optim.")
+"""Packages whose classes a hyperparameter (or sweep) file may name: a file never makes bulletnav
+import or call anything else (a class of your own goes through the Python API instead)."""
+
+
 def import_name(dotted: str) -> Any:
-    """``"package.module.Name"`` -> the object, for classes named in hyperparameter files."""
+    """``"package.module.Name"`` -> the class, for classes named in hyperparameter files.
+
+    Raises:
+        ConfigError: a name outside :data:`IMPORTABLE`, one that cannot be imported, or not a class.
+    """
     module, _, name = dotted.rpartition(".")
+    if not (module + ".").startswith(IMPORTABLE):
+        allowed = ", ".join(m.rstrip(".") for m in IMPORTABLE)
+        raise ConfigError(f"hyperparameters name {show(dotted)}: a file may name classes of {allowed} only "
+                          "(pass a class of your own through the Python API)")
     try:
-        return getattr(importlib.import_module(module), name)
+        obj = getattr(importlib.import_module(module), name)
     except (ImportError, AttributeError, ValueError) as exc:
         raise ConfigError(f"hyperparameters name {show(dotted)}, which cannot be imported ({exc})") from exc
+    if not isinstance(obj, type):
+        raise ConfigError(f"hyperparameters name {show(dotted)}, which is a {type(obj).__name__}, not a class")
+    return obj
