@@ -24,7 +24,7 @@ test: $(STAMP)
 # Property-based fuzzing of every parser, the env's kwargs and actions and the CLI with 20 times the
 # examples of `make test`'s derandomized run, on random seeds; prints the examples per property.
 fuzz: $(STAMP)
-	HYPOTHESIS_PROFILE=fuzz $(BIN)/python -m pytest -q tests/test_fuzz.py --hypothesis-show-statistics
+	HYPOTHESIS_PROFILE=fuzz $(BIN)/python -m pytest -q tests/test_fuzz.py tests/test_fuzz_models.py --hypothesis-show-statistics
 
 clean:
 	rm -rf $(VENV) runs/demo runs/demo-* .pytest_cache
