@@ -1253,7 +1253,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             check_env_id(args.env_id)
         return int(args.func(args) or 0)
     except BulletnavError as exc:
-        print(f"bulletnav {args.command}: error: {exc}", file=sys.stderr)
+        print(f"bulletnav {args.command}: error: {' '.join(str(exc).split())}", file=sys.stderr)  # one line
         return 2
 
 

@@ -276,10 +276,10 @@ def test_deadlock_detector():
 
 
 def _infos(errands, legs, robot=0, static=0):
-    return {f"robot_{i}": {"errands_completed": e, "legs_completed": l, "collisions_robot": robot,
+    return {f"robot_{i}": {"errands_completed": e, "legs_completed": leg, "collisions_robot": robot,
                            "collisions_static": static, "collisions_mover": 0, "collisions_person": 0,
                            "pose": (float(i), 0.0, 0.0), "distance_to_goal": 1.0}
-            for i, (e, l) in enumerate(zip(errands, legs))}
+            for i, (e, leg) in enumerate(zip(errands, legs))}
 
 
 def test_throughput_arithmetic_and_errand_times():
