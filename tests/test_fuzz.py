@@ -1,8 +1,8 @@
 """Property-based fuzzing of every input a user feeds bulletnav (Hypothesis).
 
 Each property: any input gives a result or the project's own error with a non-empty message,
-never another exception from deep inside, never a hang (Hypothesis ``deadline``), never a
-physics-server crash. The expected errors, per parser:
+never another exception from deep inside, never a hang (Hypothesis ``deadline`` under
+``make fuzz``; none in ``make test``, which asserts no timing), never a physics-server crash. The expected errors, per parser:
 
 | input | function | result or |
 |---|---|---|
@@ -45,6 +45,7 @@ from bulletnav.sweep.spec import SweepSpec
 from fuzz_strategies import (
     BILLION_LAUGHS,
     ENV_ID,
+    deadline,
     examples,
     hyperparams,
     junk,
@@ -217,7 +218,7 @@ def test_env_kwargs_config(kwargs):
         _check_kwargs_error(exc, kwargs)
 
 
-@settings(max_examples=examples(15), deadline=10_000)
+@settings(max_examples=examples(15), deadline=deadline(10_000))
 @given(st.one_of(plausible_kwargs, plausible_kwargs, env_kwargs).filter(
     # gym.make itself reads render_mode (and calls str methods on it) before the env sees it
     lambda kw: kw.get("render_mode") is None or isinstance(kw["render_mode"], str) and kw["render_mode"] != "human"))
@@ -301,7 +302,7 @@ reset_options = st.one_of(
 )
 
 
-@settings(max_examples=examples(60), deadline=5000)
+@settings(max_examples=examples(60), deadline=deadline(5000))
 @given(options=reset_options)
 @example(options=True)  # TypeError "argument of type 'bool' is not iterable"
 @example(options={"goal": [10**400, 0]})  # OverflowError
@@ -364,7 +365,7 @@ def argvs(draw):
     return [t for t in [command] if t] + draw(st.sampled_from(poison)) + rest
 
 
-@settings(max_examples=examples(80), deadline=10_000)
+@settings(max_examples=examples(80), deadline=deadline(10_000))
 @given(argv=argvs())
 def test_cli_arguments(argv, monkeypatch_session):
     """examples: 80. ``bulletnav.cli.main(argv)`` returns an exit status (an error as one
