@@ -50,7 +50,7 @@ _HEAD: dict[Path, str] = {}
 def _train(tmp_path: Path, algo: str, seed: int = 0, steps: int = 1024, name: str | None = None, extra=()) -> Path:
     out = tmp_path / (name or algo)
     argv = ["train", "--algo", algo, "--timesteps", str(steps), "--n-envs", "2", "--seed", str(seed),
-            "--out", str(out), "--eval-freq", str(steps), "--eval-episodes", str(EVAL_EPISODES),
+            "--out", str(out), "--eval-freq", str(max(steps, 1)), "--eval-episodes", str(EVAL_EPISODES),
             "--checkpoint-freq", "512", "--no-progress", *extra]
     _HEAD[out] = _head_commit()
     t0 = time.perf_counter()
