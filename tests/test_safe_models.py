@@ -265,3 +265,26 @@ def test_hyperparameter_files_name_only_allowed_classes(tmp_path, name, message)
     with pytest.raises(ConfigError, match=message):
         policy_class({"policy": name})
     assert import_name("torch.nn.ReLU") is torch.nn.ReLU
+
+
+def test_a_pickled_schedule_function_is_not_run_and_the_model_still_acts(tmp_path):
+    """RL Zoo saves linear schedules as pickled functions: the model loads without running them."""
+    import math
+
+    model = tmp_path / "zoo.zip"
+    function = {":type:": "<class 'function'>", ":serialized:": base64.b64encode(pickle.dumps(math.sqrt)).decode()}
+
+    def change(data):
+        data["learning_rate"] = function
+        data["clip_range"] = {":type:": "<class 'function'>", ":serialized:": function[":serialized:"]}
+        return data
+
+    _rewrite_zip(ROOT / "models" / "ppo_warehouse.zip", model, change)
+    _plain_sidecar("ppo_warehouse", model.with_suffix(".json"))
+    loaded, _, _ = load_model(model)
+    shipped, _, _ = load_model(ROOT / "models" / "ppo_warehouse.zip")
+    obs = np.zeros((4, *loaded.observation_space.shape), dtype=np.float32)
+    np.testing.assert_array_equal(loaded.predict(obs, deterministic=True)[0], shipped.predict(obs, deterministic=True)[0])
+    assert loaded.learning_rate == 0.0
+    with pytest.raises(ModelError, match="pickled function"):
+        loaded.clip_range(1.0)

@@ -320,7 +320,16 @@ def zip_custom_objects(data: dict[str, Any], path: Path) -> dict[str, Any]:
             objects[key] = _kwargs_from_zip(entry, what)
         elif key in ("observation_space", "action_space"):
             objects[key] = _space_from_zip(entry, what)
-        elif key in ("lr_schedule", "clip_range", "clip_range_vf", "learning_rate", "ent_coef"):
+        elif key in ("lr_schedule", "learning_rate"):
+            # the policy's optimizer is built with the rate at progress 1 while loading: a pickled
+            # function (RL Zoo's linear schedule) becomes rate 0, which acting never uses
+            rate = _schedule(entry, what)
+            if isinstance(rate, _Unavailable):
+                log.warning("%s: a pickled learning-rate function, not run: the model acts with it unset (rate 0); "
+                            "set learning_rate in a hyperparameter file to train it on", what)
+                rate = 0.0
+            objects[key] = rate
+        elif key in ("clip_range", "clip_range_vf", "ent_coef"):
             objects[key] = _schedule(entry, what)
         elif key == "train_freq":
             objects[key] = _train_freq(entry, what)
