@@ -81,6 +81,24 @@ def vecnormalize_path(model_path: str | Path) -> Path:
     return p.with_name(p.stem + "_vecnormalize.json")
 
 
+def read_sidecar(model_path: str | Path) -> dict[str, Any]:
+    """The sidecar ``model.json`` beside a model, or ``{}`` when there is none.
+
+    Raises:
+        ModelError: it is not valid JSON or not a JSON object.
+    """
+    side = sidecar_path(model_path)
+    if not side.is_file():
+        return {}
+    try:
+        meta = json.loads(side.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
+        raise ModelError(f"{side}: model metadata is not valid JSON ({exc})") from None
+    if not isinstance(meta, dict):
+        raise ModelError(f"{side}: model metadata must be a JSON object")
+    return meta
+
+
 def load_model(path: str | Path, algo: str | None = None, trust_pickle: bool = False):
     """Load a model saved by ``bulletnav train`` (or any SB3 zip) without running code it holds.
 
@@ -102,15 +120,7 @@ def load_model(path: str | Path, algo: str | None = None, trust_pickle: bool = F
     path = Path(path)
     if not path.is_file():
         raise ModelError(f"{path}: model file not found")
-    meta: dict[str, Any] = {}
-    side = sidecar_path(path)
-    if side.is_file():
-        try:
-            meta = json.loads(side.read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
-            raise ModelError(f"{side}: model metadata is not valid JSON ({exc})") from None
-        if not isinstance(meta, dict):
-            raise ModelError(f"{side}: model metadata must be a JSON object")
+    meta = read_sidecar(path)
     if algo is not None and meta.get("algo") not in (None, algo):
         raise ModelError(f"{path}: cannot load as {algo.upper()} (its sidecar says {str(meta.get('algo')).upper()})")
     algo = algo or meta.get("algo")

@@ -626,25 +626,20 @@ def convert_model(path: Path, trust_pickle: bool = False) -> dict[str, Any]:
     with its ``policy`` and ``normalization`` blocks, and ``NAME_vecnormalize.json``.
 
     The zip itself is the source (not safe files already beside it), read without unpickling
-    unless ``trust_pickle``; statistics come from ``NAME_vecnormalize.pkl`` when it exists and
-    ``trust_pickle`` is on, else from JSON / ``.npz``. Returns the new sidecar.
+    unless ``trust_pickle``; statistics come from ``NAME_vecnormalize.json`` / ``.npz``, else
+    from ``NAME_vecnormalize.pkl`` when ``trust_pickle`` is on (:func:`load_stats`). Returns the
+    new sidecar.
 
     Raises:
         UnsafeModelError: the zip or the statistics can only be read by unpickling, untrusted.
     """
-    from bulletnav.rl.io import atomic_write_json, guess_algo, sidecar_path
+    from bulletnav.rl.io import atomic_write_json, guess_algo, read_sidecar, sidecar_path
 
     path = Path(path)
     if not zipfile.is_zipfile(path):
         raise ModelError(f"{path}: not a model archive (not a zip file)")
     side = sidecar_path(path)
-    try:
-        meta = json.loads(side.read_text()) if side.is_file() else {}
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ModelError(f"{side}: model metadata is not valid JSON ({exc})") from None
-    if not isinstance(meta, dict):
-        raise ModelError(f"{side}: model metadata must be a JSON object")
-    meta = {k: v for k, v in meta.items() if k not in ("format", "policy", "normalization")}
+    meta = {k: v for k, v in read_sidecar(path).items() if k not in ("format", "policy", "normalization")}
     from bulletnav.rl.algos import ALGOS, algo_class
 
     algo = meta.get("algo") or guess_algo(read_zip_data(path))
@@ -656,16 +651,7 @@ def convert_model(path: Path, trust_pickle: bool = False) -> dict[str, Any]:
         raise
     except Exception as exc:  # SB3 and torch raise many kinds on a broken archive
         raise ModelError(f"{path}: cannot load as {algo.upper()} ({type(exc).__name__}: {str(exc)[:300]})") from None
-    pkl = stats_path(path, ".pkl")
-    stats = load_stats(path, {}, trust_pickle=True) if (pkl.is_file() and trust_pickle) else None
-    if stats is None:
-        for candidate in (stats_path(path), stats_path(path, ".npz")):
-            if candidate.is_file():
-                stats = load_stats(path, {}, trust_pickle=False)
-                break
-        else:
-            if pkl.is_file():
-                stats = load_stats(path, {}, trust_pickle=False)  # raises: only a pickle holds them
+    stats = load_stats(path, {}, trust_pickle=trust_pickle)  # the files beside the zip, not an earlier sidecar's
     if stats is not None and not isinstance(stats, dict):
         stats = stats_to_json(stats)  # the trusted pickle, now numbers
     new = save_safe(model, path, None, meta)

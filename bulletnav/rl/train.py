@@ -26,6 +26,7 @@ from bulletnav.rl.io import (
     atomic_save_model,
     atomic_save_vecnormalize,
     atomic_write_json,
+    read_sidecar,
     sidecar_path,
     vecnormalize_path,
 )
@@ -153,7 +154,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
         if cfg.init_from is not None:
             _check_spaces(cfg.init_from, venv)
         if normalize:
-            stats = load_stats(Path(cfg.init_from), _sidecar(cfg.init_from), cfg.trust_pickle) if cfg.init_from else None
+            stats = load_stats(Path(cfg.init_from), read_sidecar(cfg.init_from), cfg.trust_pickle) if cfg.init_from else None
             venv = VecNormalize(venv, **normalize)
             if isinstance(stats, dict):
                 apply_stats(venv, stats)
@@ -246,15 +247,6 @@ def _check_spaces(path: Path, venv) -> None:
             shapes = getattr(theirs, "shape", None), getattr(ours, "shape", None)
             what = f"has shape {shapes[0]}, this run's {shapes[1]}" if shapes[0] != shapes[1] else "has other bounds than this run's"
             raise ModelError(f"{path}: its {name} {what} (--init-from needs the same spaces: same env and settings)")
-
-
-def _sidecar(path: Path) -> dict[str, Any]:
-    side = sidecar_path(path)
-    try:
-        meta = json.loads(side.read_text()) if side.is_file() else {}
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ModelError(f"{side}: model metadata is not valid JSON ({exc})") from None
-    return meta if isinstance(meta, dict) else {}
 
 
 def _checkpoint_stats(ckpt: Path, trust_pickle: bool) -> dict[str, Any]:
