@@ -1029,6 +1029,40 @@ def cmd_fleet(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_fleet_train(args: argparse.Namespace) -> int:
+    """Fine-tune a single-robot model in the fleet with parameter-shared PPO (``bulletnav.fleet.training``)."""
+    from pathlib import Path
+
+    from bulletnav.errors import RunError
+    from bulletnav.fleet.training import FleetTrainConfig, train_fleet
+    from bulletnav.provenance import command_line
+
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise RunError(f"--out {out}: is a file, not a run directory")
+    if not args.resume and not args.overwrite and _holds_run(out):
+        raise RunError(f"--out {out} already holds a run: pass --resume to continue it, --overwrite to train into it "
+                       "anyway, or choose another --out")
+    overrides = {"reward_collision": args.reward_collision} if args.reward_collision is not None else None
+    cfg = FleetTrainConfig(
+        init_from=Path(args.init_from), out=out, timesteps=args.timesteps, seed=args.seed, num_robots=args.robots,
+        dynamic=args.dynamic, fleets=args.fleets, duration_s=args.duration,
+        hyperparams=Path(args.hyperparams) if args.hyperparams else None, env_overrides=overrides,
+        resume=args.resume, checkpoint_freq=args.checkpoint_freq, command=command_line(),
+        progress_bar=not args.no_progress)
+    record = train_fleet(cfg)
+    print(f"fleet-trained PPO for {record['total_timesteps']} agent steps in {record['wall_time_s']:.0f} s "
+          f"({record['fleets']} fleet(s) of {args.robots} robots, seed {record['seed']})")
+    if record.get("throughput"):
+        t = record["throughput"]
+        print(f"throughput     {t['env_steps_per_s']:.0f} agent steps/s; wall time in env {t['env_share'] * 100:.0f} %, "
+              f"learner {t['learner_share'] * 100:.0f} %")
+    print(f"model:          {out / 'model.zip'} (+ model.safetensors, model.json)")
+    print(f"episodes:       {out / 'episodes.json'}")
+    print(f"run record:     {out / 'run.json'}")
+    return 0
+
+
 def _hz_list(text: str) -> tuple[int, ...]:
     """``--rates``: comma-separated positive integers (Hz)."""
     try:
@@ -1208,6 +1242,29 @@ def build_parser() -> argparse.ArgumentParser:
     fl.add_argument("--dynamic", action="store_true", help="add forklifts, walking workers and pallet events")
     fl.add_argument("--json", action="store_true", help="print one JSON object (summary keys plus per-episode rows)")
     fl.set_defaults(func=cmd_fleet)
+
+    ft = add("fleet-train", "fine-tune a single-robot model in the fleet: parameter-shared PPO, every robot one slot")
+    ft.add_argument("--init-from", required=True, metavar="MODEL", type=_file_type((".zip",), "a model"),
+                    help="the single-robot PPO model to start from (its weights, statistics and env settings)")
+    ft.add_argument("--timesteps", type=COUNT, required=True, help="total agent steps (summed over the robots)")
+    ft.add_argument("--seed", type=SEED, default=0, help="random seed of the run (default 0)")
+    ft.add_argument("--out", required=True, metavar="DIR", help="run directory, e.g. runs/fleet_s1")
+    ft.add_argument("--robots", type=FLEET_ROBOTS, default=4, help="robots per fleet, 1 to 16 (default 4)")
+    ft.add_argument("--fleets", type=COUNT, default=1, help="fleets stepped in this process (default 1)")
+    ft.add_argument("--dynamic", action="store_true", help="add forklifts, walking workers and pallet events")
+    ft.add_argument("--duration", type=_positive_seconds, default=60.0, metavar="S",
+                    help="simulated seconds per training episode (default 60)")
+    ft.add_argument("--hyperparams", metavar="YAML",
+                    help="hyperparameter file (default rl/hyperparams/ppo_dynamic_finetune_movers.yml; its "
+                         "bulletnav/WarehouseDynamic-v0 entry)")
+    ft.add_argument("--reward-collision", type=float, default=None, metavar="R",
+                    help="reward per counted collision, robot-robot included (default: the hyperparameter file's)")
+    ft.add_argument("--checkpoint-freq", type=COUNT, default=20_000, help="checkpoint every N agent steps (default 20000)")
+    ft.add_argument("--resume", action="store_true", help="continue from DIR/checkpoints/last.zip")
+    ft.add_argument("--overwrite", action="store_true",
+                    help="train into an --out DIR that holds another run, replacing its files (default: refuse)")
+    ft.add_argument("--no-progress", action="store_true", help="no progress bar")
+    ft.set_defaults(func=cmd_fleet_train)
 
     bench = add("bench", "benchmarks (print JSON with --json)")
     bench.add_argument("what", choices=["env", "physics", "planners", "gui", "shield", "fleet"],
