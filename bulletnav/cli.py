@@ -1029,6 +1029,39 @@ def cmd_fleet(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_fleet_compare(args: argparse.Namespace) -> int:
+    """Every fleet controller, with and without the shield, on the same seeded episodes."""
+    from pathlib import Path
+
+    from tqdm import tqdm
+
+    from bulletnav.fleet.compare import parse_entries, run_comparison
+
+    entries = parse_entries(args.controllers, args.shield)
+    env_kwargs = {"duration_s": args.duration, "dynamic": args.dynamic}
+    bar = None
+
+    def progress(done: int, total: int) -> None:
+        nonlocal bar
+        if bar is None:
+            bar = tqdm(total=total, initial=done, unit="episode", desc="fleet-compare", file=sys.stderr,
+                       disable=args.json)
+        bar.update(done - bar.n)
+
+    try:
+        results = run_comparison(Path(args.out), entries, robots=args.robots, episodes=args.episodes, seed=args.seed,
+                                 env_kwargs=env_kwargs, workers=args.workers, resume=args.resume, progress=progress)
+    finally:
+        if bar is not None:
+            bar.close()
+    if args.json:
+        print(_json({k: results[k] for k in ("settings", "cells", "provenance")}))
+        return 0
+    print((Path(args.out) / "comparison.md").read_text())
+    print(f"written: {Path(args.out) / 'comparison.json'}, {Path(args.out) / 'comparison.md'}")
+    return 0
+
+
 def cmd_fleet_train(args: argparse.Namespace) -> int:
     """Fine-tune a single-robot model in the fleet with parameter-shared PPO (``bulletnav.fleet.training``)."""
     from pathlib import Path
@@ -1265,6 +1298,26 @@ def build_parser() -> argparse.ArgumentParser:
                     help="train into an --out DIR that holds another run, replacing its files (default: refuse)")
     ft.add_argument("--no-progress", action="store_true", help="no progress bar")
     ft.set_defaults(func=cmd_fleet_train)
+
+    fc = add("fleet-compare", "every fleet controller, with and without the shield, on the same seeded episodes: "
+                              "comparison.json + comparison.md")
+    fc.add_argument("--robots", type=FLEET_ROBOTS, nargs="+", default=[4, 8], help="fleet sizes (default 4 8)")
+    fc.add_argument("--controllers", nargs="+", metavar="SPEC",
+                    default=["independent", "coordinated", "policy=models/ppo_dynamic.zip", "policy=models/ppo_fleet.zip"],
+                    help="independent, coordinated or policy=MODEL.zip (default: the two classical ones, "
+                         "the shipped single-robot policy zero-shot and the fleet-trained one)")
+    fc.add_argument("--shield", choices=["off", "on", "both"], default="both",
+                    help="each controller without the shield, with it, or both (default both)")
+    fc.add_argument("--episodes", type=COUNT, default=40, help="episodes per controller and size (default 40)")
+    fc.add_argument("--seed", type=SEED, default=1000, help="first episode's seed (default 1000)")
+    fc.add_argument("--duration", type=_positive_seconds, default=120.0, metavar="S",
+                    help="simulated seconds per episode (default 120)")
+    fc.add_argument("--dynamic", action="store_true", help="add forklifts, walking workers and pallet events")
+    fc.add_argument("--workers", type=COUNT, default=1, help="worker processes (default 1); rows are the same for any count")
+    fc.add_argument("--out", default="runs/fleet-compare", help="output directory (default runs/fleet-compare)")
+    fc.add_argument("--resume", action="store_true", help="go on with the episodes already in --out")
+    fc.add_argument("--json", action="store_true", help="print the settings, per-cell summaries and provenance as JSON")
+    fc.set_defaults(func=cmd_fleet_compare)
 
     bench = add("bench", "benchmarks (print JSON with --json)")
     bench.add_argument("what", choices=["env", "physics", "planners", "gui", "shield", "fleet"],

@@ -167,7 +167,7 @@ def plan_chunks(suite: Suite, done: set[str], workers: int) -> list[tuple[int, i
     return chunks
 
 
-def _read_done(path: Path) -> list[dict[str, Any]]:
+def read_rows(path: Path) -> list[dict[str, Any]]:
     """Rows of an ``episodes.jsonl`` (a torn last line, from an interrupted run, is dropped)."""
     rows = []
     if path.is_file():
@@ -176,6 +176,18 @@ def _read_done(path: Path) -> list[dict[str, Any]]:
                 rows.append(json.loads(line))
             except json.JSONDecodeError:
                 log.warning("%s: dropping a torn line (an interrupted write)", path)
+    return rows
+
+
+def reopen_rows(path: Path) -> list[dict[str, Any]]:
+    """The rows of an ``episodes.jsonl`` to go on appending to: :func:`read_rows`, and a torn
+    last line cut from the file (or the first new row would join it and be lost)."""
+    rows = read_rows(path)
+    if path.is_file():
+        data = path.read_bytes()
+        if data and not data.endswith(b"\n"):
+            with path.open("r+b") as f:
+                f.truncate(data.rfind(b"\n") + 1)
     return rows
 
 
@@ -200,13 +212,8 @@ def run_suite(suite: Suite, out: Path, workers: int = 1, address: str | None = N
         if earlier != suite.sha256:
             raise BulletnavError(f"{out} holds a run of another suite file (sha256 {str(earlier)[:12]}...), "
                                  f"not of {suite.source} ({suite.sha256[:12]}...): choose another --out")
-    _write_json(meta_path, {"source": suite.source, "sha256": suite.sha256})
-    rows = _read_done(log_path)
-    if log_path.is_file():
-        data = log_path.read_bytes()
-        if data and not data.endswith(b"\n"):  # a torn last line: cut it, or the first new row would join it and be lost
-            with log_path.open("r+b") as f:
-                f.truncate(data.rfind(b"\n") + 1)
+    write_strict_json(meta_path, {"source": suite.source, "sha256": suite.sha256})
+    rows = reopen_rows(log_path)
     done = {cell_key(r["world"], r["controller"], r["episode"]) for r in rows}
     chunks = plan_chunks(suite, done, workers)
     total = suite.total
@@ -234,8 +241,8 @@ def run_suite(suite: Suite, out: Path, workers: int = 1, address: str | None = N
         else:
             _run_pool(suite, root, chunks, workers, keep)
     results = build_results(suite, rows, root)
-    results["provenance"] = _provenance(time.perf_counter() - t0, workers, address)
-    _write_json(out / "results.json", results)
+    results["provenance"] = run_provenance(time.perf_counter() - t0, workers, address)
+    write_strict_json(out / "results.json", results)
     return results
 
 
@@ -324,7 +331,7 @@ def build_results(suite: Suite, rows: list[dict[str, Any]], root: Path = PROJECT
     }
 
 
-def _provenance(wall: float, workers: int, address: str | None) -> dict[str, Any]:
+def run_provenance(wall: float, workers: int, address: str | None) -> dict[str, Any]:
     from importlib.metadata import PackageNotFoundError, version
 
     from bulletnav.provenance import command_line, git_commit, machine
@@ -341,20 +348,20 @@ def _provenance(wall: float, workers: int, address: str | None) -> dict[str, Any
             "wall_time_s": round(wall, 1), "workers": workers, "ray_address": address, "command": command_line()}
 
 
-def _write_json(path: Path, data: Any) -> None:
+def write_strict_json(path: Path, data: Any) -> None:
     """Strict JSON (NaN as null), written atomically (:func:`bulletnav.rl.io.atomic_write_bytes`)."""
     from bulletnav.rl.io import atomic_write_bytes
 
-    atomic_write_bytes(path, (json.dumps(_strict(data), indent=1) + "\n").encode())
+    atomic_write_bytes(path, (json.dumps(strict_json(data), indent=1) + "\n").encode())
 
 
-def _strict(value: Any) -> Any:
+def strict_json(value: Any) -> Any:
     if isinstance(value, float):
         return value if math.isfinite(value) else None
     if isinstance(value, dict):
-        return {k: _strict(v) for k, v in value.items()}
+        return {k: strict_json(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_strict(v) for v in value]
+        return [strict_json(v) for v in value]
     return value
 
 

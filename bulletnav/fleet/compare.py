@@ -1,0 +1,329 @@
+"""Every fleet controller, with and without the safety shield, on the same seeded episodes.
+
+:func:`run_comparison` runs each :class:`Entry` (a controller, its model, shield on or off) at
+each fleet size on episodes seeded ``seed``, ``seed + 1``, ...; every entry meets the same
+worlds, starts, errands, movers and events (checked: each row carries a fingerprint of its
+episode's reset, and :func:`build_comparison` refuses rows of one episode that differ). Rows
+go to ``episodes.jsonl`` as they finish, so an interrupted run goes on with ``resume=True``;
+then ``comparison.json`` (settings, provenance, a summary per entry and size, every row) and
+``comparison.md`` (one table per size) are written atomically.
+
+What ``bulletnav fleet-compare`` runs; the committed tables are in ``docs/results/fleet/``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import math
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bulletnav.benchmark.runner import PROJECT_ROOT, reopen_rows, run_provenance, write_strict_json
+from bulletnav.errors import BulletnavError, ConfigError
+from bulletnav.fleet.metrics import METRICS, run_fleet_episodes, summarize
+
+log = logging.getLogger(__name__)
+
+CONTROLLER_NAMES = ("independent", "coordinated", "policy")
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One column of the comparison: a fleet controller, its model, the shield on or off."""
+
+    label: str
+    """Its name in the tables, e.g. ``"coordinated + shield"``."""
+    controller: str
+    """``independent``, ``coordinated`` or ``policy`` (:func:`~bulletnav.fleet.controllers.make_controller`)."""
+    model: str | None = None
+    """The policy controller's model file (a path relative to the project root, or absolute)."""
+    shield: bool = False
+    """Every robot behind the safety shield."""
+
+    def __post_init__(self) -> None:
+        if self.controller not in CONTROLLER_NAMES:
+            raise ConfigError(f"fleet comparison controller must be one of {', '.join(CONTROLLER_NAMES)}, "
+                              f"got {self.controller!r}")
+        if (self.controller == "policy") != (self.model is not None):
+            raise ConfigError(f"fleet comparison entry {self.label!r}: a model goes with the policy controller "
+                              "and only with it")
+
+
+def parse_entries(specs: Sequence[str], shield: str = "both") -> list[Entry]:
+    """Entries from the command line's controller specs: ``independent``, ``coordinated`` or
+    ``policy=PATH`` (labelled by the model's file stem), each without and/or with the shield
+    (``shield``: ``off``, ``on`` or ``both``).
+
+    Raises:
+        ConfigError: an unknown controller, a policy without a model file, a repeated spec.
+    """
+    if shield not in ("off", "on", "both"):
+        raise ConfigError(f"--shield must be off, on or both, got {shield!r}")
+    if not specs:
+        raise ConfigError("--controllers needs at least one controller")
+    shields = {"off": (False,), "on": (True,), "both": (False, True)}[shield]
+    entries, seen = [], set()
+    for spec in specs:
+        name, _, model = spec.partition("=")
+        if name == "policy":
+            if not model:
+                raise ConfigError(f"--controllers {spec!r}: the policy controller needs a model, policy=PATH")
+            base = Path(model).stem
+        elif model:
+            raise ConfigError(f"--controllers {spec!r}: only the policy controller takes =PATH")
+        else:
+            base = name
+        if spec in seen:
+            raise ConfigError(f"--controllers names {spec!r} twice")
+        seen.add(spec)
+        for on in shields:
+            entries.append(Entry(f"{base} + shield" if on else base, name, model or None, on))
+    return entries
+
+
+DEFAULT_CONTROLLERS = ("independent", "coordinated", "policy=models/ppo_dynamic.zip", "policy=models/ppo_fleet.zip")
+"""What ``fleet-compare`` runs unless told otherwise: the two classical controllers, the shipped
+single-robot policy zero-shot, and the policy trained in the fleet."""
+
+
+def episode_fingerprint(infos: dict[str, dict[str, Any]]) -> str:
+    """A short hash of an episode's reset: every robot's pose and first errand (rounded to a
+    millimetre, so two controllers' envs built alike agree)."""
+    parts = []
+    for agent in sorted(infos):
+        info = infos[agent]
+        errand = info.get("errand") or {}
+        parts.append([agent, [round(float(v), 3) for v in info["pose"]],
+                      [round(float(v), 3) for v in errand.get("pick", ())],
+                      [round(float(v), 3) for v in errand.get("drop", ())]])
+    return hashlib.sha256(json.dumps(parts).encode()).hexdigest()[:16]
+
+
+def entry_env_kwargs(entry: Entry, base: dict[str, Any], root: Path) -> dict[str, Any]:
+    """The fleet env's keyword arguments for ``entry``: ``base`` plus, for a policy, the env
+    settings its model was trained with."""
+    from bulletnav.fleet.controllers import model_env_kwargs
+
+    kwargs = dict(model_env_kwargs(resolve(entry.model, root))) if entry.model else {}
+    kwargs.update(base)
+    return kwargs
+
+
+def resolve(path: str | None, root: Path) -> str | None:
+    """``path`` itself when absolute, else under ``root``."""
+    if path is None:
+        return None
+    p = Path(path)
+    return str(p if p.is_absolute() else root / p)
+
+
+def run_chunk(entry: Entry, robots: int, base: dict[str, Any], seed: int, episodes: list[int],
+              root: str) -> list[dict[str, Any]]:
+    """Run ``episodes`` (consecutive indices) of ``entry`` with ``robots`` robots; one row each."""
+    from bulletnav.fleet.controllers import make_controller
+
+    first = episodes[0]
+    if episodes != list(range(first, first + len(episodes))):
+        raise BulletnavError(f"a chunk's episodes must be consecutive, got {episodes}")
+    kwargs = entry_env_kwargs(entry, {**base, "num_robots": robots}, Path(root))
+    prints: list[str] = []
+
+    def on_step(env: Any, infos: dict[str, dict[str, Any]]) -> None:
+        if infos and all(float(info["time_s"]) == 0.0 for info in infos.values()):
+            prints.append(episode_fingerprint(infos))
+
+    result = run_fleet_episodes(
+        kwargs, lambda env: make_controller(entry.controller, env, shield=entry.shield,
+                                            model=resolve(entry.model, Path(root))),
+        episodes=len(episodes), seed=seed + first, on_step=on_step)
+    rows = []
+    for row, fingerprint in zip(result["episodes"], prints, strict=True):
+        rows.append({**row, "entry": entry.label, "robots": robots, "episode": first + row["episode"],
+                     "fingerprint": fingerprint})
+    return rows
+
+
+def row_key(entry: str, robots: int, episode: int) -> str:
+    return f"{robots}/{entry}/{episode}"
+
+
+def plan_chunks(entries: list[Entry], robots: Sequence[int], episodes: int, done: set[str],
+                size: int = 4) -> list[tuple[Entry, int, list[int]]]:
+    """The (entry, robots, episodes) chunks still to run, the largest fleets first (they take
+    longest, so the pool ends evenly)."""
+    chunks = []
+    for n in sorted(robots, reverse=True):
+        for entry in entries:
+            todo = [k for k in range(episodes) if row_key(entry.label, n, k) not in done]
+            runs: list[list[int]] = []
+            for k in todo:  # consecutive runs of at most `size` episodes
+                if runs and runs[-1][-1] == k - 1 and len(runs[-1]) < size:
+                    runs[-1].append(k)
+                else:
+                    runs.append([k])
+            chunks += [(entry, n, run) for run in runs]
+    return chunks
+
+
+def run_comparison(out: Path, entries: list[Entry], robots: Sequence[int] = (4, 8), episodes: int = 40,
+                   seed: int = 1000, env_kwargs: dict[str, Any] | None = None, workers: int = 1,
+                   resume: bool = False, progress: Callable[[int, int], None] | None = None,
+                   root: Path | None = None) -> dict[str, Any]:
+    """Run every entry at every fleet size on ``episodes`` seeded episodes into ``out``.
+
+    Args:
+        out: directory for ``episodes.jsonl``, ``comparison.json`` and ``comparison.md``.
+        entries: the columns (:func:`parse_entries`).
+        robots: fleet sizes.
+        episodes: episodes per entry and size, episode k seeded ``seed + k``.
+        seed: the first episode's seed.
+        env_kwargs: the fleet env's keyword arguments other than ``num_robots`` (e.g.
+            ``duration_s``, ``dynamic``); a policy entry adds its model's env settings.
+        workers: processes running chunks of episodes at once.
+        resume: go on with the rows already in ``out``'s ``episodes.jsonl`` (the settings
+            must be the same).
+        progress: ``progress(done, total)`` after every chunk.
+        root: where relative model paths are found (the project root by default).
+
+    Raises:
+        BulletnavError: ``out`` holds an earlier run and ``resume`` is off, or a run of other
+            settings; bad settings; a model that cannot be loaded.
+    """
+    root = Path(root or PROJECT_ROOT)
+    env_kwargs = dict(env_kwargs or {})
+    if "num_robots" in env_kwargs:
+        raise ConfigError("pass fleet sizes as robots=, not env_kwargs['num_robots']")
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
+        raise ConfigError(f"episodes must be a whole number >= 1, got {episodes!r}")
+    if not robots or any(isinstance(n, bool) or not isinstance(n, int) or n < 1 for n in robots):
+        raise ConfigError(f"robots must be fleet sizes >= 1, got {list(robots)!r}")
+    if workers < 1:
+        raise ConfigError(f"workers must be >= 1, got {workers}")
+    labels = [e.label for e in entries]
+    if not entries or len(set(labels)) != len(labels):
+        raise ConfigError(f"entries must be non-empty with distinct labels, got {labels}")
+    for entry in entries:  # a missing or unfit model fails now, not an hour in
+        if entry.model and not Path(resolve(entry.model, root)).is_file():
+            raise BulletnavError(f"{entry.model}: model file not found (entry {entry.label!r})")
+    settings = {"entries": [asdict(e) for e in entries], "robots": list(robots), "episodes": episodes,
+                "seed": seed, "env_kwargs": env_kwargs}
+    out.mkdir(parents=True, exist_ok=True)
+    log_path, meta_path = out / "episodes.jsonl", out / "settings.json"
+    if log_path.exists() and not resume:
+        raise BulletnavError(f"{out} holds an earlier run ({log_path.name}): pass --resume to go on with it, "
+                             "or choose another --out")
+    if resume and meta_path.is_file():
+        earlier = json.loads(meta_path.read_text())
+        if earlier != json.loads(json.dumps(settings)):
+            raise BulletnavError(f"{out} holds a run of other settings ({meta_path}): choose another --out")
+    write_strict_json(meta_path, settings)
+    rows = reopen_rows(log_path)
+    done = {row_key(r["entry"], r["robots"], r["episode"]) for r in rows}
+    chunks = plan_chunks(entries, robots, episodes, done)
+    total = len(entries) * len(robots) * episodes
+    t0 = time.perf_counter()
+    with log_path.open("a") as log_file:
+        def keep(new: list[dict[str, Any]]) -> None:
+            for row in new:
+                log_file.write(json.dumps(row, allow_nan=True) + "\n")
+            log_file.flush()
+            rows.extend(new)
+            if progress is not None:
+                progress(len(rows), total)
+
+        if progress is not None:
+            progress(len(rows), total)
+        if workers == 1:
+            for entry, n, eps in chunks:
+                keep(run_chunk(entry, n, env_kwargs, seed, eps, str(root)))
+        else:
+            import multiprocessing
+
+            ctx = multiprocessing.get_context("forkserver")
+            with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+                pending = {pool.submit(run_chunk, entry, n, env_kwargs, seed, eps, str(root))
+                           for entry, n, eps in chunks}
+                while pending:
+                    finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+                    for future in finished:
+                        keep(future.result())
+    results = build_comparison(settings, rows)
+    results["provenance"] = run_provenance(time.perf_counter() - t0, workers, None)
+    write_strict_json(out / "comparison.json", results)
+    from bulletnav.rl.io import atomic_write_bytes
+
+    atomic_write_bytes(out / "comparison.md", comparison_markdown(results).encode())
+    return results
+
+
+def build_comparison(settings: dict[str, Any], rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """The comparison record: ``settings``, a summary per (size, entry) with the throughput's
+    standard error over episodes, and every row in a fixed order.
+
+    Raises:
+        BulletnavError: two entries met different episodes (their reset fingerprints differ).
+    """
+    labels = [e["label"] for e in settings["entries"]]
+    by_episode: dict[tuple[int, int], dict[str, str]] = {}
+    for r in rows:
+        by_episode.setdefault((r["robots"], r["episode"]), {})[r["entry"]] = r["fingerprint"]
+    for (n, k), prints in sorted(by_episode.items()):
+        if len(set(prints.values())) > 1:
+            raise BulletnavError(f"{n} robots, episode {k} (seed {settings['seed'] + k}): the entries met different "
+                                 f"episodes (reset fingerprints {prints}); the comparison would not be fair")
+    ordered = sorted(rows, key=lambda r: (r["robots"], labels.index(r["entry"]) if r["entry"] in labels else 99,
+                                          r["episode"]))
+    cells = []
+    for n in settings["robots"]:
+        for label in labels:
+            mine = [r for r in ordered if r["robots"] == n and r["entry"] == label]
+            if not mine:
+                continue
+            summary = summarize(mine)
+            tput = np.array([r["throughput_per_hour"] for r in mine], dtype=float)
+            summary["throughput_se"] = float(tput.std(ddof=1) / math.sqrt(len(tput))) if len(tput) > 1 else math.nan
+            summary["wall_s"] = float(sum(r.get("wall_s", 0.0) for r in mine))
+            cells.append({"robots": n, "entry": label, **summary})
+    return {"settings": settings, "metrics": METRICS, "cells": cells, "episodes": ordered}
+
+
+def comparison_markdown(results: dict[str, Any]) -> str:
+    """One markdown table per fleet size: throughput, collisions by kind, deadlocks, separation."""
+    s = results["settings"]
+    prov = results.get("provenance", {})
+    lines = [f"# Fleet comparison: {s['episodes']} episodes per entry, seeds {s['seed']}-{s['seed'] + s['episodes'] - 1}",
+             "", f"Env: `{json.dumps(s['env_kwargs'], sort_keys=True)}`. "
+             f"Command: `{prov.get('command', '?')}`; commit {prov.get('git_commit', '?')}"
+             f"{' (dirty)' if prov.get('dirty') else ''}; {prov.get('machine', '?')}.", ""]
+    for n in s["robots"]:
+        cells = [c for c in results["cells"] if c["robots"] == n]
+        if not cells:
+            continue
+        lines += [f"## {n} robots", "",
+                  "| controller | errands/h (± s.e.) | per robot | robot-robot | static | mover | person | deadlocks "
+                  "| min sep. m | errand s | near misses | shield rate | episodes |",
+                  "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        for c in cells:
+            lines.append(f"| {c['entry']} | {c['throughput_per_hour']:.1f} ± {_num(c['throughput_se'], '.1f')} "
+                         f"| {c['throughput_per_robot_per_hour']:.1f} | {c['collisions_robot_robot']} "
+                         f"| {c['collisions_static']} | {c['collisions_mover']} | {c['collisions_person']} "
+                         f"| {c['deadlocks']} | {_num(c['min_separation_m'], '.2f')} | {_num(c['errand_time_s'], '.1f')} "
+                         f"| {c['near_misses']} | {_num(c['shield_rate'], '.3f')} | {c['episodes']} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _num(value: Any, fmt: str) -> str:
+    return "-" if value is None or (isinstance(value, float) and not math.isfinite(value)) else format(value, fmt)
+
+
+__all__ = ["DEFAULT_CONTROLLERS", "Entry", "build_comparison", "comparison_markdown", "episode_fingerprint",
+           "parse_entries", "plan_chunks", "run_chunk", "run_comparison"]

@@ -1,0 +1,82 @@
+"""The fleet comparison: every entry on the same episodes, any worker count, resumable."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from bulletnav.errors import BulletnavError, ConfigError
+from bulletnav.fleet.compare import Entry, build_comparison, parse_entries, run_comparison
+
+ENV = {"duration_s": 4.0, "dynamic": True}
+
+
+def _rows(results):
+    """Rows without their wall times, as JSON text (NaN equals NaN there)."""
+    return [json.dumps({k: v for k, v in r.items() if k != "wall_s"}) for r in results["episodes"]]
+
+
+def test_parse_entries_names_and_errors():
+    entries = parse_entries(["independent", "policy=models/ppo_dynamic.zip"], "both")
+    assert [e.label for e in entries] == ["independent", "independent + shield", "ppo_dynamic", "ppo_dynamic + shield"]
+    assert entries[3] == Entry("ppo_dynamic + shield", "policy", "models/ppo_dynamic.zip", True)
+    with pytest.raises(ConfigError, match="policy=PATH"):
+        parse_entries(["policy"])
+    with pytest.raises(ConfigError, match="only the policy"):
+        parse_entries(["coordinated=x.zip"])
+    with pytest.raises(ConfigError, match="must be one of"):
+        parse_entries(["greedy"])
+    with pytest.raises(ConfigError, match="twice"):
+        parse_entries(["independent", "independent"])
+    with pytest.raises(ConfigError, match="--shield"):
+        parse_entries(["independent"], "sometimes")
+
+
+def test_every_entry_meets_the_same_episodes_and_workers_do_not_change_rows(tmp_path):
+    entries = parse_entries(["independent", "coordinated", "policy=models/ppo_dynamic.zip"], "off")
+    one = run_comparison(tmp_path / "one", entries, robots=(2,), episodes=2, seed=31, env_kwargs=ENV, workers=1)
+    two = run_comparison(tmp_path / "two", entries, robots=(2,), episodes=2, seed=31, env_kwargs=ENV, workers=2)
+    assert _rows(one) == _rows(two)
+    for k in range(2):  # the policy's env (floor-plan guidance, normalised actions) holds the same episode
+        prints = {r["fingerprint"] for r in one["episodes"] if r["episode"] == k}
+        assert len(prints) == 1
+    assert [c["entry"] for c in one["cells"]] == ["independent", "coordinated", "ppo_dynamic"]
+    assert all(c["episodes"] == 2 for c in one["cells"])
+    md = (tmp_path / "one" / "comparison.md").read_text()
+    assert "## 2 robots" in md and "| coordinated |" in md
+    saved = json.loads((tmp_path / "one" / "comparison.json").read_text())
+    assert saved["settings"]["seed"] == 31 and len(saved["episodes"]) == 6
+
+
+def test_an_interrupted_run_resumes_to_the_same_rows(tmp_path):
+    entries = parse_entries(["independent"], "both")
+    full = run_comparison(tmp_path / "full", entries, robots=(2,), episodes=3, seed=7, env_kwargs=ENV)
+    out = tmp_path / "cut"
+    run_comparison(out, entries, robots=(2,), episodes=3, seed=7, env_kwargs=ENV)
+    lines = (out / "episodes.jsonl").read_text().splitlines()
+    (out / "episodes.jsonl").write_text("\n".join(lines[:2]) + "\n" + lines[2][:40])  # a torn third row
+    with pytest.raises(BulletnavError, match="--resume"):
+        run_comparison(out, entries, robots=(2,), episodes=3, seed=7, env_kwargs=ENV)
+    with pytest.raises(BulletnavError, match="other settings"):
+        run_comparison(out, entries, robots=(2,), episodes=3, seed=8, env_kwargs=ENV, resume=True)
+    resumed = run_comparison(out, entries, robots=(2,), episodes=3, seed=7, env_kwargs=ENV, resume=True)
+    assert _rows(resumed) == _rows(full)
+    assert len((out / "episodes.jsonl").read_text().splitlines()) == 6
+
+
+def test_rows_of_different_episodes_are_refused():
+    settings = {"entries": [{"label": "a"}, {"label": "b"}], "robots": [2], "episodes": 1, "seed": 0, "env_kwargs": {}}
+    row = {"robots": 2, "episode": 0, "seed": 0, "throughput_per_hour": 0.0}
+    with pytest.raises(BulletnavError, match="different episodes"):
+        build_comparison(settings, [{**row, "entry": "a", "fingerprint": "x"}, {**row, "entry": "b", "fingerprint": "y"}])
+
+
+def test_bad_settings_name_the_argument(tmp_path):
+    entries = parse_entries(["independent"], "off")
+    with pytest.raises(ConfigError, match="robots"):
+        run_comparison(tmp_path, entries, robots=(0,), episodes=1)
+    with pytest.raises(ConfigError, match="episodes"):
+        run_comparison(tmp_path, entries, robots=(2,), episodes=0)
+    with pytest.raises(BulletnavError, match="model file not found"):
+        run_comparison(tmp_path, parse_entries(["policy=models/none.zip"], "off"), robots=(2,), episodes=1)
