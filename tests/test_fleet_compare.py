@@ -63,6 +63,15 @@ def test_an_interrupted_run_resumes_to_the_same_rows(tmp_path):
     resumed = run_comparison(out, entries, robots=(2,), episodes=3, seed=7, env_kwargs=ENV, resume=True)
     assert _rows(resumed) == _rows(full)
     assert len((out / "episodes.jsonl").read_text().splitlines()) == 6
+    # an entry added later runs alone; the earlier entries' rows are kept, not rerun
+    more = run_comparison(out, entries + parse_entries(["coordinated"], "off"), robots=(2,), episodes=3, seed=7,
+                          env_kwargs=ENV, resume=True)
+    assert len((out / "episodes.jsonl").read_text().splitlines()) == 9
+    assert _rows(more)[:6] == _rows(full) and [c["entry"] for c in more["cells"]][-1] == "coordinated"
+    # one label meaning another controller is refused
+    with pytest.raises(BulletnavError, match="another controller"):
+        run_comparison(out, [Entry("coordinated", "independent")], robots=(2,), episodes=3, seed=7, env_kwargs=ENV,
+                       resume=True)
 
 
 def test_rows_of_different_episodes_are_refused():

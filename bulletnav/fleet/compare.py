@@ -213,7 +213,7 @@ def run_comparison(out: Path, entries: list[Entry], robots: Sequence[int] = (4, 
     for entry in entries:  # a missing or unfit model fails now, not an hour in
         if entry.model and not Path(resolve(entry.model, root)).is_file():
             raise BulletnavError(f"{entry.model}: model file not found (entry {entry.label!r})")
-    settings = {"entries": [asdict(e) for e in entries], "robots": list(robots), "episodes": episodes,
+    settings = {"entries": [entry_record(e, root) for e in entries], "robots": list(robots), "episodes": episodes,
                 "seed": seed, "env_kwargs": env_kwargs}
     out.mkdir(parents=True, exist_ok=True)
     log_path, meta_path = out / "episodes.jsonl", out / "settings.json"
@@ -221,11 +221,15 @@ def run_comparison(out: Path, entries: list[Entry], robots: Sequence[int] = (4, 
         raise BulletnavError(f"{out} holds an earlier run ({log_path.name}): pass --resume to go on with it, "
                              "or choose another --out")
     if resume and meta_path.is_file():
-        earlier = json.loads(meta_path.read_text())
-        if earlier != json.loads(json.dumps(settings)):
-            raise BulletnavError(f"{out} holds a run of other settings ({meta_path}): choose another --out")
-    write_strict_json(meta_path, settings)
+        check_resumable(json.loads(meta_path.read_text()), settings, meta_path)
     rows = reopen_rows(log_path)
+    if resume and meta_path.is_file():  # entries of the earlier run that this one leaves out stay in the log
+        kept = {e["label"]: e for e in json.loads(meta_path.read_text())["entries"]}
+        kept.update({e["label"]: e for e in settings["entries"]})
+        write_strict_json(meta_path, {**settings, "entries": list(kept.values())})
+    else:
+        write_strict_json(meta_path, settings)
+    rows = [r for r in rows if r["entry"] in labels and r["robots"] in robots and r["episode"] < episodes]
     done = {row_key(r["entry"], r["robots"], r["episode"]) for r in rows}
     chunks = plan_chunks(entries, robots, episodes, done)
     total = len(entries) * len(robots) * episodes
@@ -262,6 +266,34 @@ def run_comparison(out: Path, entries: list[Entry], robots: Sequence[int] = (4, 
 
     atomic_write_bytes(out / "comparison.md", comparison_markdown(results).encode())
     return results
+
+
+def entry_record(entry: Entry, root: Path) -> dict[str, Any]:
+    """``entry``'s fields plus its model file's sha256 (so a retrained model under the same
+    name never joins rows of the one before)."""
+    record: dict[str, Any] = asdict(entry)
+    if entry.model:
+        record["model_sha256"] = hashlib.sha256(Path(resolve(entry.model, root)).read_bytes()).hexdigest()
+    return record
+
+
+def check_resumable(earlier: dict[str, Any], settings: dict[str, Any], where: Path) -> None:
+    """An earlier run's settings may be gone on with: the same sizes, episodes, seed and env;
+    entries may be added or left out, but one label must mean the same entry (and model file).
+
+    Raises:
+        BulletnavError: naming what differs.
+    """
+    for key in ("robots", "episodes", "seed", "env_kwargs"):
+        if earlier.get(key) != json.loads(json.dumps(settings[key])):
+            raise BulletnavError(f"{where}: the earlier run has other settings ({key}: {earlier.get(key)!r}, now "
+                                 f"{settings[key]!r}): choose another --out")
+    before = {e["label"]: e for e in earlier.get("entries", [])}
+    for entry in settings["entries"]:
+        old = before.get(entry["label"])
+        if old is not None and old != entry:
+            raise BulletnavError(f"{where}: entry {entry['label']!r} of the earlier run is another controller or "
+                                 f"model file ({old}, now {entry}): choose another --out")
 
 
 def build_comparison(settings: dict[str, Any], rows: list[dict[str, Any]]) -> dict[str, Any]:
@@ -325,5 +357,5 @@ def _num(value: Any, fmt: str) -> str:
     return "-" if value is None or (isinstance(value, float) and not math.isfinite(value)) else format(value, fmt)
 
 
-__all__ = ["DEFAULT_CONTROLLERS", "Entry", "build_comparison", "comparison_markdown", "episode_fingerprint",
+__all__ = ["DEFAULT_CONTROLLERS", "Entry", "build_comparison", "check_resumable", "entry_record", "comparison_markdown", "episode_fingerprint",
            "parse_entries", "plan_chunks", "run_chunk", "run_comparison"]
