@@ -38,6 +38,7 @@ from bulletnav.control.navigator import ControllerConfig, GoToGoal, Navigator, N
 from bulletnav.control.shield import ShieldConfig, ShieldDecision, Veto
 from bulletnav.errors import ConfigError, ModelError
 from bulletnav.fleet.env import FleetEnv
+from bulletnav.fleet.learned import SharedPolicyController
 from bulletnav.fleet.spacetime import Cell, ReservationTable, distance_map, nearest_free, space_time_astar
 from bulletnav.fleet.view import FleetView, RobotView
 from bulletnav.policy import Policy
@@ -137,16 +138,16 @@ def model_env_kwargs(model_path: str | Path) -> dict[str, Any]:
     return {k: v for k, v in kwargs.items() if k not in _UNSUPPORTED and not k.startswith("shift_")}
 
 
-def policy_controller(env: FleetEnv, model_path: str | Path = DEFAULT_MODEL) -> PerRobotController:
-    """One SB3 model, zero-shot on every robot (its :class:`~bulletnav.rl.policy.SB3Policy`
-    shared: the policy is memoryless).
+def policy_controller(env: FleetEnv, model_path: str | Path = DEFAULT_MODEL) -> SharedPolicyController:
+    """One SB3 model on every robot, all robots in one forward pass per step
+    (:class:`~bulletnav.fleet.learned.SharedPolicyController`): a single-robot model zero-shot
+    (``models/ppo_dynamic.zip``) or one fine-tuned in the fleet (``models/ppo_fleet.zip``).
 
     Raises:
         ModelError: the model cannot be loaded, or its observation or action space differs
             from the fleet's per-agent one (make the env with :func:`model_env_kwargs`).
     """
     from bulletnav.rl.io import load_model
-    from bulletnav.rl.policy import SB3Policy
 
     model, _meta, normalizer = load_model(model_path)
     agent = env.possible_agents[0]
@@ -155,8 +156,7 @@ def policy_controller(env: FleetEnv, model_path: str | Path = DEFAULT_MODEL) -> 
         if mine.shape != theirs.shape or not (np.allclose(mine.low, theirs.low) and np.allclose(mine.high, theirs.high)):
             raise ModelError(f"{model_path}: the model's {what} space {theirs} does not fit the fleet's {mine}; "
                              "make the fleet env with the model's env settings (fleet.controllers.model_env_kwargs)")
-    policy = SB3Policy(model, normalizer)
-    return PerRobotController(dict.fromkeys(env.possible_agents, policy))
+    return SharedPolicyController(model, normalizer, env.possible_agents)
 
 
 # ---------------------------------------------------------------------- coordinated
