@@ -218,17 +218,7 @@ def run_suite(suite: Suite, out: Path, workers: int = 1, address: str | None = N
     chunks = plan_chunks(suite, done, workers)
     total = suite.total
     t0 = time.perf_counter()
-    with log_path.open("a") as log_file:
-        def keep(new: list[dict[str, Any]]) -> None:
-            for row in new:
-                log_file.write(json.dumps(row, allow_nan=True) + "\n")
-            log_file.flush()
-            rows.extend(new)
-            if progress is not None:
-                progress(len(rows), total)
-
-        if progress is not None:
-            progress(len(rows), total)
+    with RowLog(log_path, rows, total, progress) as keep:
         if address:
             _run_ray(suite, root, chunks, address, keep)
         elif workers == 1:
@@ -239,19 +229,49 @@ def run_suite(suite: Suite, out: Path, workers: int = 1, address: str | None = N
             finally:
                 cells.close()
         else:
-            _run_pool(suite, root, chunks, workers, keep)
+            run_in_pool([(_run_in_process, (suite, str(root), w, c, eps)) for w, c, eps in chunks], workers, keep)
     results = build_results(suite, rows, root)
     results["provenance"] = run_provenance(time.perf_counter() - t0, workers, address)
     write_strict_json(out / "results.json", results)
     return results
 
 
-def _run_pool(suite: Suite, root: Path, chunks: list, workers: int, keep: Callable) -> None:
+class RowLog:
+    """The rows of a run as they finish: each batch appended to ``path`` (one JSON line per
+    row, flushed), added to ``rows`` and reported through ``progress(done, total)``. Use as a
+    context manager; the object it gives is the ``keep(new_rows)`` function."""
+
+    def __init__(self, path: Path, rows: list[dict[str, Any]], total: int,
+                 progress: Callable[[int, int], None] | None = None) -> None:
+        self.path, self.rows, self.total, self.progress = path, rows, total, progress
+
+    def __enter__(self) -> Callable[[list[dict[str, Any]]], None]:
+        self.file = self.path.open("a")
+        if self.progress is not None:
+            self.progress(len(self.rows), self.total)
+        return self.keep
+
+    def keep(self, new: list[dict[str, Any]]) -> None:
+        for row in new:
+            self.file.write(json.dumps(row, allow_nan=True) + "\n")
+        self.file.flush()
+        self.rows.extend(new)
+        if self.progress is not None:
+            self.progress(len(self.rows), self.total)
+
+    def __exit__(self, *exc: object) -> None:
+        self.file.close()
+
+
+def run_in_pool(jobs: list[tuple[Callable, tuple]], workers: int, keep: Callable[[Any], None]) -> None:
+    """Run each ``(function, args)`` job in a pool of ``workers`` processes (forkserver:
+    nothing of this process's PyBullet state is inherited) and ``keep`` each result as it
+    finishes. A job's exception is raised here."""
     import multiprocessing
 
     ctx = multiprocessing.get_context("forkserver")
     with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-        pending = {pool.submit(_run_in_process, suite, str(root), w, c, eps) for w, c, eps in chunks}
+        pending = {pool.submit(fn, *args) for fn, args in jobs}
         while pending:
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)
             for future in finished:

@@ -19,14 +19,13 @@ import logging
 import math
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from bulletnav.benchmark.runner import PROJECT_ROOT, reopen_rows, run_provenance, write_strict_json
+from bulletnav.benchmark.runner import PROJECT_ROOT, RowLog, reopen_rows, run_in_pool, run_provenance, write_strict_json
 from bulletnav.errors import BulletnavError, ConfigError
 from bulletnav.fleet.metrics import METRICS, run_fleet_episodes, summarize
 
@@ -234,31 +233,13 @@ def run_comparison(out: Path, entries: list[Entry], robots: Sequence[int] = (4, 
     chunks = plan_chunks(entries, robots, episodes, done)
     total = len(entries) * len(robots) * episodes
     t0 = time.perf_counter()
-    with log_path.open("a") as log_file:
-        def keep(new: list[dict[str, Any]]) -> None:
-            for row in new:
-                log_file.write(json.dumps(row, allow_nan=True) + "\n")
-            log_file.flush()
-            rows.extend(new)
-            if progress is not None:
-                progress(len(rows), total)
-
-        if progress is not None:
-            progress(len(rows), total)
+    with RowLog(log_path, rows, total, progress) as keep:
         if workers == 1:
             for entry, n, eps in chunks:
                 keep(run_chunk(entry, n, env_kwargs, seed, eps, str(root)))
         else:
-            import multiprocessing
-
-            ctx = multiprocessing.get_context("forkserver")
-            with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-                pending = {pool.submit(run_chunk, entry, n, env_kwargs, seed, eps, str(root))
-                           for entry, n, eps in chunks}
-                while pending:
-                    finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-                    for future in finished:
-                        keep(future.result())
+            run_in_pool([(run_chunk, (entry, n, env_kwargs, seed, eps, str(root))) for entry, n, eps in chunks],
+                        workers, keep)
     results = build_comparison(settings, rows)
     results["provenance"] = run_provenance(time.perf_counter() - t0, workers, None)
     write_strict_json(out / "comparison.json", results)
@@ -357,5 +338,5 @@ def _num(value: Any, fmt: str) -> str:
     return "-" if value is None or (isinstance(value, float) and not math.isfinite(value)) else format(value, fmt)
 
 
-__all__ = ["DEFAULT_CONTROLLERS", "Entry", "build_comparison", "check_resumable", "entry_record", "comparison_markdown", "episode_fingerprint",
-           "parse_entries", "plan_chunks", "run_chunk", "run_comparison"]
+__all__ = ["DEFAULT_CONTROLLERS", "Entry", "build_comparison", "check_resumable", "comparison_markdown",
+           "entry_record", "episode_fingerprint", "parse_entries", "plan_chunks", "run_chunk", "run_comparison"]
