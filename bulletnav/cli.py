@@ -324,13 +324,16 @@ def cmd_bench(args: argparse.Namespace) -> int:
         from bulletnav.bench.fleet_bench import bench_fleet
 
         result = bench_fleet(steps=args.steps or 480, seed=args.seed)
-        lines = [f"fleet wall time per control step ({result['controller']}; {result['steps']} steps after "
-                 f"{result['warmup']} warm-up, seed {result['seed']}):",
-                 f"{'robots':>6s} {'step ms':>8s} {'env ms':>7s} {'ctrl ms':>8s} {'ms/robot':>9s} {'vs N=1':>7s} {'x real time':>11s}"]
+        lines = [f"fleet wall time per control step ({result['steps']} steps after {result['warmup']} warm-up, "
+                 f"seed {result['seed']}; ratios: per robot, against N = 1 with the same controller):",
+                 f"{'controller':>12s} {'robots':>6s} {'step ms':>8s} {'env ms':>7s} {'ctrl ms':>8s} {'ms/robot':>9s} "
+                 f"{'vs N=1':>7s} {'env vs N=1':>10s} {'x real time':>11s}"]
         for row in result["sizes"]:
             ratio = "-" if row["per_robot_ratio"] is None else f"{row['per_robot_ratio']:.2f}"
-            lines.append(f"{row['robots']:6d} {row['step_ms']:8.2f} {row['env_ms']:7.2f} {row['controller_ms']:8.2f} "
-                         f"{row['per_robot_ms']:9.2f} {ratio:>7s} {row['realtime_factor']:11.1f}")
+            env_ratio = "-" if row["env_per_robot_ratio"] is None else f"{row['env_per_robot_ratio']:.2f}"
+            lines.append(f"{row['controller']:>12s} {row['robots']:6d} {row['step_ms']:8.2f} {row['env_ms']:7.2f} "
+                         f"{row['controller_ms']:8.2f} {row['per_robot_ms']:9.2f} {ratio:>7s} {env_ratio:>10s} "
+                         f"{row['realtime_factor']:11.1f}")
     else:  # pragma: no cover - argparse restricts the choices
         raise AssertionError(args.what)
     from bulletnav.provenance import provenance
