@@ -24,10 +24,9 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from bulletnav.envs.scene import SceneReader
 from bulletnav.fleet.env import FleetEnv
-from bulletnav.geometry import RobotGeometry
-from bulletnav.planning.grid import OccupancyGrid
-from bulletnav.sim.layout import Layout
+from bulletnav.fleet.scene import FleetScene
 
 
 @dataclass(frozen=True)
@@ -50,8 +49,10 @@ class RobotMover:
     """Robots never wait for another robot of their own accord (the shield's creeping is for movers)."""
 
 
-class FleetView:
-    """The whole fleet, read-only (see the module docstring).
+class FleetView(SceneReader):
+    """The whole fleet, read-only (see the module docstring): besides the world, movers,
+    events, action limits and clock every view of a scene shows (:class:`~bulletnav.envs.scene.SceneReader`),
+    every robot's pose, speed and body.
 
     Args:
         env: the fleet env (a :class:`~bulletnav.fleet.env.FleetEnv`).
@@ -59,7 +60,7 @@ class FleetView:
 
     def __init__(self, env: FleetEnv) -> None:
         self._env = env
-        self._scene = env._scene  # the fleet package's own env: the view is its public face
+        self._scene: FleetScene = env._scene  # the fleet package's own env: the view is its public face
         g = self._scene.geometry
         xs = [abs(r.cx) + r.half_x for r in g.rectangles]
         ys = [abs(r.cy) + r.half_y for r in g.rectangles]
@@ -73,23 +74,6 @@ class FleetView:
     @property
     def agents(self) -> list[str]:
         return list(self._env.possible_agents)
-
-    @property
-    def geometry(self) -> RobotGeometry:
-        return self._scene.geometry
-
-    @property
-    def layout(self) -> Layout | None:
-        return self._scene.layout
-
-    def occupancy(self, resolution: float, inflate: float = 0.0) -> OccupancyGrid:
-        """The true static map at ``resolution`` (m), obstacles grown by ``inflate`` (m); cached per layout."""
-        return self._scene.occupancy(resolution, inflate)
-
-    @property
-    def control_dt(self) -> float:
-        """Seconds of simulated time per env step."""
-        return self._env.config.physics.control_dt
 
     @property
     def time_s(self) -> float:
@@ -111,15 +95,9 @@ class FleetView:
     def positions(self) -> list[tuple[float, float]]:
         return [(r.state.x, r.state.y) for r in self._scene.robots]
 
-    @property
-    def dynamic(self) -> bool:
-        """True when this episode has movers or events."""
-        return self._scene.dynamic
-
-    @property
-    def movers(self) -> tuple:
-        """Forklifts and workers now (:class:`~bulletnav.sim.movers.MoverView`); none in static worlds."""
-        return self._scene.movers.views() if self._scene.dynamic else ()
+    def robot_body(self, index: int) -> int:
+        """Robot ``index``'s PyBullet body id, for colouring it in the GUI only."""
+        return self._scene.robots[index].body
 
     def robot_movers(self, exclude: int | None = None) -> list[RobotMover]:
         """Every robot but ``exclude`` as a :class:`RobotMover`."""
@@ -135,30 +113,20 @@ class FleetView:
         return RobotView(self, index, others_as_movers)
 
 
-class RobotView:
+class RobotView(SceneReader):
     """One robot of the fleet as a single-robot consumer reads ``env.unwrapped.scene``."""
 
     def __init__(self, fleet: FleetView, index: int, others_as_movers: bool = False) -> None:
         self.fleet = fleet
         self.index = index
         self.others_as_movers = others_as_movers
-        self._slot = fleet._scene.slots[index]
+        self._scene: FleetScene = fleet._scene
+        self._slot = self._scene.slots[index]
 
     @property
     def sensors(self) -> Any:
         """The robot's sensors (``lidar``, ``imu``, ``odometry``), for their idempotent ``read()``."""
         return self._slot.sensors
-
-    @property
-    def geometry(self) -> RobotGeometry:
-        return self.fleet.geometry
-
-    @property
-    def layout(self) -> Layout | None:
-        return self.fleet.layout
-
-    def occupancy(self, resolution: float, inflate: float = 0.0) -> OccupancyGrid:
-        return self.fleet.occupancy(resolution, inflate)
 
     @property
     def pose(self) -> tuple[float, float, float]:
@@ -176,19 +144,6 @@ class RobotView:
         if self.others_as_movers:
             return (*movers, *self.fleet.robot_movers(exclude=self.index))
         return movers
-
-    @property
-    def control_dt(self) -> float:
-        return self.fleet.control_dt
-
-    @property
-    def command_limits(self) -> tuple[tuple[float, float], tuple[float, float]]:
-        t = self.fleet._env.config.task
-        return (0.0, t.max_speed), (-t.max_turn_rate, t.max_turn_rate)
-
-    @property
-    def normalized_actions(self) -> bool:
-        return self.fleet._env.config.normalize_actions
 
 
 __all__ = ["FleetView", "RobotMover", "RobotView"]

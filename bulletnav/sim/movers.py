@@ -17,12 +17,14 @@ Yielding (``yield_to_robot``, default true): a forklift stops while the robot's 
 disc overlaps its safety field, a rectangle ahead of its front (``field_length`` = 1.0 m
 long, its width + 0.2 m wide), and resumes when the robot leaves; a worker stops while the
 gap between the robot's footprint disc and its body is under ``stop_distance`` (0.6 m).
-Decided once per control step from the robot's ground truth.
+Decided once per control step from the robot's ground truth; with several robots (a fleet),
+from the robot nearest the field (:func:`yield_target`).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -333,19 +335,20 @@ class Movers:
     def pool_summary(self) -> dict[str, int]:
         return {f"{k}{list(d)}": len(v) for (k, d), v in self.pool.items()}
 
-    def plan_step(self, dt: float, robot_xy: tuple[float, float], robot_radius: float, near: float,
+    def plan_step(self, dt: float, robots_xy: Sequence[tuple[float, float]], robot_radius: float, near: float,
                   visible: float = math.inf) -> list[tuple[_Mover, tuple[float, float, float], tuple[float, float, float]]]:
-        """Advance every mover by one control period ``dt``; return (mover, pose before, pose
-        after) of those within ``near`` m of the robot (to be moved at every physics step) and
-        place the others at their new pose now, except those farther than ``visible`` m, which
-        no sensor can see (their body catches up as soon as they come within range)."""
+        """Advance every mover by one control period ``dt``, each yielding to the robot nearest
+        its safety field (:func:`yield_target`; a single robot is the one-element list); return
+        (mover, pose before, pose after) of those within ``near`` m of any robot (to be moved at
+        every physics step) and place the others at their new pose now, except those farther
+        than ``visible`` m from every robot, which no sensor can see (their body catches up as
+        soon as they come within range)."""
         near_ones = []
-        rx, ry = robot_xy
         for m in self.active:
             before = m.pose
-            m.step(dt, robot_xy, robot_radius)
+            m.step(dt, yield_target(m.spec, before, m.turn_to is not None, robots_xy), robot_radius)
             pose = m.pose
-            gap = m.gap = math.hypot(pose[0] - rx, pose[1] - ry) - m.radius
+            gap = m.gap = min(math.hypot(pose[0] - x, pose[1] - y) for x, y in robots_xy) - m.radius
             if gap < near and pose != before and m.placed == before:
                 near_ones.append((m, before, pose))
             elif gap <= visible:
@@ -392,6 +395,29 @@ class Movers:
                 continue
             best = min(best, mover_gap(m.spec, m.pose, outline)) if rough < exact_within else rough
         return max(best, 0.0)
+
+
+def yield_target(spec: MoverSpec, pose: tuple[float, float, float], turning: bool,
+                 robots_xy: Sequence[tuple[float, float]]) -> tuple[float, float]:
+    """The robot position a mover decides its yielding on: the robot nearest its safety field
+    (a forklift's rectangle ahead, or the disc it sweeps while turning; a worker's body). If
+    any robot is in the field, this one is; a single robot is always its own target."""
+    if len(robots_xy) == 1:
+        return robots_xy[0]
+    x, y, yaw = pose
+    if isinstance(spec, WorkerSpec) or turning:
+        return min(robots_xy, key=lambda r: math.hypot(r[0] - x, r[1] - y))
+    c, s = math.cos(yaw), math.sin(yaw)
+    x0 = spec.size[0] / 2
+    x1 = x0 + spec.field_length
+    half_w = (spec.size[1] + spec.field_margin) / 2
+
+    def field_gap(r: tuple[float, float]) -> float:
+        dx, dy = r[0] - x, r[1] - y
+        lx, ly = c * dx + s * dy, -s * dx + c * dy
+        return math.hypot(max(x0 - lx, 0.0, lx - x1), max(abs(ly) - half_w, 0.0))
+
+    return min(robots_xy, key=field_gap)
 
 
 def box_corners(center: tuple[float, float], yaw: float, length: float, width: float) -> list[tuple[float, float]]:
