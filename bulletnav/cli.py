@@ -48,6 +48,17 @@ NON_NEGATIVE = _int_type(0)
 SEED = _int_type(0, 2**32 - 1, "a seed, a whole number")
 
 
+def _non_negative_seconds(text: str) -> float:
+    """Seconds >= 0 (``--frame-at``)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds >= 0, got {text!r}") from None
+    if not 0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected seconds >= 0, got {text!r}")
+    return value
+
+
 def _positive_seconds(text: str) -> float:
     try:
         value = float(text)
@@ -802,6 +813,41 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _view_fleet(args: argparse.Namespace) -> int:
+    """``view --robots N``: a fleet in the GUI, each robot tinted in its colour with its goal marked,
+    driving its errands with PID + A* (the independent controller)."""
+    import time
+
+    from bulletnav.fleet.controllers import make_controller
+    from bulletnav.fleet.env import FleetEnv
+    from bulletnav.viz.fleet import FleetDashboard
+
+    kwargs = _fleet_world_kwargs(args, args.env_id if args.env_given else None)
+    env = FleetEnv(num_robots=args.robots, render_mode="human", dynamic=args.dynamic, **kwargs)
+    try:
+        controller = make_controller("independent", env)
+        observations, infos = env.reset(seed=args.seed)
+        controller.reset(infos)
+        dashboard = FleetDashboard(env)
+        dashboard.on_reset(infos)
+        t_end = time.perf_counter() + args.seconds
+        steps = 0
+        while time.perf_counter() < t_end:
+            observations, _, _, _, infos = env.step(controller.act(observations, infos))
+            dashboard.on_step(infos)
+            steps += 1
+            if not env.agents:  # the episode's duration is over
+                observations, infos = env.reset()
+                controller.reset(infos)
+                dashboard.on_reset(infos)
+        errands = sum(int(info["errands_completed"]) for info in infos.values())
+        print(f"viewed a fleet of {args.robots} robots for {args.seconds:g} s ({steps} control steps, "
+              f"{steps / args.seconds:.1f} steps/s; {errands} errands done this episode)")
+    finally:
+        env.close()
+    return 0
+
+
 DEFAULT_DEMO_OUT = "runs/demo"
 """Where ``demo`` writes without ``--out``; when it holds an earlier demo, ``runs/demo-2``, ``-3``, ..."""
 
@@ -831,15 +877,24 @@ def _demo_folder(out: str | None):
 
 
 def cmd_view(args: argparse.Namespace) -> int:
-    """Open a warehouse in the PyBullet GUI with the dashboard; the robot turns in place."""
+    """Open a warehouse in the PyBullet GUI with the dashboard; the robot turns in place (with
+    ``--robots N``: a fleet running its errands)."""
     import time
+
+    if args.robots is not None:
+        return _view_fleet(args)
+    if args.dynamic:
+        raise BulletnavError("view --dynamic is for a fleet (--robots N); for one robot pass --env bulletnav/WarehouseDynamic-v0")
 
     import gymnasium as gym
 
     import bulletnav  # noqa: F401
     from bulletnav.viz import Dashboard
 
-    env = gym.make(args.env_id, render_mode="human", **_world_kwargs(args))
+    kwargs = _world_kwargs(args)
+    if args.layout_style:
+        kwargs["layout_style"] = args.layout_style
+    env = gym.make(args.env_id, render_mode="human", **kwargs)
     try:
         env.reset(seed=args.seed)
         dashboard = Dashboard(env)
@@ -998,23 +1053,43 @@ def cmd_fleet(args: argparse.Namespace) -> int:
 
     if args.model is not None and args.controller != "policy":
         raise ConfigError(f"--model is for --controller policy, not {args.controller}")
+    if args.frame_at is not None and not args.frame:
+        raise ConfigError("--frame-at is the time of the --frame PNG: pass --frame too")
+    if args.frame_at is not None and args.frame_at > args.duration:
+        raise ConfigError(f"--frame-at {args.frame_at:g} s is after the episode's end (--duration {args.duration:g} s)")
+    _refuse_existing_files(args, "video", "plot", "frame")
     model = args.model or DEFAULT_MODEL
     env_kwargs = dict(model_env_kwargs(model)) if args.controller == "policy" else {}
+    env_kwargs.update(_fleet_world_kwargs(args, args.env_id))
     env_kwargs.update(num_robots=args.robots, duration_s=args.duration, dynamic=args.dynamic)
-    result = run_fleet_episodes(
-        env_kwargs, lambda env: make_controller(args.controller, env, shield=args.shield,
-                                                model=model if args.controller == "policy" else None),
-        episodes=args.episodes, seed=args.seed)
+    visuals = None
+    if args.video or args.plot or args.frame:
+        from bulletnav.viz.fleet import FleetVisuals
+
+        visuals = FleetVisuals(video=args.video, frame=args.frame, frame_at_s=args.frame_at, plot=args.plot, episode=0,
+                               title=f"{args.controller}{' + shield' if args.shield else ''}, seed {args.seed}")
+    ok = False
+    try:
+        result = run_fleet_episodes(
+            env_kwargs, lambda env: make_controller(args.controller, env, shield=args.shield,
+                                                    model=model if args.controller == "policy" else None),
+            episodes=args.episodes, seed=args.seed, on_step=visuals)
+        ok = True
+    finally:
+        written = visuals.close(ok) if visuals is not None else []
     s = result["summary"]
     keys = ("throughput_per_hour", "throughput_per_robot_per_hour", "errands", "legs", "collisions_robot_robot",
             "collisions_static", "collisions_mover", "collisions_person", "deadlocks", "min_separation_m",
             "errand_time_s", "near_misses", "intimate_s", "personal_s", "shield_rate")
     out = {"command": "fleet", "controller": args.controller, "shield": args.shield, "robots": args.robots,
            "duration_s": args.duration, "dynamic": args.dynamic, "episodes": args.episodes, "seed": args.seed,
+           "env_id": args.env_id, "world": args.world, "layout_style": args.layout_style, "obstacles": args.obstacles,
            "model": model if args.controller == "policy" else None, **{k: s[k] for k in keys},
            "rows": result["episodes"]}
     if args.json:
         print(_json(out))
+        for w in written:
+            print(w, file=sys.stderr)
         return 0
     print(f"fleet: {args.robots} robots, {args.controller}{' + shield' if args.shield else ''}, "
           f"{args.episodes} episodes of {args.duration:g} s{' (dynamic)' if args.dynamic else ''}, seeds {args.seed}..")
@@ -1029,7 +1104,40 @@ def cmd_fleet(args: argparse.Namespace) -> int:
           f"collisions robot {s['collisions_robot_robot']}, static {s['collisions_static']}, mover "
           f"{s['collisions_mover']}, person {s['collisions_person']}; deadlocks {s['deadlocks']}; "
           f"min separation {_fmt(s['min_separation_m'])} m; errand time {_fmt(s['errand_time_s'], '.1f')} s")
+    for w in written:
+        print(w)
     return 0
+
+
+def _fleet_world_kwargs(args: argparse.Namespace, env_id: str | None) -> dict:
+    """The fleet env's world arguments: ``env_id`` (``--env``: its registered settings instead of
+    the fleet's aisle warehouse), ``--world``, ``--layout-style``, ``--obstacles``."""
+    kwargs: dict = {}
+    if env_id is not None:
+        import gymnasium as gym
+
+        from bulletnav.envs.warehouse import make_config
+
+        kwargs["config"] = make_config(None, **gym.spec(env_id).kwargs)
+    if args.world:
+        kwargs["world"] = args.world
+    if getattr(args, "layout_style", None):
+        kwargs["layout_style"] = args.layout_style
+    if args.obstacles is not None:
+        kwargs["num_obstacles"] = args.obstacles
+    return kwargs
+
+
+def _add_fleet_world_args(parser: argparse.ArgumentParser, env_default: str) -> None:
+    from bulletnav.sim.generators import WORLDS
+
+    parser.add_argument("--env", dest="env_id", default=None, metavar="ID",
+                        help=f"start from this registered bulletnav env's settings (default {env_default})")
+    parser.add_argument("--world", metavar="FILE", help="YAML layout, with its stations: if it names them "
+                                                        "(default: a procedural warehouse)")
+    parser.add_argument("--layout-style", choices=sorted(WORLDS), default=None,
+                        help="procedural layout generator (default: the env's, aisles; pick stations need racks)")
+    _add_obstacles_arg(parser, "the env's")
 
 
 def cmd_fleet_compare(args: argparse.Namespace) -> int:
@@ -1245,6 +1353,15 @@ def build_parser() -> argparse.ArgumentParser:
     _add_obstacles_arg(view)
     view.add_argument("--seed", type=SEED, default=0, help="warehouse seed (default 0)")
     view.add_argument("--seconds", type=_positive_seconds, default=30.0, help="how long to show it (default 30)")
+    view.add_argument("--robots", type=FLEET_ROBOTS, default=None, metavar="N",
+                      help="show a fleet of N robots (1 to 16) driving errands with PID + A*, each in its own colour "
+                           "with its goal marked (default: one robot turning in place; --env then defaults to the "
+                           "fleet's aisle warehouse)")
+    view.add_argument("--dynamic", action="store_true", help="with --robots: add forklifts, workers and pallet events")
+    from bulletnav.sim.generators import WORLDS
+
+    view.add_argument("--layout-style", choices=sorted(WORLDS), default=None,
+                      help="with --robots: procedural layout generator (default the env's)")
     view.set_defaults(func=cmd_view)
 
     bm = add("benchmark", "every controller of a suite on the same seeded episodes of every world: results.json + report.html")
@@ -1276,7 +1393,17 @@ def build_parser() -> argparse.ArgumentParser:
     fl.add_argument("--duration", type=_positive_seconds, default=180.0, metavar="S",
                     help="simulated seconds per episode (default 180)")
     fl.add_argument("--dynamic", action="store_true", help="add forklifts, walking workers and pallet events")
+    _add_fleet_world_args(fl, "the fleet's aisle warehouse, WarehouseAisles-v0's settings")
     fl.add_argument("--json", action="store_true", help="print one JSON object (summary keys plus per-episode rows)")
+    fl.add_argument("--video", type=VIDEO_FILE, metavar="PATH",
+                    help="top-down video of the first episode (episode 0), every robot in its colour with its errand "
+                         "(.mp4, or .gif held in memory until written: short runs only; one frame per control step)")
+    fl.add_argument("--plot", type=PNG_FILE, metavar="PNG",
+                    help="every robot's path over the first episode (episode 0), stations and the map")
+    fl.add_argument("--frame", type=PNG_FILE, metavar="PNG", help="one video frame of the first episode (episode 0) as a PNG")
+    fl.add_argument("--frame-at", type=_non_negative_seconds, default=None, metavar="S",
+                    help="simulated seconds into the episode of the --frame (default: half the --duration)")
+    _add_overwrite_arg(fl, "--video, --plot and --frame files")
     fl.set_defaults(func=cmd_fleet)
 
     ft = add("fleet-train", "fine-tune a single-robot model in the fleet: parameter-shared PPO, every robot one slot")

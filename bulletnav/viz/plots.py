@@ -337,9 +337,9 @@ def _draw_episode(ax: Any, ep: EpisodeTrajectory, linewidth: float,
     from matplotlib.patches import Circle
 
     if ep.movers:
-        _draw_movers(ax, ep.movers, set() if routes is None else routes)
+        draw_mover_tracks(ax, ep.movers, set() if routes is None else routes)
     if ep.events:
-        _draw_events(ax, ep.events)
+        draw_events(ax, ep.events)
     if ep.mission:
         _draw_mission(ax, ep, {} if labels is None else labels)
     else:
@@ -405,7 +405,7 @@ def _mission_handles(episodes: list[EpisodeTrajectory]) -> list[Any]:
     return handles
 
 
-def _draw_movers(ax: Any, movers: list[MoverTrack], routes: set[tuple[str, tuple[tuple[float, float], ...]]]) -> None:
+def draw_mover_tracks(ax: Any, movers: list[MoverTrack], routes: set[tuple[str, tuple[tuple[float, float], ...]]]) -> None:
     """Route (dashed), trail (faint) and final footprint of each mover, in its own shade."""
     from matplotlib.patches import Circle, Polygon
 
@@ -437,7 +437,7 @@ def _draw_movers(ax: Any, movers: list[MoverTrack], routes: set[tuple[str, tuple
         ax.add_patch(patch)
 
 
-def _draw_events(ax: Any, events: list[dict[str, Any]]) -> None:
+def draw_events(ax: Any, events: list[dict[str, Any]]) -> None:
     """An added obstacle's footprint outlined, a removed one's crossed out; each with its time (s)."""
     from matplotlib.patches import Polygon
 
@@ -456,11 +456,15 @@ def _draw_events(ax: Any, events: list[dict[str, Any]]) -> None:
 
 def _dynamic_handles(episodes: list[EpisodeTrajectory]) -> list[Any]:
     """Legend entries for what the dynamic episodes show (none for static ones)."""
+    return dynamic_handles({m.kind for ep in episodes for m in ep.movers},
+                           {e["action"] for ep in episodes for e in ep.events})
+
+
+def dynamic_handles(kinds: set[str], actions: set[str]) -> list[Any]:
+    """Legend entries for mover routes of ``kinds`` and events of ``actions`` ("add", "remove")."""
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
-    kinds = {m.kind for ep in episodes for m in ep.movers}
-    actions = {e["action"] for ep in episodes for e in ep.events}
     handles: list[Any] = []
     for kind in ("forklift", "worker"):
         if kind in kinds:

@@ -94,7 +94,8 @@ SHIELD = (255, 120, 20)
 """The robot's colour on a step where the safety shield replaced the command."""
 
 
-def _rgb(category: str) -> tuple[int, int, int]:
+def category_rgb(category: str) -> tuple[int, int, int]:
+    """The 0-255 colour of an obstacle category (``rack``, ``floor``, ...; unknown ones as ``box``)."""
     r, g, b, _ = COLOURS.get(category, COLOURS["box"])
     return int(r * 255), int(g * 255), int(b * 255)
 
@@ -108,7 +109,8 @@ def box_corners(obstacle: Obstacle) -> np.ndarray:
     return local @ rot.T + np.asarray(obstacle.center)
 
 
-def _font(size: int) -> ImageFont.ImageFont | ImageFont.FreeTypeFont:
+def ui_font(size: int) -> ImageFont.ImageFont | ImageFont.FreeTypeFont:
+    """Pillow's bundled font at ``size`` px (the fixed bitmap font where FreeType is missing)."""
     try:  # Pillow >= 10.1 with FreeType: the bundled scalable default font
         return ImageFont.load_default(size=size)
     except (TypeError, OSError):  # older Pillow or no FreeType: the fixed bitmap font
@@ -166,15 +168,15 @@ class MapView:
         draw = ImageDraw.Draw(img)
         hx, hy = self.layout.half_extents
         t = WALL_THICKNESS
-        draw.rectangle(self._rect(-hx - t, -hy - t, hx + t, hy + t, k), fill=_rgb("wall"))
-        draw.rectangle(self._rect(-hx, -hy, hx, hy, k), fill=_rgb("floor"))
-        grid = tuple(min(c + 14, 255) for c in _rgb("floor"))
+        draw.rectangle(self._rect(-hx - t, -hy - t, hx + t, hy + t, k), fill=category_rgb("wall"))
+        draw.rectangle(self._rect(-hx, -hy, hx, hy, k), fill=category_rgb("floor"))
+        grid = tuple(min(c + 14, 255) for c in category_rgb("floor"))
         for gx in range(math.ceil(-hx), math.floor(hx) + 1):  # 1 m grid: gives the viewer a scale
             draw.line(self.to_px([(gx, -hy), (gx, hy)], k), fill=grid, width=1)
         for gy in range(math.ceil(-hy), math.floor(hy) + 1):
             draw.line(self.to_px([(-hx, gy), (hx, gy)], k), fill=grid, width=1)
         for o in self.layout.obstacles:
-            colour = _rgb(o.label if o.label in COLOURS else "box")
+            colour = category_rgb(o.label if o.label in COLOURS else "box")
             edge = tuple(int(c * 0.6) for c in colour)
             if o.kind == "cylinder":
                 (cx, cy), = self.to_px(o.center, k)
@@ -207,6 +209,79 @@ def _reward(info: dict[str, Any]) -> float:
     return float(sum(v for k, v in info.items() if k.startswith("reward_")))
 
 
+class VideoWriter:
+    """Frames to an MP4 or GIF, written to a hidden file beside ``path`` and renamed onto it by
+    :meth:`close`: a crash or an interrupted run never leaves half a video under the name, nor
+    replaces an earlier one (:meth:`abort` drops the unfinished file).
+
+    ``.mp4`` is H.264 (libx264, yuv420p) through imageio-ffmpeg, streamed to disk (frame sides
+    must be multiples of 16); ``.gif`` goes through Pillow, which keeps all frames in memory
+    until :meth:`close`.
+
+    Args:
+        path: output file, ``.mp4`` or ``.gif``.
+        fps: playback frames per second.
+        quality: H.264 quality 0-10 (imageio's scale).
+    """
+
+    def __init__(self, path: str | Path, fps: float = 24, quality: float = 5.0) -> None:
+        import imageio.v2 as imageio  # the writers live here; import cost only when recording
+
+        self.path = Path(path)
+        self.frames_written = 0
+        suffix = self.path.suffix.lower()
+        if suffix not in (".mp4", ".gif"):
+            raise ValueError(f"{self.path}: videos are written as .mp4 or .gif, not {suffix or 'no suffix'!r}")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=f".tmp{suffix}", dir=self.path.parent)
+        os.close(fd)
+        self._tmp = Path(tmp)
+        try:
+            if suffix == ".mp4":
+                self._writer = imageio.get_writer(
+                    self._tmp, format="FFMPEG", mode="I", fps=fps, codec="libx264", quality=quality,
+                    pixelformat="yuv420p", macro_block_size=16, ffmpeg_log_level="error",
+                )
+            else:  # Pillow stores durations in ms, rounded to GIF's 10 ms resolution
+                self._writer = imageio.get_writer(self._tmp, mode="I", duration=1000.0 / fps, loop=0)
+        except BaseException:
+            self._tmp.unlink(missing_ok=True)
+            raise
+        self.closed = False
+
+    def append(self, frame: np.ndarray) -> None:
+        """Add one (H, W, 3) uint8 frame."""
+        if self.closed:
+            raise RuntimeError(f"{self.path}: the video is closed")
+        self._writer.append_data(frame)
+        self.frames_written += 1
+
+    def close(self) -> None:
+        """Finish the file and rename it onto :attr:`path` (idempotent)."""
+        if not self.closed:
+            self.closed = True
+            try:
+                self._writer.close()
+                umask = os.umask(0)
+                os.umask(umask)
+                os.chmod(self._tmp, 0o666 & ~umask)  # mkstemp makes it private; a video is meant to be shared
+                os.replace(self._tmp, self.path)
+            except BaseException:
+                self._tmp.unlink(missing_ok=True)
+                raise
+
+    def abort(self) -> None:
+        """Delete the unfinished file; :attr:`path` is left as it was (idempotent)."""
+        if not self.closed:
+            self.closed = True
+            try:
+                self._writer.close()
+            except Exception:  # an unfinished file is dropped whatever its writer says
+                log.debug("closing the writer of an aborted video failed", exc_info=True)
+            finally:
+                self._tmp.unlink(missing_ok=True)
+
+
 class EpisodeRecorder:
     """Writes a composed frame every ``stride`` control steps of every episode into one file.
 
@@ -233,8 +308,6 @@ class EpisodeRecorder:
 
     def __init__(self, path: str | Path, stride: int = 1, fps: int = 24, quality: float = 5.0,
                  final_frame: bool = True, shield: bool = False) -> None:
-        import imageio.v2 as imageio  # the writers live here; import cost only when recording
-
         if stride < 1:
             raise ValueError(f"stride must be >= 1, got {stride}")
         self.path = Path(path)
@@ -246,33 +319,15 @@ class EpisodeRecorder:
         self._vetoes = 0
         self.frame_size: tuple[int, int] = FRAME_SIZE
         """(width, height) of every frame (px)."""
-        self.frames_written = 0
         self.episodes = 0
         self.last_frame: np.ndarray | None = None
         """The most recent composed frame, (H, W, 3) uint8."""
         suffix = self.path.suffix.lower()
         if suffix not in (".mp4", ".gif"):
             raise ValueError(f"{self.path}: EpisodeRecorder writes .mp4 or .gif, not {suffix or 'no suffix'!r}")
-        # frames go to a hidden file beside the target, renamed onto it by close(): a crash or an
-        # interrupted run never leaves half a video under the name, nor replaces an earlier one
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=f".tmp{suffix}", dir=self.path.parent)
-        os.close(fd)
-        self._tmp = Path(tmp)
-        try:
-            if suffix == ".mp4":
-                self._writer = imageio.get_writer(
-                    self._tmp, format="FFMPEG", mode="I", fps=fps, codec="libx264", quality=quality,
-                    pixelformat="yuv420p", macro_block_size=16, ffmpeg_log_level="error",
-                )
-            else:  # Pillow stores durations in ms, rounded to GIF's 10 ms resolution
-                self._writer = imageio.get_writer(self._tmp, mode="I", duration=1000.0 / fps, loop=0)
-        except BaseException:
-            self._tmp.unlink(missing_ok=True)
-            raise
-        self._closed = False
-        self._font = _font(13)
-        self._small = _font(11)
+        self._video = VideoWriter(self.path, fps=fps, quality=quality)
+        self._font = ui_font(13)
+        self._small = ui_font(11)
         self._maps: OrderedDict[Layout, tuple[MapView, Image.Image]] = OrderedDict()
         self._labels: dict[tuple[str, tuple[int, int, int], bool], Image.Image] = {}
         self._base = self._render_base()
@@ -332,31 +387,20 @@ class EpisodeRecorder:
             self._write(self.compose(env, path=path))
             self._done_written = self._outcome is not None
 
+    @property
+    def frames_written(self) -> int:
+        """Frames in the file so far."""
+        return self._video.frames_written
+
     def close(self) -> None:
         """Finish the file and rename it onto :attr:`path` (idempotent)."""
-        if not self._closed:
-            self._closed = True
-            try:
-                self._writer.close()
-                umask = os.umask(0)
-                os.umask(umask)
-                os.chmod(self._tmp, 0o666 & ~umask)  # mkstemp makes it private; a video is meant to be shared
-                os.replace(self._tmp, self.path)
-            except BaseException:
-                self._tmp.unlink(missing_ok=True)
-                raise
+        if not self._video.closed:
+            self._video.close()
             log.info("wrote %d frames (%d episodes) to %s", self.frames_written, self.episodes, self.path)
 
     def abort(self) -> None:
         """Stop recording and delete the unfinished file; :attr:`path` is left as it was (idempotent)."""
-        if not self._closed:
-            self._closed = True
-            try:
-                self._writer.close()
-            except Exception:  # an unfinished file is dropped whatever its writer says
-                log.debug("closing the writer of an aborted recording failed", exc_info=True)
-            finally:
-                self._tmp.unlink(missing_ok=True)
+        self._video.abort()
 
     def __enter__(self) -> EpisodeRecorder:
         return self
@@ -423,7 +467,7 @@ class EpisodeRecorder:
         if not self._goals:  # a mission's goals change look as they are reached: drawn per frame
             (gx, gy), = view.to_px(scene.goal)
             r = view.metres(scene.goal_radius)
-            draw.ellipse((gx - r, gy - r, gx + r, gy + r), fill=_mix(GOAL, _rgb("floor"), 0.35), outline=GOAL, width=3)
+            draw.ellipse((gx - r, gy - r, gx + r, gy + r), fill=mix_colour(GOAL, category_rgb("floor"), 0.35), outline=GOAL, width=3)
             draw.ellipse((gx - 3, gy - 3, gx + 3, gy + 3), fill=GOAL)
         sx, sy, syaw = scene.start
         (px, py), = view.to_px((sx, sy))
@@ -437,10 +481,10 @@ class EpisodeRecorder:
         if self._dynamic:
             movers = scene.movers
             self._mover_rgb = mover_colours(m.kind for m in movers)
-            floor = _rgb("floor")
+            floor = category_rgb("floor")
             for m, rgb in zip(movers, self._mover_rgb):
                 if len(m.path) >= 2:  # routes are fixed for the episode: drawn once into its layer
-                    draw.line(view.to_px(m.path), fill=_mix(rgb, floor, 0.7), width=1)
+                    draw.line(view.to_px(m.path), fill=mix_colour(rgb, floor, 0.7), width=1)
             self._dynamic_text = f"movers: {movers_summary(m.kind for m in movers)}   last event: none"
         x, y, _ = scene.pose
         self._trajectory = [(x, y)]
@@ -481,23 +525,23 @@ class EpisodeRecorder:
     def _draw_goals(self, img: Image.Image, scene: Any, view: MapView) -> None:
         """A mission's goal zones, numbered: reached filled and ticked, the target ringed, the rest hollow."""
         draw = ImageDraw.Draw(img)
-        floor = _rgb("floor")
+        floor = category_rgb("floor")
         r = view.metres(scene.goal_radius)
         target = self._target_index(scene.goal)
         for i, ((gx, gy), reached) in enumerate(zip(view.to_px(self._goals), self._reached)):
             box = (gx - r, gy - r, gx + r, gy + r)
             if reached:
-                draw.ellipse(box, fill=_mix(GOAL, floor, 0.8), outline=GOAL, width=2)
+                draw.ellipse(box, fill=mix_colour(GOAL, floor, 0.8), outline=GOAL, width=2)
                 k = max(r * 0.5, 4.0)  # a tick across the zone
                 draw.line([(gx - k, gy), (gx - k * 0.3, gy + k * 0.7), (gx + k, gy - k * 0.8)], fill=BACKGROUND,
                           width=3, joint="curve")
             elif i == target:
-                draw.ellipse(box, fill=_mix(GOAL, floor, 0.35), outline=GOAL, width=3)
+                draw.ellipse(box, fill=mix_colour(GOAL, floor, 0.35), outline=GOAL, width=3)
                 draw.ellipse((gx - r - 4, gy - r - 4, gx + r + 4, gy + r + 4), outline=TARGET, width=2)
                 draw.ellipse((gx - 3, gy - 3, gx + 3, gy + 3), fill=GOAL)
             else:
-                draw.ellipse(box, fill=_mix(GOAL, floor, 0.12), outline=_mix(GOAL, floor, 0.6), width=2)
-                draw.ellipse((gx - 2, gy - 2, gx + 2, gy + 2), fill=_mix(GOAL, floor, 0.6))
+                draw.ellipse(box, fill=mix_colour(GOAL, floor, 0.12), outline=mix_colour(GOAL, floor, 0.6), width=2)
+                draw.ellipse((gx - 2, gy - 2, gx + 2, gy + 2), fill=mix_colour(GOAL, floor, 0.6))
             colour = TARGET if i == target else GOAL if reached else TEXT
             number = self._label(str(i + 1), colour, small=False)
             img.paste(number, (int(gx + r * 0.7 + 2), int(gy - r * 0.7 - number.height)))
@@ -573,38 +617,14 @@ class EpisodeRecorder:
                 frame.paste(dyn, (x, STRIP_Y + 24))
 
     def _draw_movers(self, draw: ImageDraw.ImageDraw, scene: Any, view: MapView) -> None:
-        """Each mover's footprint now, in its shade; outlined white while it yields."""
-        rgbs = self._mover_rgb
-        for i, m in enumerate(scene.movers):
-            rgb = rgbs[i] if i < len(rgbs) else mover_colour(m.kind, i)
-            edge = ROBOT if m.yielding else BACKGROUND
-            x, y, yaw = m.pose
-            if m.kind == "forklift":
-                draw.polygon(view.to_px(forklift_corners(m.pose, m.size)), fill=rgb, outline=edge, width=1)
-                half = 0.5 * m.size[0]
-                tip = (x + (half + 0.25) * math.cos(yaw), y + (half + 0.25) * math.sin(yaw))
-                draw.line(view.to_px([(x, y), tip]), fill=edge, width=2)
-            else:
-                (cx, cy), = view.to_px((x, y))
-                r = max(view.metres(0.5 * m.size[0]), 2.0)
-                draw.ellipse((cx - r, cy - r, cx + r, cy + r), fill=rgb, outline=edge, width=1)
+        draw_movers(draw, view, scene.movers, self._mover_rgb)
 
     def _draw_new_events(self, scene: Any, view: MapView) -> None:
         """Draw the events since the last frame into the episode's layer (they stay for the episode)."""
         events = scene.events
         if len(events) <= self._events_drawn:
             return
-        draw = ImageDraw.Draw(self._episode_map)
-        for e in events[self._events_drawn:]:
-            corners = view.to_px(event_corners(e))
-            if e["action"] == "add":
-                label = e.get("label") or ""
-                fill = _rgb(label if label in COLOURS else "pallet")
-                draw.polygon(corners, fill=fill, outline=EVENT_RGB, width=2)
-            else:
-                draw.polygon(corners, outline=EVENT_RGB, width=1)
-                draw.line((corners[0], corners[2]), fill=EVENT_RGB, width=2)
-                draw.line((corners[1], corners[3]), fill=EVENT_RGB, width=2)
+        draw_events(ImageDraw.Draw(self._episode_map), view, events[self._events_drawn:])
         self._events_drawn = len(events)
         movers = movers_summary(m.kind for m in scene.movers)
         self._dynamic_text = f"movers: {movers}   last event: {event_text(events[-1])}"
@@ -635,7 +655,7 @@ class EpisodeRecorder:
         y = 34
         entries = [("goal zone", GOAL)]
         if mission:
-            entries += [("goal reached (ticked)", _mix(GOAL, _rgb("floor"), 0.8)), ("current target", TARGET)]
+            entries += [("goal reached (ticked)", mix_colour(GOAL, category_rgb("floor"), 0.8)), ("current target", TARGET)]
         entries += [("start", START), ("robot", ROBOT)]
         if self.shield:
             entries += [("robot, shield acting", SHIELD)]
@@ -644,7 +664,7 @@ class EpisodeRecorder:
         if dynamic:
             entries += [("forklift", mover_colour("forklift", 0)), ("worker", mover_colour("worker", 0)),
                         ("event (add / remove)", EVENT_RGB)]
-        entries += [(name, _rgb(name)) for name in ("rack", "pallet", "box", "column", "wall")]
+        entries += [(name, category_rgb(name)) for name in ("rack", "pallet", "box", "column", "wall")]
         for name, colour in entries:
             draw.rectangle((x, y + 2, x + 12, y + 12), fill=colour)
             draw.text((x + 20, y), name, fill=TEXT, font=self._small)
@@ -664,12 +684,44 @@ class EpisodeRecorder:
         return img
 
     def _write(self, frame: np.ndarray) -> None:
-        if self._closed:
+        if self._video.closed:
             raise RuntimeError(f"{self.path}: recorder is closed")
-        self._writer.append_data(frame)
-        self.frames_written += 1
+        self._video.append(frame)
 
 
-def _mix(a: tuple[int, int, int], b: tuple[int, int, int], alpha: float) -> tuple[int, int, int]:
+def draw_movers(draw: ImageDraw.ImageDraw, view: MapView, movers: Sequence[Any],
+                rgbs: Sequence[tuple[int, int, int]] = ()) -> None:
+    """Each mover's footprint now, in its shade (``rgbs[i]``, else :func:`mover_colour`): a forklift's
+    rectangle with a heading tick, a worker's disc; outlined white while it yields."""
+    for i, m in enumerate(movers):
+        rgb = rgbs[i] if i < len(rgbs) else mover_colour(m.kind, i)
+        edge = ROBOT if m.yielding else BACKGROUND
+        x, y, yaw = m.pose
+        if m.kind == "forklift":
+            draw.polygon(view.to_px(forklift_corners(m.pose, m.size)), fill=rgb, outline=edge, width=1)
+            half = 0.5 * m.size[0]
+            tip = (x + (half + 0.25) * math.cos(yaw), y + (half + 0.25) * math.sin(yaw))
+            draw.line(view.to_px([(x, y), tip]), fill=edge, width=2)
+        else:
+            (cx, cy), = view.to_px((x, y))
+            r = max(view.metres(0.5 * m.size[0]), 2.0)
+            draw.ellipse((cx - r, cy - r, cx + r, cy + r), fill=rgb, outline=edge, width=1)
+
+
+def draw_events(draw: ImageDraw.ImageDraw, view: MapView, events: Sequence[dict[str, Any]]) -> None:
+    """Events' footprints: an added obstacle filled in its category colour and outlined, a removed one crossed out."""
+    for e in events:
+        corners = view.to_px(event_corners(e))
+        if e["action"] == "add":
+            label = e.get("label") or ""
+            fill = category_rgb(label if label in COLOURS else "pallet")
+            draw.polygon(corners, fill=fill, outline=EVENT_RGB, width=2)
+        else:
+            draw.polygon(corners, outline=EVENT_RGB, width=1)
+            draw.line((corners[0], corners[2]), fill=EVENT_RGB, width=2)
+            draw.line((corners[1], corners[3]), fill=EVENT_RGB, width=2)
+
+
+def mix_colour(a: tuple[int, int, int], b: tuple[int, int, int], alpha: float) -> tuple[int, int, int]:
     """``alpha`` of colour ``a`` over colour ``b``."""
     return tuple(int(round(alpha * x + (1 - alpha) * y)) for x, y in zip(a, b))  # type: ignore[return-value]

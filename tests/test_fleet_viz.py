@@ -1,0 +1,198 @@
+"""Fleet pictures: the top-down video, the still frame and the path plot of a fleet episode
+(every robot in its colour with its errand), the CLI's --video/--plot/--frame, the world
+arguments of ``fleet``, and ``view --robots`` in the PyBullet GUI."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import imageio.v2 as imageio
+import numpy as np
+import pytest
+from PIL import Image
+
+from bulletnav.cli import main
+from bulletnav.fleet.controllers import make_controller
+from bulletnav.fleet.metrics import run_fleet_episodes
+from bulletnav.viz.fleet import FLEET_FRAME_SIZE, ROBOT_PALETTE, FleetVisuals, robot_colour
+
+ROBOTS = 3
+DURATION = 2.0  # s: 48 control steps at 24 Hz
+STEPS = 48
+
+
+def _independent(env):
+    return make_controller("independent", env)
+
+
+def _rows(result: dict) -> list[dict]:
+    """Episode rows without their wall-clock time (the only entry that may differ between runs)."""
+    return [{k: v for k, v in row.items() if k != "wall_s"} for row in result["episodes"]]
+
+
+def _video(path) -> list[np.ndarray]:
+    with imageio.get_reader(path) as reader:  # not list(reader): its length hint is infinite
+        return [frame for frame in reader]
+
+
+def _disc(frame: np.ndarray, centre: tuple[float, float], radius: float) -> np.ndarray:
+    """The pixels (K, 3) of ``frame`` within ``radius`` px of ``centre`` (x right, y down)."""
+    h, w, _ = frame.shape
+    yy, xx = np.mgrid[0:h, 0:w]
+    inside = np.hypot(xx - centre[0], yy - centre[1]) <= radius
+    return frame[inside].astype(int)
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    """Two 2 s episodes of 3 robots, the first recorded (video, frame at 1 s, plot), and the
+    same episodes run again without pictures."""
+    out = tmp_path_factory.mktemp("fleet_viz")
+    visuals = FleetVisuals(video=out / "fleet.mp4", frame=out / "frame.png", frame_at_s=1.0, plot=out / "paths.png",
+                           title="independent")
+    kwargs = dict(num_robots=ROBOTS, duration_s=DURATION)
+    with_pictures = run_fleet_episodes(kwargs, _independent, episodes=2, seed=11, on_step=visuals)
+    written = visuals.close()
+    without = run_fleet_episodes(kwargs, _independent, episodes=2, seed=11)
+    return out, visuals, written, with_pictures, without
+
+
+def test_pictures_leave_the_episodes_unchanged(recorded):
+    _, _, _, with_pictures, without = recorded
+    assert _rows(with_pictures) == _rows(without)
+
+
+def test_video_of_episode_0_decodes_with_one_frame_per_step(recorded):
+    out, visuals, written, _, _ = recorded
+    assert (out / "fleet.mp4").is_file() and not list(out.glob(".fleet.mp4.*"))  # renamed into place
+    frames = _video(out / "fleet.mp4")
+    assert len(frames) == 1 + STEPS == visuals.frames_written  # the reset frame, then every step of episode 0 only
+    assert all(f.shape == (FLEET_FRAME_SIZE[1], FLEET_FRAME_SIZE[0], 3) for f in frames)
+    # the last video frame is the last composed one, up to H.264's losses
+    assert np.abs(frames[-1].astype(int) - visuals.frames.last_frame.astype(int)).mean() < 6.0
+    assert any("fleet.mp4" in w and f"{1 + STEPS} frames" in w for w in written)
+
+
+def test_each_robot_is_drawn_in_its_colour_where_it_is(recorded):
+    out, visuals, _, _, _ = recorded
+    frames = visuals.frames
+    exact = frames.last_frame
+    video = _video(out / "fleet.mp4")[-1]
+    r = frames.robot_radius_px()
+    for i in range(ROBOTS):
+        centre = frames.robot_px(i)
+        colour = np.array(robot_colour(i))
+        disc = _disc(exact, centre, r)
+        # the composed frame: most of the disc is exactly the robot's colour (the rest: outline, heading line)
+        assert (disc == colour).all(axis=1).mean() > 0.5, f"robot {i}"
+        # the decoded video: the disc is nearer this robot's colour than any other robot's
+        seen = np.median(_disc(video, centre, r * 0.8), axis=0)
+        nearest = min(range(ROBOTS), key=lambda j: np.abs(seen - np.array(robot_colour(j))).sum())
+        assert nearest == i and np.abs(seen - colour).max() < 60, f"robot {i}: {seen} vs {colour}"
+    assert len(set(ROBOT_PALETTE)) == len(ROBOT_PALETTE) == 16  # 16 robots, 16 distinct colours
+
+
+def test_still_frame_and_plot(recorded):
+    out, visuals, written, _, _ = recorded
+    frame = np.asarray(Image.open(out / "frame.png").convert("RGB"))
+    assert frame.shape == (FLEET_FRAME_SIZE[1], FLEET_FRAME_SIZE[0], 3)
+    assert visuals.frame_written_at == pytest.approx(1.0, abs=1e-6)
+    for i in range(ROBOTS):  # each robot's colour is in the frame
+        assert (frame.reshape(-1, 3) == np.array(robot_colour(i))).all(axis=1).sum() > 20
+    plot = Image.open(out / "paths.png")
+    assert plot.size == (900, 700)
+    assert any("frame.png" in w and "at 1.0 s" in w for w in written) and any("paths.png" in w for w in written)
+    track = visuals.log.track
+    assert len(track.paths) == ROBOTS and all(len(p) == 1 + STEPS for p in track.paths)
+    assert track.pick and track.drop
+
+
+def test_plot_draws_every_robot_path_in_its_colour(recorded):
+    from matplotlib.colors import to_rgb
+
+    from bulletnav.viz.fleet import fleet_figure
+
+    _, visuals, _, _, _ = recorded
+    fig = fleet_figure(visuals.log.track)
+    ax = fig.axes[0]
+    for i in range(ROBOTS):
+        (line,) = [a for a in ax.lines if a.get_gid() == f"robot_{i}_path"]
+        assert np.allclose(to_rgb(line.get_color()), np.array(robot_colour(i)) / 255)
+        xs, ys = line.get_data()
+        assert len(xs) == 1 + STEPS
+        assert math.isclose(xs[0], visuals.log.track.starts[i][0]) and math.isclose(ys[0], visuals.log.track.starts[i][1])
+    assert [a for a in ax.lines if a.get_gid() == "pick_station"] and [a for a in ax.lines if a.get_gid() == "drop_station"]
+
+
+def test_cli_pictures_do_not_change_the_json(tmp_path, capsys):
+    argv = ["fleet", "--robots", "2", "--duration", "1", "--seed", "4", "--json"]
+    assert main(argv) == 0
+    plain = json.loads(capsys.readouterr().out)
+    video, plot, frame = tmp_path / "f.mp4", tmp_path / "p.png", tmp_path / "f.png"
+    assert main([*argv, "--video", str(video), "--plot", str(plot), "--frame", str(frame), "--frame-at", "0.5"]) == 0
+    captured = capsys.readouterr()
+    pictured = json.loads(captured.out)
+    for out in (plain, pictured):
+        for row in out["rows"]:
+            row.pop("wall_s")
+    assert plain == pictured
+    assert video.is_file() and plot.is_file() and frame.is_file()
+    assert "episode 0, 25 frames" in captured.err
+    # an existing file is refused without --overwrite, before anything runs
+    assert main([*argv, "--video", str(video)]) == 2
+    assert "--video" in capsys.readouterr().err
+    assert main([*argv, "--frame", str(tmp_path / "g.png"), "--frame-at", "3"]) == 2
+    assert "after the episode's end" in capsys.readouterr().err
+    assert main([*argv, "--frame-at", "0.5"]) == 2
+    assert "--frame" in capsys.readouterr().err
+
+
+def test_fleet_takes_the_world_arguments(capsys):
+    world = "bulletnav/assets/worlds/aisles.yaml"
+    assert main(["fleet", "--robots", "2", "--duration", "0.5", "--world", world, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["world"] == world and out["rows"][0]["robots"] == 2
+    assert main(["fleet", "--robots", "2", "--duration", "0.5", "--layout-style", "scattered", "--obstacles", "12",
+                 "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["layout_style"] == "scattered" and out["obstacles"] == 12
+    # a world without racks has no pick stations: one clear error
+    assert main(["fleet", "--robots", "2", "--duration", "0.5", "--world", "bulletnav/assets/worlds/empty.yaml"]) == 2
+    assert "no pick stations" in capsys.readouterr().err
+    assert main(["fleet", "--robots", "2", "--duration", "0.5", "--env", "bulletnav/Nope-v0"]) == 2
+    assert "unknown env id" in capsys.readouterr().err
+
+
+@pytest.mark.gui
+def test_view_robots_opens_the_gui_and_tints_every_robot(display, capsys, monkeypatch):
+    import pybullet as p
+
+    from bulletnav.fleet.view import FleetView
+    from bulletnav.viz.fleet import FleetDashboard
+
+    seen = {}
+    on_reset, on_step = FleetDashboard.on_reset, FleetDashboard.on_step
+
+    def checking_reset(self, infos):
+        on_reset(self, infos)
+        fleet = FleetView(self.env)
+        seen["rgba"] = [p.getVisualShapeData(fleet.robot_body(i), physicsClientId=fleet.client)[0][7]
+                        for i in range(fleet.num_robots)]
+        seen["calls"] = self.debug_draw_calls
+
+    def counting_step(self, infos):
+        on_step(self, infos)
+        seen["steps"] = self.steps
+        seen["step_calls"] = self.debug_draw_calls
+
+    monkeypatch.setattr(FleetDashboard, "on_reset", checking_reset)
+    monkeypatch.setattr(FleetDashboard, "on_step", counting_step)
+    assert main(["view", "--robots", "2", "--seconds", "0.5"]) == 0
+    assert "viewed a fleet of 2 robots" in capsys.readouterr().out
+    assert len(seen["rgba"]) == 2
+    for i, rgba in enumerate(seen["rgba"]):  # each robot's body in its colour
+        assert np.allclose(rgba[:3], np.array(robot_colour(i)) / 255, atol=1e-3)
+    assert seen["calls"] == 2 * 2  # a goal post and a robot-to-goal line per robot
+    if seen.get("steps", 0) < 12:  # no goal changed so soon: no line redrawn before step 12
+        assert seen.get("step_calls", seen["calls"]) == seen["calls"]
