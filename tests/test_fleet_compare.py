@@ -7,7 +7,7 @@ import json
 import pytest
 
 from bulletnav.errors import BulletnavError, ConfigError
-from bulletnav.fleet.compare import Entry, build_comparison, parse_entries, run_comparison
+from bulletnav.fleet.compare import Entry, build_comparison, parse_entries, plan_chunks, run_comparison
 
 ENV = {"duration_s": 4.0, "dynamic": True}
 
@@ -89,3 +89,12 @@ def test_bad_settings_name_the_argument(tmp_path):
         run_comparison(tmp_path, entries, robots=(2,), episodes=0)
     with pytest.raises(BulletnavError, match="model file not found"):
         run_comparison(tmp_path, parse_entries(["policy=models/none.zip"], "off"), robots=(2,), episodes=1)
+
+
+def test_chunks_cover_every_entry_block_by_block():
+    entries = parse_entries(["independent", "coordinated"], "off")
+    chunks = plan_chunks(entries, (4, 8), 6, done={"8/coordinated/1"}, size=4)
+    assert [(e.label, n, eps) for e, n, eps in chunks] == [
+        ("independent", 8, [0, 1, 2, 3]), ("coordinated", 8, [0]), ("coordinated", 8, [2, 3]),
+        ("independent", 4, [0, 1, 2, 3]), ("coordinated", 4, [0, 1, 2, 3]),
+        ("independent", 8, [4, 5]), ("coordinated", 8, [4, 5]), ("independent", 4, [4, 5]), ("coordinated", 4, [4, 5])]

@@ -156,19 +156,23 @@ def row_key(entry: str, robots: int, episode: int) -> str:
 
 def plan_chunks(entries: list[Entry], robots: Sequence[int], episodes: int, done: set[str],
                 size: int = 4) -> list[tuple[Entry, int, list[int]]]:
-    """The (entry, robots, episodes) chunks still to run, the largest fleets first (they take
-    longest, so the pool ends evenly)."""
+    """The (entry, robots, episodes) chunks still to run: episodes in blocks of ``size``, each
+    block for every size and entry before the next block (so a run stopped early holds the same
+    episodes of every entry, a fair comparison on fewer episodes), the largest fleets first
+    within a block."""
     chunks = []
-    for n in sorted(robots, reverse=True):
-        for entry in entries:
-            todo = [k for k in range(episodes) if row_key(entry.label, n, k) not in done]
-            runs: list[list[int]] = []
-            for k in todo:  # consecutive runs of at most `size` episodes
-                if runs and runs[-1][-1] == k - 1 and len(runs[-1]) < size:
-                    runs[-1].append(k)
-                else:
-                    runs.append([k])
-            chunks += [(entry, n, run) for run in runs]
+    for start in range(0, episodes, size):
+        block = range(start, min(start + size, episodes))
+        for n in sorted(robots, reverse=True):
+            for entry in entries:
+                todo = [k for k in block if row_key(entry.label, n, k) not in done]
+                runs: list[list[int]] = []
+                for k in todo:  # consecutive runs within the block
+                    if runs and runs[-1][-1] == k - 1:
+                        runs[-1].append(k)
+                    else:
+                        runs.append([k])
+                chunks += [(entry, n, run) for run in runs]
     return chunks
 
 
