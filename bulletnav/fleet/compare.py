@@ -155,7 +155,7 @@ def row_key(entry: str, robots: int, episode: int) -> str:
 
 
 def plan_chunks(entries: list[Entry], robots: Sequence[int], episodes: int, done: set[str],
-                size: int = 4) -> list[tuple[Entry, int, list[int]]]:
+                size: int = 2) -> list[tuple[Entry, int, list[int]]]:
     """The (entry, robots, episodes) chunks still to run: episodes in blocks of ``size``, each
     block for every size and entry before the next block (so a run stopped early holds the same
     episodes of every entry, a fair comparison on fewer episodes), the largest fleets first
