@@ -13,8 +13,9 @@ agents at once (:class:`FleetController`)::
   obstacles its lidar sees, forgotten when they leave), toward its current errand goal; a new
   goal (every leg) makes it replan at once (:class:`ErrandNavigator`).
 - :class:`CoordinatedController`: windowed prioritized planning in space-time on the static
-  map (:mod:`bulletnav.fleet.spacetime`, WHCA*), each robot tracking its reserved path with the
-  PID go-to-point controller.
+  map (:mod:`bulletnav.fleet.spacetime`, WHCA*), each robot driving its reserved path at its own
+  pace with the PID go-to-point controller, entering a cell only after the robots planned
+  there earlier have left it (an action dependency graph, no lockstep).
 - :func:`policy_controller`: one single-robot SB3 model, zero-shot on every robot (the fleet
   env must be made with the model's env settings, :func:`model_env_kwargs`).
 - :class:`ShieldedController`: any of them behind the safety shield
@@ -39,7 +40,16 @@ from bulletnav.control.shield import ShieldConfig, ShieldDecision, Veto
 from bulletnav.errors import ConfigError, ModelError
 from bulletnav.fleet.env import FleetEnv
 from bulletnav.fleet.learned import SharedPolicyController
-from bulletnav.fleet.spacetime import Cell, ReservationTable, distance_map, nearest_free, space_time_astar
+from bulletnav.fleet.spacetime import (
+    MOVES,
+    Cell,
+    ReservationTable,
+    distance_map,
+    largest_component,
+    nearest_free,
+    plan_dependencies,
+    space_time_astar,
+)
 from bulletnav.fleet.view import FleetView, RobotView
 from bulletnav.policy import Policy
 
@@ -162,62 +172,121 @@ def policy_controller(env: FleetEnv, model_path: str | Path = DEFAULT_MODEL) -> 
 # ---------------------------------------------------------------------- coordinated
 @dataclass(frozen=True)
 class CoordinatedConfig:
-    """Windowed prioritized planning in space-time (:class:`CoordinatedController`)."""
+    """Windowed prioritized planning in space-time, executed without lockstep
+    (:class:`CoordinatedController`)."""
 
     resolution: float = 0.5
     """Grid cell side (m): one plan step moves a robot one cell (4-connected) or waits."""
     clearance: float = 0.3
-    """A cell is free when its centre is at least this far (m) from every obstacle and wall
-    (the robot's 0.2 m disc plus 0.1 m for tracking error)."""
+    """A point is free when it is at least this far (m) from every obstacle and wall (the
+    robot's 0.2 m disc plus 0.1 m for tracking error)."""
+    point_resolution: float = 0.1
+    """Side (m) of the fine grid on which each cell's point is found: the free point of the
+    cell nearest its centre (a cell with none is blocked). Robots drive from point to point;
+    a move is open when the segment between the two points is free, so a narrow passage off
+    the cell centres stays open."""
     window: int = 16
     """Steps each robot plans and reserves (WHCA*'s window)."""
-    replan_every: int = 4
-    """Plan steps between replans (rolling horizon); any goal change replans at once."""
+    replan_margin: int = 6
+    """The fleet replans when a robot has no more than this many steps of its plan left to
+    execute (and at every goal change, and every ``replan_period_s``)."""
+    rotate_s: float = 0.0
+    """Priorities rotate at the first replan at least this long (s) after the last rotation (0:
+    at every replan, what measured best so far; longer keeps plans from flipping between
+    equal routes)."""
+    replan_min_s: float = 0.5
+    """Shortest time (s) between two replans that no goal change asks for (a robot whose plan
+    ends in waits reaches its end at once)."""
+    replan_period_s: float = 2.0
+    """Longest time (s) between two replans: a robot held up by a mover, or serving a
+    collision penalty, is planned around from where it stands."""
     robustness: int = 1
-    """Steps a robot keeps a cell reserved after leaving it (k-robust plans: a robot enters a
-    cell no sooner than k + 1 steps after another left it)."""
+    """Steps a robot keeps a cell reserved after leaving it in the plan (k-robust plans: in plan
+    time a robot enters a cell no sooner than k + 1 steps after another left it)."""
     arrive_tolerance: float = 0.25
-    """A robot has reached its step's cell within this distance (m) of its centre (half a cell:
-    it is inside the cell)."""
-    hold_radius: float = 0.1
-    """A robot that has reached its step's cell stops within this distance (m) of its centre
-    and holds until the fleet's next step (it keeps driving toward it from farther)."""
-    max_step_s: float = 3.0
-    """Plan steps advance when every robot has reached its step's cell, or after this long (s)."""
+    """A robot has reached a cell on a straight run within this distance (m) of its centre,
+    and steers on at the next one."""
+    turn_tolerance: float = 0.12
+    """A robot has reached a cell where its path turns within this distance (m) of its centre
+    (tighter than ``arrive_tolerance``: cutting a corner would sweep the inner diagonal cell)."""
+    leave_distance: float = 0.45
+    """A robot has left a cell once its centre is this far (m) from the cell's centre (a
+    robot's 0.4 m diameter plus 5 cm): only then may the robot planned there next enter it."""
+    hold_radius: float = 0.05
+    """A robot whose next cell is not yet free stops within this distance (m) of the centre of
+    the last cell it may enter."""
+    obstacle_range: float = 1.5
+    """Lidar returns closer than this (m) that are not another robot mark cells blocked (the
+    movers and pallet events the static plan does not know)."""
+    obstacle_radius: float = 0.25
+    """A lidar return blocks the cells whose centres lie within this distance (m) of it (under
+    ``clearance``, so returns off the static obstacles block no free cell)."""
+    obstacle_memory_s: float = 3.0
+    """How long (s) a cell stays blocked after a lidar return last marked it."""
+    detour_steps: int = 20
+    """Where seen obstacles cut a cell off from the goal, the planner counts its distance as
+    the static one plus this many steps (so a robot takes a detour shorter than that, else
+    waits near the obstacle for it to move on)."""
+    yield_field: float = 1.2
+    """A stuck robot (``stuck_s``) near a mover that stands yielding to a robot plans to end its
+    window farther than this (m) beyond the mover's bounding circle (its safety field, 1 m,
+    plus the robot's 0.2 m), so that the mover drives on."""
+    stuck_s: float = 4.0
+    """A robot whose plan has kept it in place this long (s), away from its goal, plans around
+    the seen obstacles whatever the detour (a forklift yielding to it waits for it to leave)."""
     controller: ControllerConfig = field(default_factory=lambda: ControllerConfig(safety_distance=0.35, side_margin=0.1))
     """The PID go-to-point controller that tracks the path (its lidar blends kept short: the
     plan keeps robots a cell apart)."""
 
     def __post_init__(self) -> None:
-        if not (self.resolution > 0 and self.clearance >= 0 and self.arrive_tolerance > 0 and self.max_step_s > 0
-                and 0 < self.hold_radius <= self.arrive_tolerance):
-            raise ConfigError(f"coordinated planner needs resolution > 0, clearance >= 0, max_step_s > 0, "
-                              f"0 < hold_radius <= arrive_tolerance; got {self}")
-        if not (1 <= self.replan_every <= self.window and self.robustness >= 0):
-            raise ConfigError(f"coordinated planner needs 1 <= replan_every <= window and robustness >= 0; got {self}")
+        if not (self.resolution > 0 and self.clearance >= 0 and self.replan_period_s > 0
+                and 0 <= self.replan_min_s <= self.replan_period_s
+                and 0 < self.turn_tolerance <= self.arrive_tolerance and self.hold_radius > 0
+                and self.leave_distance > 0 and self.obstacle_range >= 0 and self.obstacle_radius >= 0
+                and self.obstacle_memory_s >= 0):
+            raise ConfigError(f"coordinated planner needs resolution > 0, clearance >= 0, replan_period_s > 0, "
+                              f"0 < turn_tolerance <= arrive_tolerance, hold_radius > 0, leave_distance > 0 and "
+                              f"non-negative obstacle settings; got {self}")
+        if not (0 <= self.replan_margin < self.window and self.robustness >= 0):
+            raise ConfigError(f"coordinated planner needs 0 <= replan_margin < window and robustness >= 0; got {self}")
 
 
 class CoordinatedController:
     """Prioritized planning in space-time on the static map, windowed and replanned on a
-    rolling horizon (cooperative A* / WHCA*, Silver 2005), each robot tracking its reserved
-    path with the PID go-to-point controller.
+    rolling horizon (cooperative A* / WHCA*, Silver 2005), each robot executing its reserved
+    path at its own pace under the plan's precedence constraints (an action dependency graph,
+    Hönig et al. 2019, "Persistent and robust execution of MAPF schedules in warehouses").
 
-    **Planning.** The static map at ``resolution`` (0.5 m) with cells closer than ``clearance``
-    to an obstacle blocked. Every replan clears the reservation table, reserves each robot's
-    current cell for the next ``robustness`` steps, then plans the robots one after another in
-    priority order: each finds the cheapest ``window``-step path (moves and waits, waiting on its
-    goal free, plus the static distance from the window's end to the goal) that respects the
-    reservations of those before it (no cell held by another robot, no swap), and reserves it.
-    A robot with no such path waits in its cell.
+    **Planning.** The static map at ``resolution`` (0.5 m), cells closer than ``clearance``
+    to an obstacle blocked, plus the cells the robots' lidars saw blocked in the last
+    ``obstacle_memory_s`` (movers, pallet events: returns within ``obstacle_range`` that are no
+    robot). Every replan clears the reservation table, reserves for the next ``robustness``
+    steps each robot's cell and every cell whose centre is within ``leave_distance`` of it
+    (a robot between two cells holds both), then plans the robots one after another in
+    priority order: each finds the cheapest ``window``-step path (moves and waits, waiting on
+    its goal free, plus the distance on the current map from the window's end to the goal)
+    that respects the reservations of those before it (no cell held by another robot, no swap),
+    and reserves it. A robot with no such path waits in its cell. A robot standing in a cell
+    seen blocked plans out of it; one whose plans have kept it in place for ``stuck_s`` takes
+    any detour around the seen obstacles and, near a mover standing to yield to it, ends its
+    window ``yield_field`` away from it (they would otherwise wait for each other).
 
-    **Priorities** rotate round-robin: at replan r the order starts at robot ``r mod N``
-    (:attr:`order`), so every robot plans first once every N replans and none starves.
+    **Priorities** rotate round-robin: the r-th rotation (at most one every ``rotate_s``) starts
+    the order at robot ``r mod N`` (:attr:`order`), so every robot plans first once every N
+    rotations and none starves.
 
-    **Execution.** Plan steps advance together: step k+1 starts when every robot is within
-    ``arrive_tolerance`` of its step-k cell, or ``max_step_s`` after step k began (a robot held
-    by a collision penalty does not stall the fleet). Each robot steers with the PID
-    controller at its next cell (its goal point itself in its goal's cell) and holds still
-    within ``hold_radius`` of it. The fleet replans every ``replan_every`` steps and whenever a goal changes.
+    **Execution** (no lockstep). Robot i's progress :attr:`progress` is the plan step it has
+    reached. It may enter the cell of its step u only when every robot j that the plan puts in
+    that cell at an earlier step t has both progressed past t and moved ``leave_distance``
+    away from the cell's centre; waits are passed at once. Since every such dependency points
+    to an earlier plan step the robots cannot wait on each other in a cycle, and the order in
+    which robots cross each cell, swaps included, is the plan's. Each robot steers with the
+    PID controller at its next cell (its goal point in its goal's cell), reaching it within
+    ``arrive_tolerance`` (``turn_tolerance`` where the path turns) and driving on without
+    stopping while the cells after it are free; it slows down toward, and stops at the
+    centre of, the last cell it may enter. The fleet replans from where the robots stand at
+    every goal change, when a robot nears the end of its plan (``replan_margin``) and every
+    ``replan_period_s``.
 
     Args:
         env: the fleet env it drives.
@@ -236,6 +305,8 @@ class CoordinatedController:
         """Priority order of the last replan (robot indices, first planned first)."""
         self.paths: list[list[Cell]] = []
         """Each robot's reserved cells, one per plan step from the last replan."""
+        self.progress: list[int] = []
+        """The plan step each robot has reached (an index into its path)."""
         self.failed_plans = 0
         """Plans this episode that found no path in the window (the robot waited)."""
         self._rotation = 0
@@ -243,53 +314,185 @@ class CoordinatedController:
     # ------------------------------------------------------------------ episode
     def reset(self, infos: dict[str, dict[str, Any]]) -> None:
         view, cfg = self.view, self.config
-        grid = view.occupancy(cfg.resolution, cfg.clearance)
-        self.grid = grid
-        self.blocked = grid.occupied
-        self._heuristics: dict[Cell, np.ndarray] = {}
+        self.grid = view.occupancy(cfg.resolution, cfg.clearance)
+        self._points(view.occupancy(cfg.point_resolution, cfg.clearance))
+        self.table = ReservationTable(cfg.robustness, self.conflicts)
+        self.blocked = self.static_blocked
+        self._floor = largest_component(self.static_blocked, self.closed)  # goals snap onto it, not into pockets
+        self._seen_until = np.full(self.static_blocked.shape, -np.inf)
+        self._heuristics: dict[tuple[Cell, bool], np.ndarray] = {}
+        self._static_heuristics: dict[Cell, np.ndarray] = {}
         n = len(self.agents)
         first = view.robot(0)
         lidar = first.sensors.lidar
         self.n_rays, self.max_range = lidar.config.num_rays, lidar.config.max_range
+        self._cos, self._sin = np.cos(lidar.angles), np.sin(lidar.angles)
+        self._lidar_offset = view.geometry.lidar_offset
         self.dt = view.control_dt
         self.trackers = [GoToGoal(cfg.controller, lidar.angles, view.geometry) for _ in range(n)]
         self.normalized = first.normalized_actions
         self.limits = first.command_limits
         self.replans = self.failed_plans = 0
         self._rotation = 0
+        self.order = []
+        self._rotated_at = view.time_s
         self.goals = [self._goal(infos[a]) for a in self.agents]
-        self._plan(infos)
+        self.paths = []
+        self._still_since = [view.time_s] * n
+        self.replan()
+
+    def _points(self, fine: Any) -> None:
+        """Each cell's point, the blocked cells, the closed moves and the conflicting cells
+        (two cells whose points are closer than ``leave_distance``) from the fine grid."""
+        cfg, grid = self.config, self.grid
+        nx, ny = grid.shape
+        occ, (fnx, fny) = fine.occupied, fine.shape
+        k = int(round(0.5 * cfg.resolution / cfg.point_resolution))
+        offsets = sorted(((a * cfg.point_resolution, b * cfg.point_resolution) for a in range(-k, k + 1)
+                          for b in range(-k, k + 1)), key=lambda o: (o[0] ** 2 + o[1] ** 2, o))
+        half = 0.5 * cfg.resolution + 1e-9
+        offsets = [o for o in offsets if abs(o[0]) < half and abs(o[1]) < half]
+        points = np.full((nx, ny, 2), np.nan)
+        blocked = np.ones((nx, ny), dtype=bool)
+        for x in range(nx):
+            for y in range(ny):
+                cx, cy = grid.cell_to_world(x, y)
+                for ox, oy in offsets:
+                    fx, fy = fine.world_to_cell((cx + ox, cy + oy))
+                    if 0 <= fx < fnx and 0 <= fy < fny and not occ[fx, fy]:
+                        points[x, y] = fine.cell_to_world(fx, fy)
+                        blocked[x, y] = False
+                        break
+        closed = np.zeros((nx, ny, len(MOVES)), dtype=bool)
+        conflicts: dict[Cell, list[Cell]] = {}
+        for x in range(nx):
+            for y in range(ny):
+                if blocked[x, y]:
+                    continue
+                for m, (dx, dy) in enumerate(MOVES[1:], 1):
+                    u, v = x + dx, y + dy
+                    if 0 <= u < nx and 0 <= v < ny and not blocked[u, v] and (dx, dy) > (0, 0):
+                        if not fine.segment_free(points[x, y], points[u, v]):
+                            closed[x, y, m] = closed[u, v, MOVES.index((-dx, -dy))] = True
+                for dx in range(-1, 2):
+                    for dy in range(-1, 2):
+                        u, v = x + dx, y + dy
+                        if ((dx, dy) != (0, 0) and 0 <= u < nx and 0 <= v < ny and not blocked[u, v]
+                                and math.dist(points[x, y], points[u, v]) < cfg.leave_distance):
+                            conflicts.setdefault((x, y), []).append((u, v))
+        self.static_blocked = blocked
+        self.cell_points = points
+        """Each cell's point (m), NaN in blocked cells."""
+        self.closed = closed
+        self.conflicts = {c: tuple(o) for c, o in conflicts.items()}
 
     def _goal(self, info: dict[str, Any]) -> tuple[float, float]:
         return float(info["goal"][0]), float(info["goal"][1])
 
     def _cell(self, xy: tuple[float, float]) -> Cell:
-        nx, ny = self.blocked.shape
+        nx, ny = self.static_blocked.shape
         ix, iy = self.grid.world_to_cell(xy)
         return min(max(ix, 0), nx - 1), min(max(iy, 0), ny - 1)
 
-    def _heuristic(self, goal: Cell) -> np.ndarray:
-        h = self._heuristics.get(goal)
+    def _centre(self, cell: Cell) -> tuple[float, float]:
+        """The point a robot drives to in ``cell`` (its centre in a blocked one)."""
+        p = self.cell_points[cell]
+        return self.grid.cell_to_world(*cell) if np.isnan(p[0]) else (float(p[0]), float(p[1]))
+
+    def _heuristic(self, goal: Cell, stuck: bool = False) -> np.ndarray:
+        """Steps to ``goal`` on the current map (static plus seen obstacles); where the seen
+        obstacles cut a cell off, its static distance plus ``detour_steps`` (they move on), or
+        plus a prohibitive 1000 for a ``stuck`` robot."""
+        h = self._heuristics.get((goal, stuck))
         if h is None:
-            h = self._heuristics[goal] = distance_map(self.blocked, goal)
+            static = self._static_heuristics.get(goal)
+            if static is None:
+                static = self._static_heuristics[goal] = distance_map(self.static_blocked, goal, self.closed)
+            h = static
+            if self.blocked is not self.static_blocked:
+                h = np.minimum(distance_map(self.blocked, goal, self.closed),
+                               static + (1000.0 if stuck else self.config.detour_steps))
+            self._heuristics[(goal, stuck)] = h
         return h
 
+    # ------------------------------------------------------------------ movers on the map
+    def _observe(self, observations: dict[str, Any], positions: list[tuple[float, float]],
+                 poses: list[tuple[float, float, float]]) -> None:
+        """Mark the cells near lidar returns that are no robot (see ``obstacle_*``)."""
+        cfg = self.config
+        if cfg.obstacle_range <= 0 or cfg.obstacle_memory_s <= 0:
+            return
+        now = self.view.time_s
+        others = np.asarray(positions)
+        res, (ox, oy) = self.grid.resolution, self.grid.origin
+        nx, ny = self._seen_until.shape
+        reach = int(math.ceil(cfg.obstacle_radius / res)) + 1
+        pts = self.cell_points
+        for i, agent in enumerate(self.agents):
+            ranges = self._ranges(observations[agent])
+            hit = ranges < min(cfg.obstacle_range, 0.98 * self.max_range)
+            if not hit.any():
+                continue
+            x, y, yaw = poses[i]
+            lx, ly = x + self._lidar_offset * math.cos(yaw), y + self._lidar_offset * math.sin(yaw)
+            c, s = math.cos(yaw), math.sin(yaw)
+            dx, dy = self._cos[hit] * ranges[hit], self._sin[hit] * ranges[hit]
+            px, py = lx + c * dx - s * dy, ly + s * dx + c * dy
+            near = np.hypot(px[:, None] - others[None, :, 0], py[:, None] - others[None, :, 1]).min(axis=1)
+            keep = near > 0.35  # a robot's 0.2 m disc plus margin: returns off robots are the plan's business
+            for qx, qy in zip(px[keep], py[keep]):
+                cx, cy = round((qx - ox) / res), round((qy - oy) / res)
+                for u in range(cx - reach, cx + reach + 1):
+                    for v in range(cy - reach, cy + reach + 1):
+                        if (0 <= u < nx and 0 <= v < ny and not self.static_blocked[u, v]
+                                and math.hypot(pts[u, v, 0] - qx, pts[u, v, 1] - qy) <= cfg.obstacle_radius):
+                            self._seen_until[u, v] = now + cfg.obstacle_memory_s
+
+    def _ranges(self, obs: Any) -> np.ndarray:
+        state = obs["state"] if isinstance(obs, dict) else obs
+        return np.asarray(state[: self.n_rays], dtype=np.float64) * self.max_range
+
     # ------------------------------------------------------------------ planning
-    def _plan(self, infos: dict[str, dict[str, Any]]) -> None:
-        cfg, n = self.config, len(self.agents)
-        self.order = [(self._rotation + k) % n for k in range(n)]
-        self._rotation = (self._rotation + 1) % n
+    def replan(self) -> None:
+        """Plan every robot anew from where it stands, the next robot first in priority
+        (the rolling horizon calls this; see the class docstring)."""
+        cfg, n, view = self.config, len(self.agents), self.view
+        if view.time_s >= self._rotated_at + cfg.rotate_s - 1e-9 or not self.order:
+            self.order = [(self._rotation + k) % n for k in range(n)]
+            self._rotation = (self._rotation + 1) % n
+            self._rotated_at = view.time_s
+        seen = self._seen_until > view.time_s
+        blocked = self.static_blocked | seen if seen.any() else self.static_blocked
+        if not np.array_equal(blocked, self.blocked):
+            self._heuristics = {}
+        self.blocked = blocked
         table = self.table
         table.clear()
-        starts = [self._cell(self.view.pose(i)[:2]) for i in range(n)]
-        for i, cell in enumerate(starts):  # nobody else steps into a robot's cell right away
-            for t in range(cfg.robustness + 1):
-                table.reserve_cell(cell, t, i)
-        self.goal_cells = [nearest_free(self.blocked, self._cell(g)) for g in self.goals]
+        positions = [view.pose(i)[:2] for i in range(n)]
+        starts = [self._cell(p) for p in positions]
+        held = [self._held(p, s) for p, s in zip(positions, starts)]
+        for cells in ([[s] for s in starts], held):  # own cells first: first come first served
+            for i, group in enumerate(cells):
+                for cell in group:
+                    for t in range(cfg.robustness + 1):
+                        table.reserve_cell(cell, t, i)
+        self.held = held
+        self.goal_cells = [nearest_free(~self._floor, self._cell(g)) for g in self.goals]
         paths: list[list[Cell]] = [[] for _ in range(n)]
+        now = view.time_s
+        for i, path in enumerate(self.paths):  # since when each robot's plans keep it in place
+            if path and (path[-1] != path[0] or path[0] == self.goal_cells[i]):
+                self._still_since[i] = now
         for i in self.order:
-            found = space_time_astar(self.blocked, starts[i], self.goal_cells[i], table, i, cfg.window,
-                                     self._heuristic(self.goal_cells[i]))
+            stuck = now - self._still_since[i] >= cfg.stuck_s
+            h = self._heuristic(self.goal_cells[i], stuck)
+            if self.blocked[starts[i]] and not self.static_blocked[starts[i]]:
+                h = h.copy()  # standing where a mover is seen: get out of its way
+                h[starts[i]] += 100.0
+            if stuck:
+                h = self._back_off(h, positions[i])
+            found = space_time_astar(self.blocked, starts[i], self.goal_cells[i], table, i, cfg.window, h,
+                                     closed=self.closed)
             if found is None:
                 self.failed_plans += 1
                 path = [starts[i]] * (cfg.window + 1)
@@ -298,61 +501,122 @@ class CoordinatedController:
             table.reserve_path(path, i)
             paths[i] = path
         self.paths = paths
-        self.step = 0
-        self._step_began = self.view.time_s
+        self.progress = [0] * n
+        self.dependencies = plan_dependencies(self.paths, self.held, self.conflicts)
+        """Per robot, step -> the (robot, step) pairs it waits on (:func:`~bulletnav.fleet.spacetime.plan_dependencies`)."""
+        self._planned_at = view.time_s
         self.replans += 1
 
+    def _back_off(self, h: np.ndarray, xy: tuple[float, float]) -> np.ndarray:
+        """``h`` plus 100 steps on the cells within ``yield_field`` of a mover near ``xy`` that
+        stands yielding to a robot: a stuck robot ends its window out of the mover's way, and
+        the mover, no longer held up by it, moves on."""
+        movers = [m for m in self.view.movers if m.yielding
+                  and math.dist(m.pose[:2], xy) < 0.5 * math.hypot(m.size[0], m.size[1]) + self.config.yield_field + 0.5]
+        if not movers:
+            return h
+        h = h.copy()
+        pts = self.cell_points
+        for m in movers:
+            reach = 0.5 * math.hypot(m.size[0], m.size[1]) + self.config.yield_field
+            near = np.hypot(pts[..., 0] - m.pose[0], pts[..., 1] - m.pose[1]) <= reach
+            h[near] += 100.0
+        return h
+
+    def _held(self, xy: tuple[float, float], start: Cell) -> list[Cell]:
+        """The cells a robot at ``xy`` holds at a replan: its own and those whose centre is
+        within ``leave_distance`` of it."""
+        nx, ny = self.static_blocked.shape
+        out = []
+        for dx in (-1, 0, 1):
+            for dy in (-1, 0, 1):
+                c = (start[0] + dx, start[1] + dy)
+                if 0 <= c[0] < nx and 0 <= c[1] < ny and math.dist(xy, self._centre(c)) < self.config.leave_distance:
+                    out.append(c)
+        return out
+
+    def may_enter(self, i: int, u: int, positions: list[tuple[float, float]]) -> bool:
+        """True when robot ``i`` may go on to step ``u`` of its path: a wait, or every robot the
+        plan puts in that cell earlier has progressed past it and is ``leave_distance`` away."""
+        deps = self.dependencies[i].get(u)
+        if not deps:
+            return True
+        centre = self._centre(self.paths[i][u])
+        return all(self.progress[j] > t and math.dist(positions[j], centre) >= self.config.leave_distance
+                   for j, t in deps)
+
     # ------------------------------------------------------------------ acting
-    def _target(self, i: int, k: int) -> tuple[float, float]:
+    def _advance(self, i: int, positions: list[tuple[float, float]]) -> None:
+        path, cfg = self.paths[i], self.config
+        k = self.progress[i]
+        while k + 1 < len(path):
+            if path[k + 1] != path[k]:
+                if not self.may_enter(i, k + 1, positions):
+                    break
+                tol = cfg.turn_tolerance if self._turns(i, k + 1) else cfg.arrive_tolerance
+                if math.dist(positions[i], self._centre(path[k + 1])) >= tol:
+                    break
+            k += 1
+        self.progress[i] = k
+
+    def _nears_end(self, i: int) -> bool:
+        """True when robot ``i`` has no more than ``replan_margin`` steps of its plan left and
+        the plan moves it but not yet to its goal (a plan of waits is renewed every
+        ``replan_period_s``)."""
         path = self.paths[i]
-        cell = path[min(k, len(path) - 1)]
-        if cell == self.goal_cells[i]:
-            return self.goals[i]
-        return self.grid.cell_to_world(*cell)
+        return (len(path) - 1 - self.progress[i] <= self.config.replan_margin and path[-1] != path[0]
+                and path[-1] != self.goal_cells[i])
+
+    def _turns(self, i: int, u: int) -> bool:
+        """True when robot ``i``'s path turns at step ``u`` (its next move is not straight on)."""
+        path = self.paths[i]
+        before = (path[u][0] - path[u - 1][0], path[u][1] - path[u - 1][1])
+        for w in range(u + 1, len(path)):
+            if path[w] != path[u]:
+                return (path[w][0] - path[u][0], path[w][1] - path[u][1]) != before
+        return True  # it stops there: treat as a turn (reach it closely)
+
+    def _point(self, i: int, cell: Cell) -> tuple[float, float]:
+        return self.goals[i] if cell == self.goal_cells[i] else self._centre(cell)
 
     def act(self, observations: dict[str, Any], infos: dict[str, dict[str, Any]]) -> dict[str, np.ndarray]:
         cfg, view, n = self.config, self.view, len(self.agents)
         goals = [self._goal(infos[a]) for a in self.agents]
         poses = [view.pose(i) for i in range(n)]
+        positions = [p[:2] for p in poses]
+        self._observe(observations, positions, poses)
         if goals != self.goals:
             self.goals = goals
-            self._plan(infos)
-        else:
-            nxt = self.step + 1
-            arrived = all(math.dist(poses[i][:2], self._target(i, nxt)) < cfg.arrive_tolerance for i in range(n))
-            if arrived or view.time_s - self._step_began >= cfg.max_step_s:
-                self.step, self._step_began = nxt, view.time_s
-                if self.step >= cfg.replan_every:
-                    self._plan(infos)
+            self.replan()
+        for i in range(n):
+            self._advance(i, positions)
+        since = view.time_s - self._planned_at
+        if since >= cfg.replan_period_s - 1e-9 or (since >= cfg.replan_min_s - 1e-9 and any(map(self._nears_end, range(n)))):
+            self.replan()
+            for i in range(n):
+                self._advance(i, positions)
         actions = {}
         for i, agent in enumerate(self.agents):
-            target = self._target(i, self.step + 1)
+            path, k = self.paths[i], self.progress[i]
+            # the allowed part of the path: steps it may take now
+            end = k
+            while end + 1 < len(path) and (path[end + 1] == path[end] or self.may_enter(i, end + 1, positions)):
+                end += 1
+            nxt = next((u for u in range(k + 1, end + 1) if path[u] != path[k]), None)
             pose = poses[i]
-            d = math.dist(pose[:2], target)
-            if d < cfg.hold_radius:
-                v, w = 0.0, 0.0  # there: hold until the fleet's next step
+            if nxt is None:
+                target = self._point(i, path[k])
+                ahead = math.dist(pose[:2], target)
             else:
-                state = observations[agent]["state"] if isinstance(observations[agent], dict) else observations[agent]
-                ranges = np.asarray(state[: self.n_rays], dtype=np.float64) * self.max_range
-                ahead = d + cfg.resolution * self._run(i, self.step + 1)
-                v, w = self.trackers[i].command(pose, target, ranges, self.dt, ahead)
+                target = self._point(i, path[nxt])
+                moves = sum(1 for u in range(nxt + 1, end + 1) if path[u] != path[u - 1])
+                ahead = math.dist(pose[:2], target) + cfg.resolution * moves
+            if nxt is None and ahead < cfg.hold_radius:
+                v, w = 0.0, 0.0  # at the last cell it may enter: hold
+            else:
+                v, w = self.trackers[i].command(pose, target, self._ranges(observations[agent]), self.dt, ahead)
             actions[agent] = self._action(v, w)
         return actions
-
-    def _run(self, i: int, k: int) -> int:
-        """Moves that follow step ``k`` of robot ``i``'s path in the same direction (up to 2),
-        so it does not slow down at every cell of a straight run."""
-        path = self.paths[i]
-        if k <= 0 or k >= len(path):
-            return 0
-        d = (path[k][0] - path[k - 1][0], path[k][1] - path[k - 1][1])
-        run = 0
-        while run < 2 and k + run + 1 < len(path):
-            a, b = path[k + run], path[k + run + 1]
-            if (b[0] - a[0], b[1] - a[1]) != d or d == (0, 0):
-                break
-            run += 1
-        return run
 
     def _action(self, v: float, w: float) -> np.ndarray:
         if self.normalized:

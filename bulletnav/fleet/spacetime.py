@@ -36,12 +36,15 @@ class ReservationTable:
 
     Args:
         robustness: steps a path keeps each cell after leaving it (0: plain vertex reservations).
+        conflicts: cell -> the other cells a robot in it also holds (cells whose points a robot
+            drives to are too close together for two robots); none by default.
     """
 
-    def __init__(self, robustness: int = 0) -> None:
+    def __init__(self, robustness: int = 0, conflicts: dict[Cell, tuple[Cell, ...]] | None = None) -> None:
         if robustness < 0:
             raise ValueError(f"robustness must be >= 0, got {robustness}")
         self.robustness = robustness
+        self.conflicts = conflicts or {}
         self._vertex: dict[tuple[Cell, int], int] = {}
         self._edge: dict[tuple[Cell, Cell, int], int] = {}
 
@@ -75,9 +78,11 @@ class ReservationTable:
         return True
 
     def reserve_cell(self, cell: Cell, t: int, agent: int) -> None:
-        """Hold ``cell`` at step ``t`` for ``agent`` (first come first served: an existing
-        reservation by another robot is kept)."""
+        """Hold ``cell`` (and the cells it conflicts with) at step ``t`` for ``agent`` (first
+        come first served: an existing reservation by another robot is kept)."""
         self._vertex.setdefault((cell, t), agent)
+        for other in self.conflicts.get(cell, ()):
+            self._vertex.setdefault((other, t), agent)
 
     def reserve_path(self, path: list[Cell], agent: int, t0: int = 0) -> None:
         """Reserve ``path`` (one cell per step from step ``t0``): each cell at its step and
@@ -93,9 +98,10 @@ class ReservationTable:
         return len(self._vertex)
 
 
-def distance_map(blocked: np.ndarray, goal: Cell) -> np.ndarray:
+def distance_map(blocked: np.ndarray, goal: Cell, closed: np.ndarray | None = None) -> np.ndarray:
     """Steps (4-connected) from every cell to ``goal`` on the static grid; ``inf`` where
-    unreachable or blocked (the goal itself counts as free)."""
+    unreachable or blocked (the goal itself counts as free). ``closed[x, y, m]`` (optional,
+    symmetric) forbids the move ``MOVES[m]`` out of cell (x, y) between two free cells."""
     nx, ny = blocked.shape
     dist = np.full((nx, ny), np.inf)
     gx, gy = goal
@@ -106,8 +112,10 @@ def distance_map(blocked: np.ndarray, goal: Cell) -> np.ndarray:
     while queue:
         x, y = queue.popleft()
         d = dist[x, y] + 1.0
-        for dx, dy in MOVES[1:]:
+        for m, (dx, dy) in enumerate(MOVES[1:], 1):
             u, v = x + dx, y + dy
+            if closed is not None and closed[x, y, m]:
+                continue
             if 0 <= u < nx and 0 <= v < ny and not blocked[u, v] and dist[u, v] == np.inf:
                 dist[u, v] = d
                 queue.append((u, v))
@@ -115,8 +123,8 @@ def distance_map(blocked: np.ndarray, goal: Cell) -> np.ndarray:
 
 
 def space_time_astar(blocked: np.ndarray, start: Cell, goal: Cell, table: ReservationTable, agent: int,
-                     window: int, heuristic: np.ndarray | None = None, max_expansions: int = 200_000
-                     ) -> tuple[list[Cell], float] | None:
+                     window: int, heuristic: np.ndarray | None = None, max_expansions: int = 200_000,
+                     closed: np.ndarray | None = None) -> tuple[list[Cell], float] | None:
     """The cheapest ``window``-step path from ``start`` (at step 0) for ``agent``, respecting
     ``table``: ``(cells, cost)`` with ``window + 1`` cells, or None when every path is blocked
     within the window (or ``max_expansions`` states were expanded).
@@ -128,10 +136,11 @@ def space_time_astar(blocked: np.ndarray, start: Cell, goal: Cell, table: Reserv
         agent: this robot's id (its own reservations do not block it).
         window: steps to plan (>= 1).
         heuristic: :func:`distance_map` of ``goal`` (computed when None).
+        closed: moves forbidden between free cells, as :func:`distance_map` takes them.
     """
     if window < 1:
         raise ValueError(f"window must be >= 1 step, got {window}")
-    h = distance_map(blocked, goal) if heuristic is None else heuristic
+    h = distance_map(blocked, goal, closed) if heuristic is None else heuristic
     nx, ny = blocked.shape
     sx, sy = start
     h0 = h[sx, sy] if np.isfinite(h[sx, sy]) else _fallback_h(start, goal)
@@ -155,10 +164,12 @@ def space_time_astar(blocked: np.ndarray, start: Cell, goal: Cell, table: Reserv
         if expansions > max_expansions:
             return None
         x, y = cell
-        for dx, dy in MOVES:
+        for m, (dx, dy) in enumerate(MOVES):
             u, v = x + dx, y + dy
             nxt = (u, v)
             if not (0 <= u < nx and 0 <= v < ny):
+                continue
+            if closed is not None and closed[x, y, m] and not blocked[x, y]:
                 continue
             if blocked[u, v] and nxt != start:
                 continue
@@ -188,6 +199,72 @@ def path_cost(path: list[Cell], goal: Cell, heuristic: np.ndarray) -> float:
     return g + float(heuristic[path[-1]])
 
 
+def plan_dependencies(paths: list[list[Cell]], held: list[list[Cell]] | None = None,
+                      conflicts: dict[Cell, tuple[Cell, ...]] | None = None) -> list[dict[int, list[tuple[int, int]]]]:
+    """The precedence of a set of plans (an action dependency graph, Hönig et al. 2019): for
+    robot i and each step u at which ``paths[i]`` enters a new cell, the pairs ``(j, t)``
+    such that robot j is in that cell (or one conflicting with it) at step t < u, the latest
+    such t per robot. Executing the plans so that robot i takes step u only once every robot
+    j of its pairs has progressed past step t keeps each cell's order of robots the plan's
+    whatever the robots' speeds; every pair points to an earlier step, so no cycle of waits.
+
+    Args:
+        paths: each robot's cells, one per plan step from step 0.
+        held: cells each robot also holds at step 0 (besides ``paths[i][0]``).
+        conflicts: cell -> cells a robot in it also holds (as :class:`ReservationTable` takes it).
+    """
+    conflicts = conflicts or {}
+    visits: dict[Cell, list[tuple[int, int]]] = {}
+    for j, path in enumerate(paths):
+        extra = held[j] if held is not None else ()
+        for t, cell in [*enumerate(path), *((0, c) for c in extra)]:
+            for c in (cell, *conflicts.get(cell, ())):
+                visits.setdefault(c, []).append((t, j))
+    out: list[dict[int, list[tuple[int, int]]]] = []
+    for i, path in enumerate(paths):
+        deps: dict[int, list[tuple[int, int]]] = {}
+        for u in range(1, len(path)):
+            if path[u] == path[u - 1]:
+                continue
+            last: dict[int, int] = {}
+            for t, j in visits.get(path[u], ()):
+                if j != i and t < u:
+                    last[j] = max(last.get(j, -1), t)
+            deps[u] = sorted(last.items())
+        out.append(deps)
+    return out
+
+
+def largest_component(blocked: np.ndarray, closed: np.ndarray | None = None) -> np.ndarray:
+    """The free cells of the largest 4-connected free region of ``blocked`` (a bool mask of its
+    shape; ``closed`` as :func:`distance_map` takes it): the floor the robots share, without
+    the pockets a coarse grid cuts off."""
+    nx, ny = blocked.shape
+    label = np.full((nx, ny), -1, dtype=np.int64)
+    sizes: list[int] = []
+    for x0 in range(nx):
+        for y0 in range(ny):
+            if blocked[x0, y0] or label[x0, y0] >= 0:
+                continue
+            k = len(sizes)
+            label[x0, y0] = k
+            queue, size = deque([(x0, y0)]), 0
+            while queue:
+                x, y = queue.popleft()
+                size += 1
+                for m, (dx, dy) in enumerate(MOVES[1:], 1):
+                    u, v = x + dx, y + dy
+                    if closed is not None and closed[x, y, m]:
+                        continue
+                    if 0 <= u < nx and 0 <= v < ny and not blocked[u, v] and label[u, v] < 0:
+                        label[u, v] = k
+                        queue.append((u, v))
+            sizes.append(size)
+    if not sizes:
+        return np.zeros((nx, ny), dtype=bool)
+    return label == int(np.argmax(sizes))
+
+
 def nearest_free(blocked: np.ndarray, cell: Cell) -> Cell:
     """``cell`` when it is free, else the nearest free cell (breadth-first, 4-connected);
     ``cell`` itself when the grid has no free cell."""
@@ -209,4 +286,5 @@ def nearest_free(blocked: np.ndarray, cell: Cell) -> Cell:
     return x, y
 
 
-__all__ = ["MOVES", "ReservationTable", "distance_map", "nearest_free", "path_cost", "space_time_astar"]
+__all__ = ["MOVES", "ReservationTable", "distance_map", "largest_component", "nearest_free", "path_cost",
+           "plan_dependencies", "space_time_astar"]
