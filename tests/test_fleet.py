@@ -291,3 +291,36 @@ def test_shipped_dynamic_policy_runs_on_every_robot():
         assert all(info["path_length"] > 0.0 for info in infos.values())
     finally:
         env.close()
+
+
+def test_route_distance_follows_the_floor_plan_like_an_independent_a_star():
+    """The deadlock metric's progress is measured along the floor plan: RouteDistance against
+    the planner's A* (its own search) on the true map inflated by the robot's radius."""
+    import math
+
+    from bulletnav.fleet.metrics import RouteDistance
+    from bulletnav.fleet.view import FleetView
+    from bulletnav.planning.astar import astar_cost
+
+    env = fleet_v0.parallel_env(num_robots=2, duration_s=5.0)
+    try:
+        _, infos = env.reset(seed=21)
+        view = FleetView(env.unwrapped if hasattr(env, "unwrapped") else env)
+        route = RouteDistance(view)
+        grid = view.occupancy(0.1, view.geometry.radius)
+        stations = env.unwrapped.stations if hasattr(env, "unwrapped") else env.stations
+        rng = np.random.default_rng(0)
+        pairs = 0
+        for _ in range(12):
+            a = stations.pick[rng.integers(len(stations.pick))]
+            b = stations.drop[rng.integers(len(stations.drop))]
+            ref = astar_cost(grid, a, b)
+            if ref is None or not math.isfinite(ref):
+                continue
+            got = route((float(b[0]), float(b[1])), float(a[0]), float(a[1]))
+            assert got >= math.dist(a, b) - 0.15  # never shorter than the straight line
+            assert abs(got - ref) <= 0.05 * ref + 0.3, (a, b, got, ref)
+            pairs += 1
+        assert pairs >= 6
+    finally:
+        env.close()

@@ -334,6 +334,11 @@ class SceneReader:
         return self._scene.occupancy(resolution, inflate)
 
     @property
+    def free_space(self) -> FreeSpace:
+        """The current layout's free-space grids for the robot's disc (cached per layout)."""
+        return self._scene.free_space
+
+    @property
     def movers(self) -> tuple[MoverView, ...]:
         """Moving obstacles now (kind, pose, speed, size, route, yielding); none in static worlds."""
         return self._scene.movers.views() if self._scene.dynamic else ()

@@ -40,6 +40,7 @@ METRICS: dict[str, str] = {
     "collisions_person": "Collisions with walking workers, all robots.",
     "deadlocks": f"Deadlock events: two or more robots, each within {DEADLOCK_RADIUS_M} m of another of them, none "
                  f"progressing for {DEADLOCK_WINDOW_S} s. A robot progresses when its distance to its current goal "
+                 "along the floor plan (the shortest path for its disc past racks and walls, RouteDistance) "
                  f"falls at least {PROGRESS_M} m below the smallest it has been since the leg began, or when a leg "
                  "completes (the episode's start counts as progress). An event is counted once, when such a group "
                  "forms with no robot already in an event; a robot leaves its event when it progresses.",
@@ -71,20 +72,28 @@ class FleetTrace:
     xy: list[np.ndarray] = field(default_factory=list)
     """Per step, the robots' positions (N, 2) m."""
     distance: list[np.ndarray] = field(default_factory=list)
-    """Per step, each robot's distance to its current goal (m)."""
+    """Per step, each robot's distance to its current goal (m): along the floor plan with
+    :attr:`route`, else the straight line."""
     legs: list[np.ndarray] = field(default_factory=list)
     """Per step, each robot's legs completed so far."""
     errands: list[np.ndarray] = field(default_factory=list)
     """Per step, each robot's errands completed so far."""
     person: list[np.ndarray] = field(default_factory=list)
     """Per step, each robot's distance (m, centre to centre) to the nearest worker; inf without workers."""
+    route: Callable[[tuple[float, float], float, float], float] | None = None
+    """``route(goal, x, y)``: the distance (m) along the floor plan to ``goal``
+    (:class:`RouteDistance`); without it :attr:`distance` holds straight-line distances."""
 
     def record(self, infos: dict[str, dict[str, Any]], workers: list[tuple[float, float]] = ()) -> None:
         """One step (or the reset) from the agents' infos and the workers' positions."""
         agents = sorted(infos, key=lambda a: int(a.rsplit("_", 1)[-1]))
         xy = np.array([[float(infos[a]["pose"][0]), float(infos[a]["pose"][1])] for a in agents])
         self.xy.append(xy)
-        self.distance.append(np.array([float(infos[a]["distance_to_goal"]) for a in agents]))
+        if self.route is None:
+            self.distance.append(np.array([float(infos[a]["distance_to_goal"]) for a in agents]))
+        else:
+            self.distance.append(np.array([self.route((float(infos[a]["goal"][0]), float(infos[a]["goal"][1])),
+                                                      xy[i, 0], xy[i, 1]) for i, a in enumerate(agents)]))
         self.legs.append(np.array([int(infos[a]["legs_completed"]) for a in agents]))
         self.errands.append(np.array([int(infos[a]["errands_completed"]) for a in agents]))
         if len(workers):
@@ -92,6 +101,31 @@ class FleetTrace:
             self.person.append(np.hypot(xy[:, None, 0] - w[None, :, 0], xy[:, None, 1] - w[None, :, 1]).min(axis=1))
         else:
             self.person.append(np.full(len(agents), np.inf))
+
+
+class RouteDistance:
+    """Distance (m) along the floor plan from a point to a goal: the shortest path for the
+    robot's disc over the layout's free space (8-connected 0.1 m cells, Dijkstra from the goal,
+    one field per goal as it first appears; :class:`~bulletnav.tasks.guidance.PathGuide` with
+    no wall cost). Racks and walls only: movers and pallet events are not on the plan. Where
+    no free cell is near the point, the straight line.
+
+    Args:
+        view: the fleet's :class:`~bulletnav.fleet.view.FleetView` (after a reset: its layout).
+    """
+
+    def __init__(self, view: Any) -> None:
+        from bulletnav.tasks.guidance import PathGuide
+
+        self.guide = PathGuide(view.free_space, view.geometry.radius, reach=5, wall_cost=0.0)
+        self.fields: dict[tuple[float, float], int] = {}
+
+    def __call__(self, goal: tuple[float, float], x: float, y: float) -> float:
+        index = self.fields.get(goal)
+        if index is None:
+            index = self.fields[goal] = self.guide.add_goal(goal)
+        cost = self.guide.query(index, x, y)[0]
+        return cost if math.isfinite(cost) else math.hypot(goal[0] - x, goal[1] - y)
 
 
 def deadlock_events(xy: np.ndarray, distance: np.ndarray, legs: np.ndarray, dt: float,
@@ -254,7 +288,7 @@ def run_fleet_episodes(env_kwargs: dict[str, Any], controller_factory: Callable[
             t0 = time.perf_counter()
             observations, infos = env.reset(seed=seed + k)
             controller.reset(infos)
-            trace = FleetTrace(dt)
+            trace = FleetTrace(dt, route=RouteDistance(view))
             trace.record(infos, _workers(view))
             if on_step is not None:
                 on_step(env, infos)
@@ -279,5 +313,5 @@ def _workers(view: Any) -> list[tuple[float, float]]:
 
 
 __all__ = ["COUNT_METRICS", "DEADLOCK_RADIUS_M", "DEADLOCK_WINDOW_S", "METRICS", "NEAR_MISS_M", "PROGRESS_M",
-           "FleetTrace", "deadlock_events", "episode_metrics", "errand_times", "run_fleet_episodes", "separation",
+           "FleetTrace", "RouteDistance", "deadlock_events", "episode_metrics", "errand_times", "run_fleet_episodes", "separation",
            "summarize"]

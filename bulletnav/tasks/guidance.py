@@ -78,9 +78,12 @@ class PathGuide:
         radius: the robot's disc radius (m), the one ``free`` was built for.
         reach: cells searched around the robot for the nearest point of the field.
         lookahead: descent steps (cells) from the robot to the lookahead point.
+        wall_cost: the extra cost factor right at the disc radius from an obstacle
+            (:data:`WALL_COST`; 0 makes the cost the path's length in metres).
     """
 
-    def __init__(self, free: FreeSpace, radius: float, reach: int = 3, lookahead: int = 8) -> None:
+    def __init__(self, free: FreeSpace, radius: float, reach: int = 3, lookahead: int = 8,
+                 wall_cost: float = WALL_COST) -> None:
         self.free = free
         self.reach, self.lookahead = reach, lookahead
         self.resolution = free.resolution
@@ -88,24 +91,30 @@ class PathGuide:
         gx, gy = np.meshgrid(free.xs, free.ys, indexing="ij")
         clearance = free.layout.clearance(gx, gy)
         self._passable = (free.component > 0) & (clearance > radius)
-        penalty = 1.0 + WALL_COST * np.clip(1.0 - (clearance - radius) / WALL_MARGIN, 0.0, 1.0)
+        penalty = 1.0 + wall_cost * np.clip(1.0 - (clearance - radius) / WALL_MARGIN, 0.0, 1.0)
         self._graph = grid_graph(self._passable, penalty)
         self.fields: list[np.ndarray] = []
 
     def set_goals(self, goals: tuple[tuple[float, float], ...]) -> None:
         """One cost field (m) per goal, from the passable cell nearest each goal."""
-        nx, ny = self._passable.shape
         self.fields = []
-        for gx, gy in goals:
-            cell = self._nearest_passable(gx, gy)
-            if cell is None:
-                self.fields.append(np.full((nx, ny), np.inf))
-                continue
-            dist = dijkstra(self._graph, directed=False, indices=cell[0] * ny + cell[1])
-            field = dist.reshape(nx, ny) * self.resolution
-            # the goal point itself, off the cell centre: cost through the centre
-            field += math.hypot(gx - (self.x0 + cell[0] * self.resolution), gy - (self.y0 + cell[1] * self.resolution))
-            self.fields.append(field)
+        for goal in goals:
+            self.add_goal(goal)
+
+    def add_goal(self, goal: tuple[float, float]) -> int:
+        """Add the cost field (m) to ``goal``, from the passable cell nearest it; its index for :meth:`query`."""
+        gx, gy = goal
+        nx, ny = self._passable.shape
+        cell = self._nearest_passable(gx, gy)
+        if cell is None:
+            self.fields.append(np.full((nx, ny), np.inf))
+            return len(self.fields) - 1
+        dist = dijkstra(self._graph, directed=False, indices=cell[0] * ny + cell[1])
+        field = dist.reshape(nx, ny) * self.resolution
+        # the goal point itself, off the cell centre: cost through the centre
+        field += math.hypot(gx - (self.x0 + cell[0] * self.resolution), gy - (self.y0 + cell[1] * self.resolution))
+        self.fields.append(field)
+        return len(self.fields) - 1
 
     def _nearest_passable(self, x: float, y: float, reach: int = 3) -> tuple[int, int] | None:
         res = self.resolution
