@@ -1187,11 +1187,15 @@ def cmd_fleet_train(args: argparse.Namespace) -> int:
     if not args.resume and not args.overwrite and _holds_run(out):
         raise RunError(f"--out {out} already holds a run: pass --resume to continue it, --overwrite to train into it "
                        "anyway, or choose another --out")
-    overrides = {"reward_collision": args.reward_collision} if args.reward_collision is not None else None
+    overrides = {}
+    if args.reward_collision is not None:
+        overrides["reward_collision"] = args.reward_collision
+    if args.layouts_every is not None:
+        overrides["layouts_every"] = args.layouts_every
     cfg = FleetTrainConfig(
         init_from=Path(args.init_from), out=out, timesteps=args.timesteps, seed=args.seed, num_robots=args.robots,
         dynamic=args.dynamic, fleets=args.fleets, duration_s=args.duration,
-        hyperparams=Path(args.hyperparams) if args.hyperparams else None, env_overrides=overrides,
+        hyperparams=Path(args.hyperparams) if args.hyperparams else None, env_overrides=overrides or None,
         resume=args.resume, checkpoint_freq=args.checkpoint_freq, command=command_line(),
         progress_bar=not args.no_progress)
     record = train_fleet(cfg)
@@ -1422,6 +1426,8 @@ def build_parser() -> argparse.ArgumentParser:
                          "bulletnav/WarehouseDynamic-v0 entry)")
     ft.add_argument("--reward-collision", type=float, default=None, metavar="R",
                     help="reward per counted collision, robot-robot included (default: the hyperparameter file's)")
+    ft.add_argument("--layouts-every", type=COUNT, default=None, metavar="N",
+                    help="a new warehouse every N episodes of a fleet (default: the model's setting)")
     ft.add_argument("--checkpoint-freq", type=COUNT, default=20_000, help="checkpoint every N agent steps (default 20000)")
     ft.add_argument("--resume", action="store_true", help="continue from DIR/checkpoints/last.zip")
     ft.add_argument("--overwrite", action="store_true",

@@ -170,7 +170,7 @@ def test_fleet_train_writes_a_safe_model_and_resumes(tmp_path, capsys):
     out = tmp_path / "run"
     hp = _tiny_hyperparams(tmp_path)
     args = ["fleet-train", "--init-from", str(MODEL), "--robots", "2", "--duration", "1", "--seed", "3",
-            "--hyperparams", str(hp), "--checkpoint-freq", "128", "--no-progress", "--out", str(out)]
+            "--hyperparams", str(hp), "--checkpoint-freq", "128", "--layouts-every", "2", "--no-progress", "--out", str(out)]
     assert main([*args, "--timesteps", "256"]) == 0
     assert "fleet-trained PPO for 256 agent steps" in capsys.readouterr().out
     for name in ("model.zip", "model.safetensors", "model.json", "model_vecnormalize.json", "run.json", "config.json",
@@ -181,6 +181,7 @@ def test_fleet_train_writes_a_safe_model_and_resumes(tmp_path, capsys):
     assert record["seed"] == 3 and record["total_timesteps"] == 256 and record["slots"] == 2
     assert record["command"] and record["git_commit"] and record["machine"] and record["versions"]["pettingzoo"]
     assert record["env_kwargs"]["reward_collision"] == -40.0  # the collision price of the fine-tuning file
+    assert record["env_kwargs"]["layouts_every"] == 2 and record["env_kwargs"]["guidance"] == "floorplan"
     episodes = json.loads((out / "episodes.json").read_text())
     assert [e["timesteps"] for e in episodes] == [48, 96, 144, 192, 240]  # 24 steps x 2 robots each
     model, meta, normalizer = load_model(out / "model.zip")
