@@ -291,6 +291,37 @@ def test_coordinated_crowded_dynamic_episode_keeps_the_plan_order():
     assert ctls[0].replans > 10
 
 
+def test_restarts_plan_the_boxed_in_robots_first():
+    """Prioritized planning with restarts: a robot that finds no path (the plans of robots
+    ahead of it cross its cell) is planned first at the next try. In a crowded episode the
+    restarts leave fewer failed plans than none, every restart's order starts with the robots
+    that failed, and the replans that still fail are those where the restarted order failed too."""
+    def run(restarts):
+        ctls, orders = [], []
+
+        def factory(env):
+            ctls.append(CoordinatedController(env, CoordinatedConfig(restarts=restarts)))
+            return ctls[0]
+
+        def check(env, infos):
+            ctl = ctls[0]
+            if ctl.paths and (not orders or orders[-1][0] != ctl.replans):
+                orders.append((ctl.replans, list(ctl.order), list(ctl.planned_order)))
+
+        run_fleet_episodes({"num_robots": 8, "duration_s": 30.0, "dynamic": True}, factory, 1, seed=6, on_step=check)
+        return ctls[0], orders
+
+    plain, _ = run(0)
+    restarted, orders = run(3)
+    assert plain.restarted_plans == 0 and plain.failed_plans > 0  # the episode boxes robots in
+    assert restarted.restarted_plans > 0
+    assert restarted.failed_plans < plain.failed_plans
+    changed = [(o, p) for _, o, p in orders if o != p]
+    assert changed  # some replans restarted
+    for order, planned in changed:
+        assert sorted(order) == sorted(planned)  # the same robots, the failed ones moved to the front
+
+
 # ------------------------------------------------------------------ independent + shield
 def test_errand_navigator_replans_for_a_new_goal():
     env = fleet_v0.parallel_env(num_robots=1, duration_s=5.0, world=EMPTY, **ROOM_STATIONS)
