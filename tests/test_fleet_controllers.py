@@ -375,6 +375,78 @@ def test_shield_sees_other_robots_as_movers_and_stops_short():
         env.close()
 
 
+@pytest.mark.parametrize("gap", [0.45, 0.6, 0.75, 0.9, 1.1])
+def test_shields_of_two_robots_at_rest_do_not_both_take_the_gap(gap):
+    """Two robots at rest face to face, ``gap`` m of floor between their outlines, both told
+    full speed ahead at once: the shields, deciding one robot after the other (the second
+    sees the first at its committed speed), never let them touch, whatever the gap."""
+    env = fleet_v0.parallel_env(num_robots=2, duration_s=3.0, world=EMPTY, **ROOM_STATIONS)
+    try:
+        ctl = ShieldedController(_Forward(env), env)
+        obs, infos = env.reset(seed=0)
+        view = FleetView(env)
+        half = 0.5 * view.footprint[0]
+        env._scene.robots[0].reset_pose((-half - gap / 2, 0.0, 0.0))  # test-only placement
+        env._scene.robots[1].reset_pose((half + gap / 2, 0.0, math.pi))
+        ctl.reset(infos)
+        while env.agents:
+            obs, _, _, _, infos = env.step(ctl.act(obs, infos))
+        assert sum(i["collisions_robot"] for i in infos.values()) == 0
+        assert math.dist(view.pose(0)[:2], view.pose(1)[:2]) > 2 * half
+    finally:
+        env.close()
+
+
+class _Spin:
+    """Every robot turns in place at the full rate."""
+
+    def __init__(self, env):
+        self.agents = env.possible_agents
+
+    def reset(self, infos):
+        pass
+
+    def act(self, observations, infos):
+        return {a: np.array([-1.0, 1.0], dtype=np.float32) for a in observations}  # normalised: v = 0, w = max
+
+
+def _spin_side_by_side(shield: bool, gap: float) -> tuple[int, int]:
+    """Robot-robot collisions and shield interventions of two robots ``gap`` m apart (centres),
+    side by side, both turning in place for 3 s."""
+    env = fleet_v0.parallel_env(num_robots=2, duration_s=3.0, world=EMPTY, normalize_actions=True, **ROOM_STATIONS)
+    try:
+        inner = _Spin(env)
+        ctl = ShieldedController(inner, env) if shield else inner
+        obs, infos = env.reset(seed=0)
+        env._scene.robots[0].reset_pose((0.0, 0.0, 0.0))  # test-only placement
+        env._scene.robots[1].reset_pose((0.0, gap, 0.0))
+        ctl.reset(infos)
+        while env.agents:
+            obs, _, _, _, infos = env.step(ctl.act(obs, infos))
+        return sum(i["collisions_robot"] for i in infos.values()), getattr(ctl, "interventions", 0)
+    finally:
+        env.close()
+
+
+def test_shields_see_a_turning_robot_as_the_circle_its_corners_sweep():
+    """Two robots side by side, 0.30 m between centres (their 0.24 m wide outlines 6 cm apart),
+    both told to turn in place: either turn alone stays clear of the other robot at rest, the
+    two together touch (checked without the shield). A shield that saw the other robot as its
+    box at rest let both turn; it sees it as the circle its corners sweep (48 points on the
+    half-diagonal), and they never touch."""
+    assert _spin_side_by_side(shield=False, gap=0.30)[0] > 0  # the premise: unshielded, they touch
+    collisions, interventions = _spin_side_by_side(shield=True, gap=0.30)
+    assert collisions == 0 and interventions > 0
+    env = fleet_v0.parallel_env(num_robots=2, duration_s=1.0, world=EMPTY, **ROOM_STATIONS)
+    try:
+        env.reset(seed=0)
+        view = FleetView(env)
+        mover = view.robot(0, others_as_movers=True).movers[0]
+        assert mover.kind == "robot" and mover.size[:2] == view.footprint[:2]
+    finally:
+        env.close()
+
+
 def test_make_controller_refuses_bad_names():
     from bulletnav.errors import ConfigError
 

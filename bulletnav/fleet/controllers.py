@@ -718,7 +718,10 @@ class _RobotEnv:
 class ShieldedController:
     """A fleet controller behind the safety shield: every robot's action goes through its
     own :class:`~bulletnav.control.shield.Veto`, which sees its lidar scan, odometry, the
-    movers and the other robots as movers (pose, forward speed, footprint box).
+    movers and the other robots as movers (pose, forward speed, footprint box). The shields
+    decide one robot after the other; a robot decided this step is shown to the later ones at
+    the speed its own sweep assumed (the larger of its speed and its command), so two robots
+    never each take the same gap on the belief that the other stands still.
     ``decisions`` holds the last step's :class:`~bulletnav.control.shield.ShieldDecision`
     per agent; ``interventions`` counts this episode's replaced actions over all robots.
 
@@ -730,9 +733,13 @@ class ShieldedController:
 
     def __init__(self, inner: FleetController, env: FleetEnv, config: ShieldConfig = ShieldConfig()) -> None:
         self.inner = inner
-        view = FleetView(env)
-        self.vetoes = {a: Veto(_RobotEnv(env, a, view.robot(i, others_as_movers=True)), config)
+        view = self.view = FleetView(env)
+        self.commitments: dict[int, float] = {}
+        """This step's decided robots: index -> the forward speed (m/s) the later robots' shields
+        see it moving at (the larger of its speed and its shielded command)."""
+        self.vetoes = {a: Veto(_RobotEnv(env, a, view.robot(i, others_as_movers=True, speeds=self.commitments)), config)
                        for i, a in enumerate(env.possible_agents)}
+        self.index = {a: i for i, a in enumerate(env.possible_agents)}
         self.decisions: dict[str, ShieldDecision] = {}
         self.interventions = 0
         self.steps = 0
@@ -746,8 +753,11 @@ class ShieldedController:
     def act(self, observations: dict[str, Any], infos: dict[str, dict[str, Any]]) -> dict[str, np.ndarray]:
         actions = self.inner.act(observations, infos)
         out = {}
+        self.commitments.clear()
         for agent, action in actions.items():
             out[agent], d = self.vetoes[agent](action)
+            i = self.index[agent]
+            self.commitments[i] = max(self.view.speed(i), d.v)  # the speed its own sweep assumed
             self.decisions[agent] = d
             self.interventions += d.intervened
             self.steps += 1

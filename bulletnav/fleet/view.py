@@ -11,7 +11,9 @@ The other robots are moving obstacles to a robot. Two choices set how a view sho
 
 - ``others_as_movers``: the other robots are listed in ``movers`` as :class:`RobotMover`
   entries (pose, forward speed along the heading, footprint box), exactly as the shield reads
-  forklifts: this is how the shield sees them.
+  forklifts: this is how the shield sees them. ``speeds`` (a dict the owner fills) replaces
+  the current speed of the robots it names: the fleet's shields, deciding one robot after the
+  other, show each robot already decided this step at the speed it was committed to.
 - in a fleet of two or more robots the view is ``dynamic`` even without movers, so the
   navigator's lidar map forgets cells a robot has left (free-space evidence clears them).
 
@@ -99,27 +101,34 @@ class FleetView(SceneReader):
         """Robot ``index``'s PyBullet body id, for colouring it in the GUI only."""
         return self._scene.robots[index].body
 
-    def robot_movers(self, exclude: int | None = None) -> list[RobotMover]:
-        """Every robot but ``exclude`` as a :class:`RobotMover`."""
+    def robot_movers(self, exclude: int | None = None, speeds: dict[int, float] | None = None) -> list[RobotMover]:
+        """Every robot but ``exclude`` as a :class:`RobotMover`; a robot in ``speeds`` moves at
+        the speed given there (m/s), the others at their current forward speed."""
         out = []
         for j in range(self.num_robots):
             if j == exclude:
                 continue
-            out.append(RobotMover("robot", self.pose(j), max(self.speed(j), 0.0), self.footprint, j))
+            speed = speeds[j] if speeds is not None and j in speeds else self.speed(j)
+            out.append(RobotMover("robot", self.pose(j), max(speed, 0.0), self.footprint, j))
         return out
 
-    def robot(self, index: int, others_as_movers: bool = False) -> RobotView:
+    def robot(self, index: int, others_as_movers: bool = False, speeds: dict[int, float] | None = None) -> RobotView:
         """Robot ``index``'s view (see :class:`RobotView`)."""
-        return RobotView(self, index, others_as_movers)
+        return RobotView(self, index, others_as_movers, speeds)
 
 
 class RobotView(SceneReader):
     """One robot of the fleet as a single-robot consumer reads ``env.unwrapped.scene``."""
 
-    def __init__(self, fleet: FleetView, index: int, others_as_movers: bool = False) -> None:
+    def __init__(self, fleet: FleetView, index: int, others_as_movers: bool = False,
+                 speeds: dict[int, float] | None = None) -> None:
         self.fleet = fleet
         self.index = index
         self.others_as_movers = others_as_movers
+        self.speeds = speeds
+        """With ``others_as_movers``: the speeds (m/s) the other robots are shown moving at, by
+        index, where the owner of the dict has set one (the shield's commitments); the rest move
+        at their current speed."""
         self._scene: FleetScene = fleet._scene
         self._slot = self._scene.slots[index]
 
@@ -142,7 +151,7 @@ class RobotView(SceneReader):
         """The movers; with ``others_as_movers`` the other robots too (:class:`RobotMover`)."""
         movers = self.fleet.movers
         if self.others_as_movers:
-            return (*movers, *self.fleet.robot_movers(exclude=self.index))
+            return (*movers, *self.fleet.robot_movers(exclude=self.index, speeds=self.speeds))
         return movers
 
 
