@@ -87,6 +87,9 @@ def _file_type(suffixes: tuple[str, ...], what: str):
 
 VIDEO_FILE = _file_type((".mp4", ".gif"), "a video")
 PNG_FILE = _file_type((".png",), "a plot")
+MCAP_FILE = _file_type((".mcap",), "a ROS 2 recording")
+RECORD_HELP = ("also write every episode as ROS 2 messages (scan, odom, imu, tf, cmd_vel, goal, plan, maps, movers) "
+               "into PATH, an MCAP file (docs/ros.md)")
 
 
 class _EnvIdAction(argparse.Action):
@@ -467,6 +470,11 @@ def _run_with_visuals(args, env, policy, line, title: str):
         visuals.on_episode(r)
         line(r)
 
+    recorder = None
+    if getattr(args, "record", None):
+        from bulletnav.ros.record import McapRecorder
+
+        env = recorder = McapRecorder(env, args.record, plan=lambda: _planned_path(policy), overwrite=True)
     ok = False
     try:
         results = run_episodes(env, policy, args.episodes, args.seed, on_episode=on_episode,
@@ -475,9 +483,24 @@ def _run_with_visuals(args, env, policy, line, title: str):
     finally:
         try:
             written = visuals.close(title, ok)
+            if recorder is not None and not ok:
+                recorder.abort()
         finally:
             env.close()
+    if recorder is not None:
+        written = [*written, f"recording: {args.record} (ROS 2 MCAP, {recorder.episodes} episodes)"]
     return results, written, (sizes[0] if sizes else None)
+
+
+def _planned_path(policy):
+    """The classical planner's current path under ``policy`` (a Navigator, or one behind a shield), or None."""
+    for _ in range(3):
+        if hasattr(policy, "path"):
+            return policy.path
+        policy = getattr(policy, "policy", None) or getattr(policy, "inner", None)
+        if policy is None:
+            return None
+    return None
 
 
 def _outcome(r) -> str:
@@ -512,7 +535,7 @@ def cmd_navigate(args: argparse.Namespace) -> int:
     from bulletnav.control.navigator import Navigator, NavigatorConfig
     from bulletnav.evaluation import summarize
 
-    _refuse_existing_files(args, "video", "plot")
+    _refuse_existing_files(args, "video", "plot", "record")
     env = _shielded(args, _make_env(args))
     nav = Navigator(env.unwrapped.scene, NavigatorConfig(planner=args.planner, pose_source=args.pose))
 
@@ -757,7 +780,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    _refuse_existing_files(args, "video", "plot")
+    _refuse_existing_files(args, "video", "plot", "record")
     _evaluate_report(args, args.model)
     return 0
 
@@ -785,7 +808,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
             model = packaged
         else:
             raise ModelError(f"{args.model}: model file not found (train one with `bulletnav train`)")
-    _refuse_existing_files(args, "video")
+    _refuse_existing_files(args, "video", "record")
     if args.out is not None and Path(args.out).exists() and not Path(args.out).is_dir():
         raise BulletnavError(f"--out {args.out}: is a file, not a folder")
     if args.out is not None and _holds_run(args.out) and not args.overwrite:
@@ -1246,7 +1269,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_physics_arg(nav)
     nav.add_argument("--video", type=VIDEO_FILE, metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
     nav.add_argument("--plot", type=PNG_FILE, metavar="PNG", help="write all episodes' paths over their maps")
-    _add_overwrite_arg(nav, "--video and --plot files")
+    nav.add_argument("--record", type=MCAP_FILE, metavar="PATH", help=RECORD_HELP)
+    _add_overwrite_arg(nav, "--video, --plot and --record files")
     nav.set_defaults(func=cmd_navigate)
 
     tr = add("train", "train an SB3 agent (hyperparameters from rl/hyperparams/<algo>.yml)")
@@ -1310,7 +1334,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_physics_arg(ev)
     ev.add_argument("--video", type=VIDEO_FILE, metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
     ev.add_argument("--plot", type=PNG_FILE, metavar="PNG", help="write all episodes' paths over their maps")
-    _add_overwrite_arg(ev, "--video and --plot files")
+    ev.add_argument("--record", type=MCAP_FILE, metavar="PATH", help=RECORD_HELP)
+    _add_overwrite_arg(ev, "--video, --plot and --record files")
     ev.set_defaults(func=cmd_evaluate)
 
     cmp_ = add("compare", "plot several training runs' learning curves and tabulate them")
@@ -1337,7 +1362,8 @@ def build_parser() -> argparse.ArgumentParser:
                       help="output directory; one that holds a run is refused without --overwrite (default: "
                            "runs/demo, or runs/demo-2, -3, ... when it holds an earlier demo)")
     demo.add_argument("--video", type=VIDEO_FILE, metavar="PATH", help="video file (default DIR/episodes.mp4)")
-    _add_overwrite_arg(demo, "the files of an --out DIR or a --video")
+    demo.add_argument("--record", type=MCAP_FILE, metavar="PATH", help=RECORD_HELP)
+    _add_overwrite_arg(demo, "the files of an --out DIR, a --video or a --record")
     demo.add_argument("--gui", action="store_true", help="watch live in the PyBullet GUI")
     demo.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
     _add_shield_arg(demo)

@@ -1,0 +1,340 @@
+"""Episodes as ROS 2 messages in an MCAP file, stamped in simulated time.
+
+:class:`McapRecorder` wraps a single-robot env (outermost, over a shield wrapper if there is
+one) and writes, for every control step, what a ROS 2 robot driver and navigation stack would
+publish: the file opens beside a real robot's bag in Foxglove or RViz, and any ROS 2 tool reads
+it. Messages are CDR-encoded with their definitions embedded (``mcap`` + ``mcap-ros2-support``;
+no ROS installation).
+
+Topics (frames: ``map`` the world, ``odom`` where the wheel odometry started, ``base_link``
+the robot, ``laser`` and ``camera_link`` its sensors):
+
+- ``/clock`` (``rosgraph_msgs/msg/Clock``): every step.
+- ``/tf_static``: ``base_link -> laser`` and ``base_link -> camera_link`` from the URDF's
+  mounts, at every episode start.
+- ``/tf``: ``map -> odom`` (the odometry's drift: the true pose composed with the inverse of
+  the odometry's estimate) and ``odom -> base_link`` (the odometry's estimate), every step.
+- ``/scan`` (``sensor_msgs/msg/LaserScan``): the ranges the robot's observation holds (noise,
+  dropouts and all), one per step, in ``laser``.
+- ``/odom`` (``nav_msgs/msg/Odometry``), ``/imu`` (``sensor_msgs/msg/Imu``: no orientation
+  estimate, so its covariance's first element is -1 as the message defines), every step.
+- ``/cmd_vel`` (``geometry_msgs/msg/Twist``): the command the robot was sent (after the shield
+  when one is on), every step.
+- ``/goal_pose`` (``geometry_msgs/msg/PoseStamped``): at episode start and whenever the goal moves.
+- ``/plan`` (``nav_msgs/msg/Path``): the classical planner's path (``plan`` callable), whenever it changes.
+- ``/map`` (``nav_msgs/msg/OccupancyGrid``): a lidar occupancy map (bulletnav's
+  :class:`~bulletnav.planning.mapping.LidarMapper`, its scans placed at the true pose) every
+  ``map_period_s``; ``/map_truth``: the true static map at every episode start.
+- ``/movers`` (``visualization_msgs/msg/MarkerArray``): forklifts (cubes) and workers
+  (cylinders), every step in dynamic worlds.
+
+Episodes follow each other in one time line: episode k+1 starts ``gap_s`` after episode k
+ended. Each episode is an MCAP metadata record named ``episode`` (index, seed, first and last
+stamp in ns, steps, end reason, success, collision). The file is written beside its name and
+renamed when :meth:`McapRecorder.close` is called after a complete run; :meth:`abort` (or an
+exception in the ``with`` block) removes it, so no half-written recording is left.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from bulletnav.errors import BulletnavError
+from bulletnav.ros.msgdefs import msgdef
+
+log = logging.getLogger(__name__)
+
+TOPIC_TYPES = {
+    "/clock": "rosgraph_msgs/msg/Clock",
+    "/tf": "tf2_msgs/msg/TFMessage",
+    "/tf_static": "tf2_msgs/msg/TFMessage",
+    "/scan": "sensor_msgs/msg/LaserScan",
+    "/odom": "nav_msgs/msg/Odometry",
+    "/imu": "sensor_msgs/msg/Imu",
+    "/cmd_vel": "geometry_msgs/msg/Twist",
+    "/goal_pose": "geometry_msgs/msg/PoseStamped",
+    "/plan": "nav_msgs/msg/Path",
+    "/map": "nav_msgs/msg/OccupancyGrid",
+    "/map_truth": "nav_msgs/msg/OccupancyGrid",
+    "/movers": "visualization_msgs/msg/MarkerArray",
+}
+"""Every topic the recorder may write and its message type."""
+
+MAP_RESOLUTION = 0.1
+"""Cell size (m) of ``/map`` and ``/map_truth``."""
+
+
+def stamp(ns: int) -> dict[str, int]:
+    """A ``builtin_interfaces/Time`` of ``ns`` nanoseconds."""
+    return {"sec": ns // 1_000_000_000, "nanosec": ns % 1_000_000_000}
+
+
+def quaternion(yaw: float) -> dict[str, float]:
+    """The rotation by ``yaw`` (rad) about z."""
+    return {"x": 0.0, "y": 0.0, "z": math.sin(yaw / 2), "w": math.cos(yaw / 2)}
+
+
+def _pose(x: float, y: float, yaw: float, z: float = 0.0) -> dict[str, Any]:
+    return {"position": {"x": x, "y": y, "z": z}, "orientation": quaternion(yaw)}
+
+
+def _transform(ns: int, parent: str, child: str, x: float, y: float, yaw: float, z: float = 0.0) -> dict[str, Any]:
+    return {"header": {"stamp": stamp(ns), "frame_id": parent}, "child_frame_id": child,
+            "transform": {"translation": {"x": x, "y": y, "z": z}, "rotation": quaternion(yaw)}}
+
+
+def compose(a: tuple[float, float, float], b: tuple[float, float, float]) -> tuple[float, float, float]:
+    """The 2-D pose ``a * b`` (``b`` expressed in ``a``'s frame)."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], math.remainder(a[2] + b[2], 2 * math.pi)
+
+
+def inverse(a: tuple[float, float, float]) -> tuple[float, float, float]:
+    """The 2-D pose ``a`` inverted."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    return -c * a[0] - s * a[1], s * a[0] - c * a[1], -a[2]
+
+
+def occupancy_message(ns: int, frame: str, cells: np.ndarray, resolution: float,
+                      corner: tuple[float, float]) -> dict[str, Any]:
+    """A ``nav_msgs/msg/OccupancyGrid`` of ``cells`` (indexed [ix, iy]; -1 unknown, 0 free,
+    100 occupied) whose cell (0, 0) has its lower-left corner at ``corner`` (m)."""
+    nx, ny = cells.shape
+    return {"header": {"stamp": stamp(ns), "frame_id": frame},
+            "info": {"map_load_time": stamp(ns), "resolution": float(resolution), "width": int(nx), "height": int(ny),
+                     "origin": _pose(float(corner[0]), float(corner[1]), 0.0)},
+            "data": np.ascontiguousarray(cells.T, dtype=np.int8).reshape(-1).tolist()}
+
+
+class McapRecorder(gym.Wrapper):
+    """Record every episode of ``env`` into ``path`` (see the module docstring).
+
+    Args:
+        env: a single-robot bulletnav env (``gym.make``), possibly shielded.
+        path: the ``.mcap`` file to write.
+        plan: called after each step, returns the classical planner's current path (a list of
+            (x, y) in m) or None; None: no ``/plan``.
+        map_period_s: seconds of simulated time between two ``/map`` messages.
+        gap_s: seconds of the time line between one episode's end and the next one's start.
+        overwrite: replace an existing ``path`` (else refused).
+
+    Raises:
+        BulletnavError: ``path`` exists and ``overwrite`` is off, or does not end in ``.mcap``.
+    """
+
+    def __init__(self, env: gym.Env, path: str | Path, plan: Callable[[], Any] | None = None,
+                 map_period_s: float = 1.0, gap_s: float = 1.0, overwrite: bool = False) -> None:
+        super().__init__(env)
+        from mcap_ros2.writer import Writer
+
+        self.path = Path(path)
+        if self.path.suffix != ".mcap":
+            raise BulletnavError(f"--record {self.path}: a recording is an .mcap file")
+        if self.path.exists() and not overwrite:
+            raise BulletnavError(f"--record {self.path}: the file already exists; pass --overwrite to replace it")
+        self.plan = plan
+        self.map_period_s = float(map_period_s)
+        self.gap_s = float(gap_s)
+        self._tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._file = open(self._tmp, "wb")  # noqa: SIM115  (closed in close/abort)
+        self._writer = Writer(self._file)
+        self._schemas = {t: self._writer.register_msgdef(k, msgdef(k)) for t, k in TOPIC_TYPES.items()}
+        self._next_start_ns = 0
+        self._episode: dict[str, Any] | None = None
+        self.episodes = 0
+        """Episodes recorded so far."""
+        self.counts: dict[str, int] = {}
+        """Messages written per topic."""
+        self._closed = False
+
+    # ------------------------------------------------------------------ writing
+    def _write(self, topic: str, message: dict[str, Any], ns: int) -> None:
+        seq = self.counts.get(topic, 0)
+        self._writer.write_message(topic, self._schemas[topic], message, log_time=ns, publish_time=ns, sequence=seq)
+        self.counts[topic] = seq + 1
+
+    def _now_ns(self) -> int:
+        ep = self._episode
+        assert ep is not None
+        return ep["start_ns"] + int(round(ep["steps"] * self._dt * 1e9))
+
+    # ------------------------------------------------------------------ gym
+    def reset(self, **kwargs: Any) -> tuple[Any, dict[str, Any]]:
+        obs, info = self.env.reset(**kwargs)
+        self._end_episode(None)
+        scene = self.env.unwrapped.scene
+        self._dt = float(scene.control_dt)
+        start_ns = self._next_start_ns
+        self._episode = {"index": self.episodes, "seed": kwargs.get("seed"), "start_ns": start_ns, "steps": 0}
+        self._goal: tuple[float, float] | None = None
+        self._plan_sent: Any = None
+        self._map_due = 0.0
+        geometry = scene.geometry
+        self._lidar = scene.sensors.lidar
+        sx, sy = scene.layout.size  # the floor is centred on the origin
+        self._bounds = (-sx / 2, -sy / 2, sx / 2, sy / 2)
+        from bulletnav.planning.mapping import LidarMapper
+
+        self._mapper = LidarMapper(self._bounds, MAP_RESOLUTION)
+        lx, ly, lz = geometry.lidar_mount
+        mounts = [_transform(start_ns, "base_link", "laser", lx, ly, 0.0, lz)]
+        if geometry.camera_mount is not None:
+            cx, cy, cz = geometry.camera_mount
+            mounts.append(_transform(start_ns, "base_link", "camera_link", cx, cy, 0.0, cz))
+        self._write("/tf_static", {"transforms": mounts}, start_ns)
+        truth = scene.occupancy(MAP_RESOLUTION)
+        corner = (truth.origin[0] - MAP_RESOLUTION / 2, truth.origin[1] - MAP_RESOLUTION / 2)
+        self._write("/map_truth", occupancy_message(start_ns, "map", np.where(truth.occupied, 100, 0), MAP_RESOLUTION,
+                                                    corner), start_ns)
+        self._publish_goal(scene, start_ns)
+        self.episodes += 1
+        return obs, info
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        ep = self._episode
+        if ep is None:
+            raise BulletnavError("McapRecorder: step() before reset()")
+        ep["steps"] += 1
+        ns = self._now_ns()
+        scene = self.env.unwrapped.scene
+        self._record_step(scene, action, info, ns)
+        if terminated or truncated:
+            self._end_episode(info)
+        return obs, reward, terminated, truncated, info
+
+    # ------------------------------------------------------------------ one step
+    def _command(self, scene: Any, action: Any, info: dict[str, Any]) -> tuple[float, float]:
+        veto = info.get("shield")
+        if isinstance(veto, dict) and "v" in veto:
+            return float(veto["v"]), float(veto["w"])
+        a = np.asarray(action, dtype=np.float64).reshape(-1)
+        if scene.normalized_actions:
+            (v_lo, v_hi), (w_lo, w_hi) = scene.command_limits
+            a = np.clip(a, -1.0, 1.0)
+            return float(v_lo + (a[0] + 1) / 2 * (v_hi - v_lo)), float(w_lo + (a[1] + 1) / 2 * (w_hi - w_lo))
+        return float(a[0]), float(a[1])
+
+    def _record_step(self, scene: Any, action: Any, info: dict[str, Any], ns: int) -> None:
+        t = stamp(ns)
+        self._write("/clock", {"clock": t}, ns)
+        truth = tuple(float(v) for v in scene.pose)
+        sensors = scene.sensors
+        odo = [float(v) for v in sensors.odometry.read()]
+        est = (odo[0], odo[1], odo[2])
+        drift = compose(truth, inverse(est))  # map -> odom
+        self._write("/tf", {"transforms": [_transform(ns, "map", "odom", *drift),
+                                           _transform(ns, "odom", "base_link", *est)]}, ns)
+        lidar, cfg = self._lidar, self._lidar.config
+        ranges = np.asarray(lidar.read(), dtype=np.float32)
+        angles = lidar.angles
+        increment = float(angles[1] - angles[0]) if len(angles) > 1 else 0.0
+        self._write("/scan", {"header": {"stamp": t, "frame_id": "laser"}, "angle_min": float(angles[0]),
+                              "angle_max": float(angles[-1]), "angle_increment": increment, "time_increment": 0.0,
+                              "scan_time": self._dt, "range_min": float(cfg.min_range), "range_max": float(cfg.max_range),
+                              "ranges": ranges.tolist(), "intensities": []}, ns)
+        zeros36 = [0.0] * 36
+        self._write("/odom", {"header": {"stamp": t, "frame_id": "odom"}, "child_frame_id": "base_link",
+                              "pose": {"pose": _pose(*est), "covariance": zeros36},
+                              "twist": {"twist": {"linear": {"x": odo[3], "y": 0.0, "z": 0.0},
+                                                  "angular": {"x": 0.0, "y": 0.0, "z": odo[4]}},
+                                        "covariance": zeros36}}, ns)
+        imu = [float(v) for v in sensors.imu.read()] if sensors.imu is not None else [0.0] * 6
+        self._write("/imu", {"header": {"stamp": t, "frame_id": "base_link"},
+                             "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
+                             "orientation_covariance": [-1.0] + [0.0] * 8,
+                             "angular_velocity": {"x": imu[3], "y": imu[4], "z": imu[5]},
+                             "angular_velocity_covariance": [0.0] * 9,
+                             "linear_acceleration": {"x": imu[0], "y": imu[1], "z": imu[2]},
+                             "linear_acceleration_covariance": [0.0] * 9}, ns)
+        v, w = self._command(scene, action, info)
+        self._write("/cmd_vel", {"linear": {"x": v, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": w}}, ns)
+        self._publish_goal(scene, ns)
+        if self.plan is not None:
+            path = self.plan()
+            key = None if path is None else tuple((round(float(x), 6), round(float(y), 6)) for x, y in path)
+            if key != self._plan_sent:
+                self._plan_sent = key
+                poses = [{"header": {"stamp": t, "frame_id": "map"}, "pose": _pose(x, y, 0.0)} for x, y in (key or ())]
+                self._write("/plan", {"header": {"stamp": t, "frame_id": "map"}, "poses": poses}, ns)
+        self._mapper.integrate(truth, angles, ranges.astype(np.float64), float(cfg.max_range),
+                               sensor_offset=float(scene.geometry.lidar_mount[0]))
+        now_s = self._episode["steps"] * self._dt
+        if now_s + 1e-9 >= self._map_due:
+            self._map_due = now_s + self.map_period_s
+            state = self._mapper.state()
+            cells = np.where(state < 0, -1, np.where(state > 0, 100, 0))
+            self._write("/map", occupancy_message(ns, "map", cells, MAP_RESOLUTION, self._bounds[:2]), ns)
+        if scene.dynamic:
+            markers = [{"header": {"stamp": t, "frame_id": "map"}, "ns": "movers", "id": 0, "type": 0, "action": 3,
+                        "pose": _pose(0.0, 0.0, 0.0), "scale": {"x": 0.0, "y": 0.0, "z": 0.0},
+                        "color": {"r": 0.0, "g": 0.0, "b": 0.0, "a": 0.0}, "lifetime": stamp(0),
+                        "frame_locked": False, "points": [], "colors": [], "text": "", "mesh_resource": "",
+                        "mesh_use_embedded_materials": False}]
+            for k, m in enumerate(scene.movers, 1):
+                sx, sy, sz = (float(s) for s in m.size)
+                worker = m.kind == "worker"
+                markers.append({**markers[0], "ns": m.kind, "id": k, "type": 3 if worker else 1, "action": 0,
+                                "pose": _pose(float(m.pose[0]), float(m.pose[1]), float(m.pose[2]), sz / 2),
+                                "scale": {"x": sx, "y": sy, "z": sz},
+                                "color": ({"r": 0.2, "g": 0.5, "b": 1.0, "a": 0.9} if worker
+                                          else {"r": 1.0, "g": 0.6, "b": 0.0, "a": 0.9}),
+                                "text": m.kind})
+            self._write("/movers", {"markers": markers}, ns)
+
+    def _publish_goal(self, scene: Any, ns: int) -> None:
+        goal = scene.goal
+        if goal is None:
+            return
+        goal = (float(goal[0]), float(goal[1]))
+        if goal != self._goal:
+            self._goal = goal
+            self._write("/goal_pose", {"header": {"stamp": stamp(ns), "frame_id": "map"}, "pose": _pose(*goal, 0.0)}, ns)
+
+    def _end_episode(self, info: dict[str, Any] | None) -> None:
+        ep = self._episode
+        if ep is None:
+            return
+        end_ns = self._now_ns()
+        data = {"index": ep["index"], "seed": ep["seed"], "start_ns": ep["start_ns"], "end_ns": end_ns,
+                "steps": ep["steps"]}
+        if info is not None:
+            data.update(end_reason=info.get("end_reason"), is_success=info.get("is_success"),
+                        collision=info.get("collision"))
+        else:
+            data.update(end_reason="reset before the end")
+        self._writer.add_metadata("episode", {k: str(v) for k, v in data.items()})
+        self._next_start_ns = end_ns + int(round(self.gap_s * 1e9))
+        self._episode = None
+
+    # ------------------------------------------------------------------ files
+    def close(self) -> None:
+        """Finish the file and move it to ``path`` (an episode still open is ended first)."""
+        if not self._closed:
+            self._closed = True
+            self._end_episode(None)
+            self._writer.finish()
+            self._file.close()
+            os.replace(self._tmp, self.path)
+            log.info("recorded %d episode(s) into %s", self.episodes, self.path)
+        super().close()
+
+    def abort(self) -> None:
+        """Drop the recording: nothing is left at ``path`` or beside it."""
+        if not self._closed:
+            self._closed = True
+            self._file.close()
+            self._tmp.unlink(missing_ok=True)
+
+
+__all__ = ["MAP_RESOLUTION", "McapRecorder", "TOPIC_TYPES", "compose", "inverse", "occupancy_message", "quaternion",
+           "stamp"]

@@ -1,0 +1,194 @@
+"""ROS 2 recordings (``bulletnav.ros``): an episode recorded with :class:`McapRecorder` and read
+back by an independent reader (``mcap_ros2.reader``, the ROS 2 profile's own decoder): message
+types, one message per control step, monotonic stamps, ranges equal to the env's lidar, the TF
+chain map -> odom -> base_link -> laser against the true pose, episode metadata; the message
+definitions against the ROS 2 message layout; refusals and the CLI."""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections import defaultdict
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+
+import bulletnav  # noqa: F401  (registers the envs)
+from bulletnav.cli import main
+from bulletnav.control.navigator import Navigator
+from bulletnav.errors import BulletnavError
+from bulletnav.ros.msgdefs import known_types, msgdef
+from bulletnav.ros.record import TOPIC_TYPES, McapRecorder, compose
+
+STEPS = 150
+
+
+def read_ros2_messages(path, topics=None):
+    """``mcap_ros2.reader.read_ros2_messages`` (the ROS 2 profile's own decoder), its module's
+    deprecation notice (it points to the same decoder through ``mcap.reader``) silenced."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        from mcap_ros2.reader import read_ros2_messages as read
+
+    return list(read(path, topics=topics))
+
+
+def _yaw(q) -> float:
+    return 2.0 * math.atan2(q.z, q.w)
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    """One PID + A* episode of ``STEPS`` steps in the dynamic aisle warehouse, recorded; what the
+    env's sensors read at each step kept beside it."""
+    path = tmp_path_factory.mktemp("ros") / "episode.mcap"
+    env = gym.make("bulletnav/WarehouseDynamic-v0", max_episode_steps=STEPS)
+    nav = Navigator(env.unwrapped.scene)
+    rec = McapRecorder(env, path, plan=lambda: nav.path)
+    scene = env.unwrapped.scene
+    truth, ranges, odometry = [], [], []
+    obs, info = rec.reset(seed=7)
+    nav.reset(info)
+    while True:
+        obs, _, terminated, truncated, info = rec.step(nav.act(obs, info))
+        truth.append(tuple(scene.pose))
+        ranges.append(np.asarray(scene.sensors.lidar.read(), dtype=np.float32))
+        odometry.append(np.asarray(scene.sensors.odometry.read(), dtype=np.float64))
+        if terminated or truncated:
+            break
+    angles = scene.sensors.lidar.angles.copy()
+    mount = scene.geometry.lidar_mount
+    rec.close()
+    messages = defaultdict(list)
+    for m in read_ros2_messages(str(path)):
+        messages[m.channel.topic].append(m)
+    return {"path": path, "messages": messages, "truth": truth, "ranges": ranges, "odometry": odometry,
+            "angles": angles, "mount": mount, "steps": len(truth), "info": info}
+
+
+def test_types_counts_and_stamps(recording):
+    msgs, steps = recording["messages"], recording["steps"]
+    assert steps > 50
+    for topic, items in msgs.items():
+        assert {m.schema.name for m in items} == {TOPIC_TYPES[topic]}, topic
+    for topic in ("/clock", "/tf", "/scan", "/odom", "/imu", "/cmd_vel", "/movers"):
+        assert len(msgs[topic]) == steps, topic  # one per control step
+    assert len(msgs["/tf_static"]) == len(msgs["/map_truth"]) == 1
+    assert len(msgs["/goal_pose"]) >= 1 and len(msgs["/plan"]) >= 1 and len(msgs["/map"]) >= 2
+    dt_ns = 1e9 / 24
+    for topic in ("/clock", "/scan"):
+        times = [m.log_time_ns for m in msgs[topic]]
+        assert all(b > a for a, b in zip(times, times[1:])), topic  # strictly increasing
+        assert times[0] == pytest.approx(dt_ns, abs=1) and times[-1] == pytest.approx(steps * dt_ns, abs=1)
+    for m in msgs["/scan"]:
+        st = m.ros_msg.header.stamp
+        assert st.sec * 1_000_000_000 + st.nanosec == m.log_time_ns  # header stamp = sim time = log time
+    clock = msgs["/clock"][10].ros_msg.clock
+    assert clock.sec * 1_000_000_000 + clock.nanosec == msgs["/clock"][10].log_time_ns
+
+
+def test_scan_equals_the_env_lidar(recording):
+    msgs, angles = recording["messages"], recording["angles"]
+    first = msgs["/scan"][0].ros_msg
+    assert first.header.frame_id == "laser"
+    assert len(first.ranges) == len(angles) == 36
+    assert first.angle_min == pytest.approx(angles[0]) and first.angle_max == pytest.approx(angles[-1])
+    assert first.angle_increment == pytest.approx(2 * math.pi / 36)
+    assert first.range_max == pytest.approx(5.0) and first.range_min == pytest.approx(0.0)
+    for m, expected in zip(msgs["/scan"], recording["ranges"]):
+        np.testing.assert_array_equal(np.asarray(m.ros_msg.ranges, dtype=np.float32), expected)
+
+
+def test_tf_chain_reaches_the_true_pose(recording):
+    msgs = recording["messages"]
+    static = {t.child_frame_id: t for t in msgs["/tf_static"][0].ros_msg.transforms}
+    assert static["laser"].header.frame_id == "base_link"
+    assert static["laser"].transform.translation.x == pytest.approx(recording["mount"][0])
+    assert "camera_link" in static
+    drift_seen = 0.0
+    for m, truth, odo in zip(msgs["/tf"], recording["truth"], recording["odometry"]):
+        tf = {(t.header.frame_id, t.child_frame_id): t.transform for t in m.ros_msg.transforms}
+        assert set(tf) == {("map", "odom"), ("odom", "base_link")}
+        a, b = tf[("map", "odom")], tf[("odom", "base_link")]
+        map_odom = (a.translation.x, a.translation.y, _yaw(a.rotation))
+        odom_base = (b.translation.x, b.translation.y, _yaw(b.rotation))
+        assert odom_base[:2] == pytest.approx(tuple(odo[:2]), abs=1e-9)  # the odometry's estimate
+        x, y, yaw = compose(map_odom, odom_base)
+        assert (x, y) == pytest.approx(truth[:2], abs=1e-6)
+        assert math.remainder(yaw - truth[2], 2 * math.pi) == pytest.approx(0.0, abs=1e-6)
+        drift_seen = max(drift_seen, math.hypot(*map_odom[:2]))
+    assert drift_seen > 0.0  # the odometry drifts, and map -> odom shows it
+    odom = msgs["/odom"][-1].ros_msg
+    assert odom.header.frame_id == "odom" and odom.child_frame_id == "base_link"
+    assert odom.twist.twist.linear.x == pytest.approx(recording["odometry"][-1][3], abs=1e-6)
+    imu = msgs["/imu"][-1].ros_msg
+    assert imu.orientation_covariance[0] == -1.0  # no orientation estimate, as the message defines
+    assert imu.linear_acceleration.z == pytest.approx(9.81, abs=1.0)
+
+
+def test_maps_movers_and_metadata(recording):
+    msgs = recording["messages"]
+    truth_map = msgs["/map_truth"][0].ros_msg
+    data = np.asarray(truth_map.data, dtype=np.int16).reshape(truth_map.info.height, truth_map.info.width)
+    assert set(np.unique(data)) <= {0, 100} and (data == 100).any()
+    assert (data[0, :] == 100).all()  # the floor's bottom wall
+    grown = msgs["/map"][-1].ros_msg
+    cells = np.asarray(grown.data, dtype=np.int16)
+    assert {-1, 0, 100} <= set(np.unique(cells))  # unknown, seen free, seen occupied
+    markers = msgs["/movers"][0].ros_msg.markers
+    assert markers[0].action == 3 and len(markers) > 1  # DELETEALL, then one per mover
+    assert {m.ns for m in markers[1:]} <= {"forklift", "worker"}
+    with open(recording["path"], "rb") as f:
+        meta = [r for r in make_reader(f).iter_metadata() if r.name == "episode"]
+    assert len(meta) == 1
+    assert meta[0].metadata["steps"] == str(recording["steps"]) and meta[0].metadata["seed"] == "7"
+    assert meta[0].metadata["end_reason"] == str(recording["info"]["end_reason"])
+
+
+def test_message_definitions_parse_as_ros2_types():
+    from mcap_ros2._dynamic import serialize_dynamic
+
+    for datatype in known_types():
+        encoders = serialize_dynamic(datatype, msgdef(datatype))
+        assert datatype in encoders
+    assert msgdef("sensor_msgs/LaserScan") == msgdef("sensor_msgs/msg/LaserScan")
+    with pytest.raises(KeyError, match="no message definition"):
+        msgdef("sensor_msgs/msg/PointCloud2")
+
+
+def test_refusals_and_abort_leave_nothing(tmp_path):
+    env = gym.make("bulletnav/WarehouseAisles-v0")
+    try:
+        existing = tmp_path / "old.mcap"
+        existing.write_bytes(b"x")
+        with pytest.raises(BulletnavError, match="already exists"):
+            McapRecorder(env, existing)
+        with pytest.raises(BulletnavError, match=r"\.mcap"):
+            McapRecorder(env, tmp_path / "episode.bag")
+        rec = McapRecorder(env, tmp_path / "dropped.mcap")
+        rec.reset(seed=0)
+        rec.step(env.action_space.sample())
+        rec.abort()
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["old.mcap"]
+    finally:
+        env.close()
+
+
+def test_cli_navigate_records(tmp_path, capsys):
+    out = tmp_path / "nav.mcap"
+    assert main(["navigate", "--env", "bulletnav/WarehouseAisles-v0", "--planner", "astar", "--episodes", "2",
+                 "--seed", "3", "--record", str(out)]) == 0
+    assert "recording:" in capsys.readouterr().out
+    with open(out, "rb") as f:
+        episodes = [r.metadata for r in make_reader(f).iter_metadata() if r.name == "episode"]
+    assert [e["seed"] for e in episodes] == ["3", "4"]
+    assert int(episodes[1]["start_ns"]) > int(episodes[0]["end_ns"])  # one time line, episodes one after the other
+    scans = sum(1 for _ in read_ros2_messages(str(out), topics=["/scan"]))
+    assert scans == int(episodes[0]["steps"]) + int(episodes[1]["steps"])
+    with pytest.raises(SystemExit):
+        main(["navigate", "--episodes", "1", "--record", str(tmp_path / "nav.txt")])
+    capsys.readouterr()
+    assert main(["navigate", "--episodes", "1", "--record", str(out)]) == 2
+    assert "already exists" in capsys.readouterr().err
