@@ -133,6 +133,13 @@ def run_chunk(entry: Entry, robots: int, base: dict[str, Any], seed: int, episod
     if episodes != list(range(first, first + len(episodes))):
         raise BulletnavError(f"a chunk's episodes must be consecutive, got {episodes}")
     kwargs = entry_env_kwargs(entry, {**base, "num_robots": robots}, Path(root))
+    if entry.model is not None:
+        import torch
+
+        # one thread: two workers on two cores with two threads each spend the policy's time
+        # waiting for each other (4 ms a forward pass of 8 robots against 0.4 ms); the actions
+        # are the same
+        torch.set_num_threads(1)
     prints: list[str] = []
 
     def on_step(env: Any, infos: dict[str, dict[str, Any]]) -> None:
