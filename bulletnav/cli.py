@@ -1163,6 +1163,38 @@ def _add_fleet_world_args(parser: argparse.ArgumentParser, env_default: str) -> 
     _add_obstacles_arg(parser, "the env's")
 
 
+def cmd_map(args: argparse.Namespace) -> int:
+    """Map a ROS 2 bag with bulletnav's lidar mapper; optionally plan on it."""
+    from bulletnav.ros.bagmap import build_map, plan_path, read_bag, write_map_png
+
+    _refuse_existing_files(args, "out")
+    data = read_bag(args.bag, scan_topic=args.scan_topic, odom_topic=args.odom_topic)
+    bag_map = build_map(data, resolution=args.resolution)
+    goal = tuple(args.plan_to) if args.plan_to else None
+    path = plan_path(bag_map, goal) if goal else None
+    if args.out:
+        write_map_png(bag_map, args.out, path, goal, title=f"{args.bag}: {bag_map.scans_used} scans")
+    state = bag_map.mapper.state()
+    summary = {"bag": str(args.bag), "scan_topic": args.scan_topic, "pose_source": data.pose_source,
+               "fixed_frame": data.fixed_frame, "scans": bag_map.scans_used, "scans_without_pose": bag_map.scans_skipped,
+               "resolution_m": args.resolution, "cells": list(state.shape),
+               "occupied_cells": int((state > 0).sum()), "free_cells": int((state == 0).sum()),
+               "plan_to": list(goal) if goal else None, "path_found": None if goal is None else path is not None,
+               "path_length_m": (None if not path else float(sum(np.hypot(b[0] - a[0], b[1] - a[1]) for a, b in zip(path, path[1:])))),
+               "out": args.out}
+    if args.json:
+        print(_json(summary))
+        return 0
+    print(f"{args.bag}: {bag_map.scans_used} scans on {args.scan_topic} placed by {data.pose_source} "
+          f"({data.fixed_frame} frame), {summary['occupied_cells']} occupied and {summary['free_cells']} free cells "
+          f"of {args.resolution:g} m")
+    if goal:
+        print(f"A* to ({goal[0]:g}, {goal[1]:g}): " + (f"{summary['path_length_m']:.2f} m" if path else "no path"))
+    if args.out:
+        print(f"map: {args.out}")
+    return 0
+
+
 def cmd_fleet_compare(args: argparse.Namespace) -> int:
     """Every fleet controller, with and without the shield, on the same seeded episodes."""
     from pathlib import Path
@@ -1480,6 +1512,19 @@ def build_parser() -> argparse.ArgumentParser:
     fc.add_argument("--resume", action="store_true", help="go on with the episodes already in --out")
     fc.add_argument("--json", action="store_true", help="print the settings, per-cell summaries and provenance as JSON")
     fc.set_defaults(func=cmd_fleet_compare)
+
+    mp = add("map", "bulletnav's lidar mapper (and A*) on a ROS 2 bag's LaserScan and Odometry (or TF)")
+    mp.add_argument("bag", metavar="BAG.mcap", help="an MCAP file of ROS 2 messages (CDR)")
+    mp.add_argument("--scan-topic", default="/scan", help="sensor_msgs/msg/LaserScan topic (default /scan)")
+    mp.add_argument("--odom-topic", default="/odom",
+                    help="nav_msgs/msg/Odometry topic (default /odom; without it the /tf chain to the scan's frame)")
+    mp.add_argument("--resolution", type=_positive_seconds, default=0.1, metavar="M", help="cell size in m (default 0.1)")
+    mp.add_argument("--out", type=PNG_FILE, default=None, metavar="PNG", help="write the map (and path) as a PNG")
+    mp.add_argument("--plan-to", type=float, nargs=2, metavar=("X", "Y"), default=None,
+                    help="plan an A* path on the map from the last scan's position to (X, Y) m")
+    mp.add_argument("--json", action="store_true", help="print one JSON object")
+    _add_overwrite_arg(mp, "an --out file")
+    mp.set_defaults(func=cmd_map)
 
     bench = add("bench", "benchmarks (print JSON with --json)")
     bench.add_argument("what", choices=["env", "physics", "planners", "gui", "shield", "fleet"],

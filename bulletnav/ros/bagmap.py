@@ -1,0 +1,289 @@
+"""bulletnav's lidar mapper and planner on any ROS 2 bag: ``bulletnav map BAG.mcap``.
+
+:func:`read_bag` reads the ``sensor_msgs/msg/LaserScan`` messages of one topic and the robot's
+pose from a ``nav_msgs/msg/Odometry`` topic (or, without one, from ``/tf``: the chain from a
+fixed frame to the scan's frame), with the schemas the file carries (``mcap_ros2``'s decoder:
+nothing in the file is executed, only CDR data decoded against its message definitions).
+:func:`build_map` places every scan at the lidar's pose (the odometry pose, interpolated to the
+scan's stamp, composed with the ``/tf_static`` mount of the scan's frame when the bag has one)
+and integrates it with :class:`~bulletnav.planning.mapping.LidarMapper`.
+
+Any scan geometry is read: ``angle_min``, ``angle_increment``, any ray count. A range that is
+NaN, below ``range_min`` or negative is no reading (skipped); ``+inf`` or at least ``range_max``
+is a ray that hit nothing within range (free space along it), as REP 117 defines them.
+"""
+
+from __future__ import annotations
+
+import bisect
+import logging
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bulletnav.errors import BulletnavError
+from bulletnav.planning.mapping import LidarMapper
+from bulletnav.ros.record import compose
+
+log = logging.getLogger(__name__)
+
+SCAN_TYPE = "sensor_msgs/msg/LaserScan"
+ODOM_TYPE = "nav_msgs/msg/Odometry"
+TF_TYPE = "tf2_msgs/msg/TFMessage"
+
+
+@dataclass
+class Scan:
+    """One laser scan: stamp (ns), frame, ray angles (rad, in the scan's frame), ranges (m)."""
+
+    stamp_ns: int
+    frame: str
+    angles: np.ndarray
+    ranges: np.ndarray
+    range_min: float
+    range_max: float
+
+
+@dataclass
+class BagData:
+    """What :func:`read_bag` found."""
+
+    scans: list[Scan]
+    poses: list[tuple[int, tuple[float, float, float]]]
+    """(stamp ns, (x, y, yaw)) of the robot's base in the fixed frame, in time order."""
+    mounts: dict[str, tuple[float, float, float]] = field(default_factory=dict)
+    """Static 2-D pose of each sensor frame in the base frame (from ``/tf_static``)."""
+    base_frame: str = "base_link"
+    fixed_frame: str = "odom"
+    pose_source: str = "odometry"
+
+
+def _yaw(q: Any) -> float:
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def _stamp_ns(header: Any) -> int:
+    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+
+
+def read_bag(path: str | Path, scan_topic: str = "/scan", odom_topic: str = "/odom") -> BagData:
+    """Read scans and poses from the MCAP file ``path``.
+
+    Raises:
+        BulletnavError: the file is missing, not MCAP or truncated; the scan topic is missing or
+            not ``LaserScan``; neither the odometry topic nor ``/tf`` gives a pose.
+    """
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    path = Path(path)
+    if not path.is_file():
+        raise BulletnavError(f"{path}: no such bag file")
+    scans: list[Scan] = []
+    odom: list[tuple[int, tuple[float, float, float]]] = []
+    odom_frames: tuple[str, str] | None = None
+    tf: dict[tuple[str, str], list[tuple[int, tuple[float, float, float]]]] = {}
+    mounts: dict[tuple[str, str], tuple[float, float, float]] = {}
+    types: dict[str, str] = {}
+    try:
+        with open(path, "rb") as f:
+            reader = make_reader(f, decoder_factories=[DecoderFactory()])
+            summary = reader.get_summary()
+            if summary is not None:
+                types = {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
+            for schema, channel, _message, msg in reader.iter_decoded_messages(
+                    topics=[scan_topic, odom_topic, "/tf", "/tf_static"], log_time_order=True):
+                topic = channel.topic
+                types.setdefault(topic, schema.name if schema else "")
+                if topic == scan_topic:
+                    if schema is None or schema.name != SCAN_TYPE:
+                        raise BulletnavError(f"{path}: topic {scan_topic} holds {schema.name if schema else 'untyped'} "
+                                             f"messages, not {SCAN_TYPE}")
+                    n = len(msg.ranges)
+                    angles = float(msg.angle_min) + float(msg.angle_increment) * np.arange(n)
+                    scans.append(Scan(_stamp_ns(msg.header), msg.header.frame_id, angles,
+                                      np.asarray(msg.ranges, dtype=np.float64), float(msg.range_min),
+                                      float(msg.range_max)))
+                elif topic == odom_topic:
+                    if schema is None or schema.name != ODOM_TYPE:
+                        raise BulletnavError(f"{path}: topic {odom_topic} holds {schema.name if schema else 'untyped'} "
+                                             f"messages, not {ODOM_TYPE}")
+                    p = msg.pose.pose
+                    odom.append((_stamp_ns(msg.header), (float(p.position.x), float(p.position.y), _yaw(p.orientation))))
+                    odom_frames = (msg.header.frame_id, msg.child_frame_id)
+                elif topic in ("/tf", "/tf_static") and schema is not None and schema.name == TF_TYPE:
+                    for t in msg.transforms:
+                        tr = t.transform
+                        pose2d = (float(tr.translation.x), float(tr.translation.y), _yaw(tr.rotation))
+                        key = (t.header.frame_id, t.child_frame_id)
+                        if topic == "/tf_static":
+                            mounts[key] = pose2d
+                        else:
+                            tf.setdefault(key, []).append((_stamp_ns(t.header), pose2d))
+    except McapError as exc:
+        raise BulletnavError(f"{path}: not a readable MCAP file ({exc})") from exc
+    except (EOFError, ValueError, KeyError, IndexError) as exc:  # a truncated or corrupt record
+        raise BulletnavError(f"{path}: not a readable MCAP file ({type(exc).__name__}: {exc})") from exc
+    if not scans:
+        have = ", ".join(f"{t} ({k})" for t, k in sorted(types.items())) or "none"
+        raise BulletnavError(f"{path}: no {SCAN_TYPE} messages on {scan_topic} (topics: {have}); "
+                             "name the scan topic with --scan-topic")
+    frame = scans[0].frame
+    if odom:
+        fixed, base = odom_frames or ("odom", "base_link")
+        sensor_mounts = {child: pose for (parent, child), pose in mounts.items() if parent == base}
+        return BagData(scans, sorted(odom), sensor_mounts, base, fixed, "odometry")
+    poses = _tf_poses(tf, mounts, frame)
+    if poses is None:
+        have = ", ".join(f"{t} ({k})" for t, k in sorted(types.items())) or "none"
+        raise BulletnavError(f"{path}: no pose for the scans: no {ODOM_TYPE} on {odom_topic} and no /tf chain to the "
+                             f"scan frame {frame!r} (topics: {have}); name the odometry topic with --odom-topic")
+    fixed, chain_poses = poses
+    return BagData(scans, chain_poses, {}, frame, fixed, "tf")
+
+
+def _tf_poses(tf: dict, mounts: dict, frame: str) -> tuple[str, list] | None:
+    """The pose of ``frame`` in the root of its /tf tree at every stamp of the chain's last
+    dynamic transform (static links from ``mounts``); None without a dynamic link."""
+    parents = {child: (parent, "tf") for (parent, child) in tf}
+    parents.update({child: (parent, "static") for (parent, child) in mounts if child not in parents})
+    chain = []
+    node = frame
+    while node in parents and len(chain) < 32:
+        parent, kind = parents[node]
+        chain.append((parent, node, kind))
+        node = parent
+    dynamic = [(p, c) for p, c, k in chain if k == "tf"]
+    if not dynamic:
+        return None
+    stamps = sorted({t for key in dynamic for t, _ in tf[key]})
+    out = []
+    for t in stamps:
+        pose = (0.0, 0.0, 0.0)
+        for parent, child, kind in reversed(chain):  # root first
+            link = mounts[(parent, child)] if kind == "static" else _held(tf[(parent, child)], t)
+            if link is None:
+                break
+            pose = compose(pose, link)
+        else:
+            out.append((t, pose))
+    return (node, out) if out else None
+
+
+def _held(series: list[tuple[int, tuple[float, float, float]]], t: int) -> tuple[float, float, float] | None:
+    """The last value at or before ``t`` (None before the first)."""
+    i = bisect.bisect_right([s for s, _ in series], t) - 1
+    return series[i][1] if i >= 0 else None
+
+
+def pose_at(poses: list[tuple[int, tuple[float, float, float]]], t: int) -> tuple[float, float, float] | None:
+    """The pose at ``t`` (ns), interpolated linearly between the two around it (yaw along the
+    shorter turn); None outside the poses' time span by more than 0.1 s."""
+    stamps = [s for s, _ in poses]
+    i = bisect.bisect_left(stamps, t)
+    if i < len(stamps) and stamps[i] == t:
+        return poses[i][1]
+    if i == 0 or i == len(stamps):
+        j = 0 if i == 0 else len(stamps) - 1
+        return poses[j][1] if abs(stamps[j] - t) <= 100_000_000 else None
+    (t0, a), (t1, b) = poses[i - 1], poses[i]
+    f = (t - t0) / (t1 - t0)
+    dyaw = math.remainder(b[2] - a[2], 2 * math.pi)
+    return a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), math.remainder(a[2] + f * dyaw, 2 * math.pi)
+
+
+@dataclass
+class BagMap:
+    """The map built from a bag."""
+
+    mapper: LidarMapper
+    scans_used: int
+    scans_skipped: int
+    trajectory: list[tuple[float, float]]
+    """The lidar's positions (m) where scans were integrated."""
+
+
+def build_map(data: BagData, resolution: float = 0.1, margin: float | None = None) -> BagMap:
+    """Integrate every scan of ``data`` at its lidar pose (see the module docstring).
+
+    The grid covers the trajectory grown by the largest finite ``range_max`` (capped at 30 m),
+    or by ``margin`` (m)."""
+    placed = []
+    skipped = 0
+    for scan in data.scans:
+        base = pose_at(data.poses, scan.stamp_ns)
+        if base is None:
+            skipped += 1
+            continue
+        mount = data.mounts.get(scan.frame, (0.0, 0.0, 0.0))
+        placed.append((compose(base, mount), scan))
+    if not placed:
+        raise BulletnavError(f"no scan has a pose: the {data.pose_source} poses span "
+                             f"{(data.poses[0][0] if data.poses else 0) / 1e9:.3f}-"
+                             f"{(data.poses[-1][0] if data.poses else 0) / 1e9:.3f} s, the scans do not fall in it")
+    reach = margin if margin is not None else min(max(s.range_max for _, s in placed if math.isfinite(s.range_max)), 30.0)
+    xs = [p[0] for p, _ in placed]
+    ys = [p[1] for p, _ in placed]
+    mapper = LidarMapper((min(xs) - reach, min(ys) - reach, max(xs) + reach, max(ys) + reach), resolution)
+    for pose, scan in placed:
+        r = scan.ranges
+        valid = ~np.isnan(r) & (r >= max(scan.range_min, 0.0))
+        max_range = scan.range_max if math.isfinite(scan.range_max) else reach
+        ranges = np.where(np.isposinf(r) | (r >= max_range), max_range, r)[valid]
+        mapper.integrate(pose, scan.angles[valid], ranges, max_range)
+    return BagMap(mapper, len(placed), skipped, [(p[0], p[1]) for p, _ in placed])
+
+
+def plan_path(bag_map: BagMap, goal: tuple[float, float], radius: float = 0.2) -> list[tuple[float, float]] | None:
+    """A* on the map (occupied cells grown by ``radius``; unknown counts as free) from the
+    last scan's position to ``goal``; None when there is no path."""
+    from bulletnav.planning.astar import astar
+
+    grid = bag_map.mapper.grid().inflate(radius)
+    return astar(grid, bag_map.trajectory[-1], goal)
+
+
+def write_map_png(bag_map: BagMap, out: str | Path, path: list[tuple[float, float]] | None = None,
+                  goal: tuple[float, float] | None = None, title: str = "") -> None:
+    """The map as a PNG (unknown grey, free white, occupied black), the lidar's trajectory and
+    the planned path drawn over it; written beside ``out`` and renamed."""
+    import os
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    m = bag_map.mapper
+    state = m.state()
+    img = np.where(state < 0, 0.75, np.where(state > 0, 0.0, 1.0)).T
+    extent = (m.x0, m.x0 + m.nx * m.resolution, m.y0, m.y0 + m.ny * m.resolution)
+    fig, ax = plt.subplots(figsize=(8, 8 * (extent[3] - extent[2]) / max(extent[1] - extent[0], 1e-9) + 0.6))
+    ax.imshow(img, origin="lower", extent=extent, cmap="gray", vmin=0.0, vmax=1.0, interpolation="nearest")
+    tx, ty = zip(*bag_map.trajectory)
+    ax.plot(tx, ty, color="tab:blue", lw=1.2, label="lidar trajectory")
+    if path:
+        px, py = zip(*path)
+        ax.plot(px, py, color="tab:red", lw=2.0, label="A* path")
+    if goal is not None:
+        ax.plot([goal[0]], [goal[1]], marker="*", color="tab:red", ms=14, ls="none", label="goal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(title or f"{bag_map.scans_used} scans, {m.resolution:g} m cells")
+    ax.legend(loc="upper right", fontsize=8)
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp.png")
+    try:
+        fig.savefig(tmp, dpi=100, bbox_inches="tight")
+        os.replace(tmp, out)
+    finally:
+        plt.close(fig)
+        tmp.unlink(missing_ok=True)
+
+
+__all__ = ["BagData", "BagMap", "Scan", "build_map", "plan_path", "pose_at", "read_bag", "write_map_png"]
