@@ -1195,6 +1195,50 @@ def cmd_map(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_replay(args: argparse.Namespace) -> int:
+    """Draw a recording's episodes from the file alone."""
+    import os
+    import tempfile
+    from pathlib import Path
+
+    from bulletnav.ros.replay import replay
+
+    _refuse_existing_files(args, "video", "plot", "frame")
+    video = args.video
+    scratch = None
+    if args.frame and not video:
+        scratch = tempfile.mkdtemp(prefix="bulletnav-replay-")
+        video = str(Path(scratch) / "replay.mp4")
+    try:
+        summary = replay(args.recording, video=video, plot=args.plot)
+        if args.frame:
+            import imageio.v3 as iio
+            from PIL import Image
+
+            frames = summary["frames"]
+            at = frames // 2 if args.frame_at is None else min(args.frame_at, frames) - 1
+            image = iio.imread(video, index=at)
+            tmp = Path(args.frame).with_name(f".{Path(args.frame).name}.{os.getpid()}.tmp.png")
+            Image.fromarray(image).save(tmp)
+            os.replace(tmp, args.frame)
+            summary["frame"], summary["frame_index"] = args.frame, at
+    finally:
+        if scratch is not None:
+            import shutil
+
+            shutil.rmtree(scratch, ignore_errors=True)
+    if not args.video:
+        summary["video"] = None
+    if args.json:
+        print(_json(summary))
+        return 0
+    print(f"{args.recording}: {summary['episodes']} episodes, steps {summary['steps']}, outcomes {summary['outcomes']}")
+    for key in ("video", "plot", "frame"):
+        if summary.get(key):
+            print(f"{key}: {summary[key]}")
+    return 0
+
+
 def cmd_fleet_compare(args: argparse.Namespace) -> int:
     """Every fleet controller, with and without the shield, on the same seeded episodes."""
     from pathlib import Path
@@ -1525,6 +1569,17 @@ def build_parser() -> argparse.ArgumentParser:
     mp.add_argument("--json", action="store_true", help="print one JSON object")
     _add_overwrite_arg(mp, "an --out file")
     mp.set_defaults(func=cmd_map)
+
+    rp = add("replay", "draw a recorded episode (a --record MCAP file) from the file alone: the live video and plot")
+    rp.add_argument("recording", metavar="PATH.mcap", help="a recording written by --record")
+    rp.add_argument("--video", type=VIDEO_FILE, metavar="PATH", help="write the episodes' video (.mp4 or .gif)")
+    rp.add_argument("--plot", type=PNG_FILE, metavar="PNG", help="write every episode's path over its map")
+    rp.add_argument("--frame", type=PNG_FILE, metavar="PNG", help="write one frame of the video (see --frame-at)")
+    rp.add_argument("--frame-at", type=COUNT, default=None, metavar="N",
+                    help="the video frame --frame writes (default: the middle one)")
+    rp.add_argument("--json", action="store_true", help="print one JSON object")
+    _add_overwrite_arg(rp, "--video, --plot and --frame files")
+    rp.set_defaults(func=cmd_replay)
 
     bench = add("bench", "benchmarks (print JSON with --json)")
     bench.add_argument("what", choices=["env", "physics", "planners", "gui", "shield", "fleet"],

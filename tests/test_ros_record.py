@@ -144,7 +144,7 @@ def test_maps_movers_and_metadata(recording):
         meta = [r for r in make_reader(f).iter_metadata() if r.name == "episode"]
     assert len(meta) == 1
     assert meta[0].metadata["steps"] == str(recording["steps"]) and meta[0].metadata["seed"] == "7"
-    assert meta[0].metadata["end_reason"] == str(recording["info"]["end_reason"])
+    assert meta[0].metadata["end_reason"] == (recording["info"]["end_reason"] or "timeout")  # the step limit truncated it
 
 
 def test_message_definitions_parse_as_ros2_types():

@@ -20,6 +20,7 @@ _FIELDS: dict[str, str] = {
     "builtin_interfaces/Duration": "int32 sec\nuint32 nanosec",
     "std_msgs/Header": "builtin_interfaces/Time stamp\nstring frame_id",
     "std_msgs/ColorRGBA": "float32 r\nfloat32 g\nfloat32 b\nfloat32 a",
+    "std_msgs/Float64": "float64 data",
     "rosgraph_msgs/Clock": "builtin_interfaces/Time clock",
     "geometry_msgs/Vector3": "float64 x\nfloat64 y\nfloat64 z",
     "geometry_msgs/Point": "float64 x\nfloat64 y\nfloat64 z",

@@ -27,6 +27,12 @@ the robot, ``laser`` and ``camera_link`` its sensors):
   ``map_period_s``; ``/map_truth``: the true static map at every episode start.
 - ``/movers`` (``visualization_msgs/msg/MarkerArray``): forklifts (cubes) and workers
   (cylinders), every step in dynamic worlds.
+- ``/reward`` (``std_msgs/msg/Float64``): the step's reward, every step.
+
+Each episode also carries an attachment ``episode-<k>.json`` (``application/json``): the
+warehouse layout (``layout_to_dict``: floor, obstacles with their categories), the start pose,
+the goals, the goal radius, the robot's radius, the movers' routes, the env id and its step limit, so that
+``bulletnav replay`` draws the episode from the file alone.
 
 Episodes follow each other in one time line: episode k+1 starts ``gap_s`` after episode k
 ended. Each episode is an MCAP metadata record named ``episode`` (index, seed, first and last
@@ -65,6 +71,7 @@ TOPIC_TYPES = {
     "/map": "nav_msgs/msg/OccupancyGrid",
     "/map_truth": "nav_msgs/msg/OccupancyGrid",
     "/movers": "visualization_msgs/msg/MarkerArray",
+    "/reward": "std_msgs/msg/Float64",
 }
 """Every topic the recorder may write and its message type."""
 
@@ -196,8 +203,25 @@ class McapRecorder(gym.Wrapper):
         self._write("/map_truth", occupancy_message(start_ns, "map", np.where(truth.occupied, 100, 0), MAP_RESOLUTION,
                                                     corner), start_ns)
         self._publish_goal(scene, start_ns)
+        self._attach_episode(scene, start_ns)
         self.episodes += 1
         return obs, info
+
+    def _attach_episode(self, scene: Any, ns: int) -> None:
+        import json
+
+        from bulletnav.sim.layout import layout_to_dict
+
+        spec = self.env.spec
+        record = {"layout": layout_to_dict(scene.layout), "start": [float(v) for v in scene.start],
+                  "goals": [[float(g[0]), float(g[1])] for g in scene.goals],
+                  "goal_radius": float(scene.goal_radius), "robot_radius": float(scene.geometry.radius),
+                  "lidar_mount": [float(v) for v in scene.geometry.lidar_mount],
+                  "control_dt": self._dt, "env_id": getattr(spec, "id", None),
+                  "mover_routes": [[[float(x), float(y)] for x, y in m.path] for m in scene.movers] if scene.dynamic else [],
+                  "max_episode_steps": getattr(spec, "max_episode_steps", None)}
+        self._writer.add_attachment(create_time=ns, log_time=ns, name=f"episode-{self.episodes}.json",
+                                    media_type="application/json", data=json.dumps(record).encode())
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         obs, reward, terminated, truncated, info = self.env.step(action)
@@ -208,8 +232,9 @@ class McapRecorder(gym.Wrapper):
         ns = self._now_ns()
         scene = self.env.unwrapped.scene
         self._record_step(scene, action, info, ns)
+        self._write("/reward", {"data": float(reward)}, ns)
         if terminated or truncated:
-            self._end_episode(info)
+            self._end_episode(info, truncated=truncated and not terminated)
         return obs, reward, terminated, truncated, info
 
     # ------------------------------------------------------------------ one step
@@ -300,7 +325,7 @@ class McapRecorder(gym.Wrapper):
             self._goal = goal
             self._write("/goal_pose", {"header": {"stamp": stamp(ns), "frame_id": "map"}, "pose": _pose(*goal, 0.0)}, ns)
 
-    def _end_episode(self, info: dict[str, Any] | None) -> None:
+    def _end_episode(self, info: dict[str, Any] | None, truncated: bool = False) -> None:
         ep = self._episode
         if ep is None:
             return
@@ -308,8 +333,8 @@ class McapRecorder(gym.Wrapper):
         data = {"index": ep["index"], "seed": ep["seed"], "start_ns": ep["start_ns"], "end_ns": end_ns,
                 "steps": ep["steps"]}
         if info is not None:
-            data.update(end_reason=info.get("end_reason"), is_success=info.get("is_success"),
-                        collision=info.get("collision"))
+            reason = info.get("end_reason") or ("timeout" if truncated else None)
+            data.update(end_reason=reason, is_success=info.get("is_success"), collision=info.get("collision"))
         else:
             data.update(end_reason="reset before the end")
         self._writer.add_metadata("episode", {k: str(v) for k, v in data.items()})

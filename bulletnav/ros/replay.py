@@ -1,0 +1,290 @@
+"""``bulletnav replay PATH.mcap``: a recorded episode drawn from the recording alone.
+
+:func:`replay` reads a file written by :class:`~bulletnav.ros.record.McapRecorder` (the layout,
+start and goals from each episode's ``episode-<k>.json`` attachment; the robot's pose from
+``/tf``; ``/scan``, ``/goal_pose``, ``/plan``, ``/movers``, ``/reward`` per step; the outcome
+from the episode's metadata) and feeds :class:`~bulletnav.viz.video.EpisodeRecorder` and the
+path plot the same read-only scene interface the live env gives them: the frames are the live
+video's, but for the camera panel ("camera disabled": images are not recorded yet) and the
+pallet events (not recorded yet). Nothing in the
+file is executed: the attachment is JSON, parsed by the layout loader that checks every field.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import defaultdict
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bulletnav.errors import BulletnavError
+from bulletnav.ros.record import compose
+
+
+@dataclass(frozen=True)
+class _Mover:
+    kind: str
+    pose: tuple[float, float, float]
+    size: tuple[float, float, float]
+    path: tuple = ()
+    yielding: bool = False
+    speed: float = 0.0
+
+
+@dataclass(frozen=True)
+class _Geometry:
+    radius: float
+
+
+@dataclass(frozen=True)
+class _LidarConfig:
+    max_range: float
+
+
+class _Lidar:
+    """The recorded scan as the drawing code reads a lidar."""
+
+    def __init__(self, scene: ReplayScene) -> None:
+        self.scene = scene
+        self.config = _LidarConfig(5.0)
+        self.ranges = np.zeros(0)
+        self.angles = np.zeros(0)
+
+    def read(self) -> np.ndarray:
+        return self.ranges
+
+    def hit_points(self, ranges: np.ndarray) -> np.ndarray:
+        x, y, yaw = self.scene.pose
+        mx, my = self.scene.mount
+        ox, oy = x + mx * math.cos(yaw) - my * math.sin(yaw), y + mx * math.sin(yaw) + my * math.cos(yaw)
+        a = self.angles + yaw
+        r = np.asarray(ranges, dtype=np.float64)
+        return np.stack([ox + r * np.cos(a), oy + r * np.sin(a)], axis=1)
+
+
+@dataclass(frozen=True)
+class _Sensors:
+    lidar: _Lidar
+    camera: None = None
+
+
+class ReplayScene:
+    """The read-only scene interface (``env.unwrapped.scene``) of a recorded episode's step."""
+
+    def __init__(self, episode: dict[str, Any], index: int) -> None:
+        from bulletnav.sim.layout import parse_layout
+
+        self.episode = index
+        self.layout = parse_layout(episode["layout"], where=f"episode {index} layout")
+        self.start = tuple(float(v) for v in episode["start"])
+        self.goals = tuple((float(g[0]), float(g[1])) for g in episode["goals"])
+        self.goal = self.goals[0] if self.goals else None
+        self.goal_radius = float(episode["goal_radius"])
+        self.geometry = _Geometry(float(episode["robot_radius"]))
+        self.mount = tuple(float(v) for v in episode.get("lidar_mount", (0.0, 0.0, 0.0)))[:2]
+        self.control_dt = float(episode["control_dt"])
+        self.sensors = _Sensors(_Lidar(self))
+        self.pose: tuple[float, float, float] = self.start  # type: ignore[assignment]
+        self.steps = 0
+        self.routes = [tuple((float(x), float(y)) for x, y in r) for r in episode.get("mover_routes", [])]
+        first = episode["steps"][0] if episode["steps"] else {}
+        self.dynamic = bool(first.get("dynamic", False))
+        self.movers: tuple[_Mover, ...] = self.with_routes(first.get("movers", ()))
+        self.events: tuple = ()
+
+    def with_routes(self, movers: tuple[_Mover, ...]) -> tuple[_Mover, ...]:
+        """``movers`` (in marker order) with the routes the episode's attachment recorded."""
+        return tuple(_Mover(m.kind, m.pose, m.size, self.routes[i] if i < len(self.routes) else ())
+                     for i, m in enumerate(movers))
+
+
+class _Spec:
+    def __init__(self, max_episode_steps: int | None) -> None:
+        self.max_episode_steps = max_episode_steps
+
+
+class _Env:
+    """What the drawing code reads of an env: ``unwrapped.scene`` and ``spec``."""
+
+    def __init__(self, scene: ReplayScene, max_episode_steps: int | None) -> None:
+        self.scene = scene
+        self.unwrapped = self
+        self.spec = _Spec(max_episode_steps)
+
+
+def _ns(stamp: Any) -> int:
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def _yaw(q: Any) -> float:
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def read_recording(path: str | Path) -> list[dict[str, Any]]:
+    """The episodes of a bulletnav recording: each a dict of its attachment record, metadata
+    and per-step messages (``steps``: list of dicts with ``pose``, ``ranges``, ``angles``,
+    ``range_max``, ``goal``, ``plan``, ``movers``, ``reward``).
+
+    Raises:
+        BulletnavError: missing, unreadable or truncated file, or not a bulletnav recording.
+    """
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    path = Path(path)
+    if not path.is_file():
+        raise BulletnavError(f"{path}: no such recording")
+    episodes: list[dict[str, Any]] = []
+    by_time: dict[int, dict[str, Any]] = defaultdict(dict)
+    try:
+        with open(path, "rb") as f:
+            reader = make_reader(f, decoder_factories=[DecoderFactory()])
+            for att in reader.iter_attachments():
+                if att.name.startswith("episode-") and att.media_type == "application/json":
+                    episodes.append({**json.loads(att.data), "start_ns": att.log_time})
+            meta = [dict(m.metadata) for m in reader.iter_metadata() if m.name == "episode"]
+            topics = ["/tf", "/scan", "/goal_pose", "/plan", "/movers", "/reward"]
+            for _, channel, message, msg in reader.iter_decoded_messages(topics=topics, log_time_order=True):
+                by_time[message.log_time][channel.topic] = msg
+    except McapError as exc:
+        raise BulletnavError(f"{path}: not a readable MCAP file ({exc})") from exc
+    except (EOFError, ValueError, KeyError, IndexError, json.JSONDecodeError) as exc:
+        raise BulletnavError(f"{path}: not a readable recording ({type(exc).__name__}: {exc})") from exc
+    if not episodes:
+        raise BulletnavError(f"{path}: no episode-<k>.json attachment: not a recording bulletnav wrote "
+                             "(`bulletnav map` reads any bag)")
+    episodes.sort(key=lambda e: e["start_ns"])
+    meta.sort(key=lambda m: int(m.get("start_ns", 0)))
+    for k, ep in enumerate(episodes):
+        ep["meta"] = meta[k] if k < len(meta) else {}
+        end = int(ep["meta"].get("end_ns", 2**62))
+        nxt = episodes[k + 1]["start_ns"] if k + 1 < len(episodes) else 2**63
+        steps = []
+        goal, plan = None, None
+        for t in sorted(x for x in by_time if ep["start_ns"] <= x <= min(end, nxt - 1)):
+            msgs = by_time[t]
+            if "/goal_pose" in msgs:
+                p = msgs["/goal_pose"].pose.position
+                goal = (float(p.x), float(p.y))
+            if "/plan" in msgs:
+                plan = [(float(ps.pose.position.x), float(ps.pose.position.y)) for ps in msgs["/plan"].poses]
+            if "/tf" not in msgs or "/scan" not in msgs:
+                continue
+            tf = {(tr.header.frame_id, tr.child_frame_id): tr.transform for tr in msgs["/tf"].transforms}
+            links = [tf.get(("map", "odom")), tf.get(("odom", "base_link"))]
+            if any(x is None for x in links):
+                raise BulletnavError(f"{path}: /tf at {t} ns lacks map -> odom -> base_link")
+            pose = (0.0, 0.0, 0.0)
+            for tr in links:
+                pose = compose(pose, (float(tr.translation.x), float(tr.translation.y), _yaw(tr.rotation)))
+            scan = msgs["/scan"]
+            n = len(scan.ranges)
+            movers = []
+            if "/movers" in msgs:
+                for m in msgs["/movers"].markers:
+                    if m.action != 0:
+                        continue
+                    movers.append(_Mover(m.ns, (float(m.pose.position.x), float(m.pose.position.y), _yaw(m.pose.orientation)),
+                                         (float(m.scale.x), float(m.scale.y), float(m.scale.z))))
+            steps.append({"pose": pose, "ranges": np.asarray(scan.ranges, dtype=np.float64),
+                          "angles": float(scan.angle_min) + float(scan.angle_increment) * np.arange(n),
+                          "range_max": float(scan.range_max), "goal": goal, "plan": plan,
+                          "movers": tuple(movers), "dynamic": "/movers" in msgs,
+                          "reward": float(msgs["/reward"].data) if "/reward" in msgs else 0.0})
+        ep["steps"] = steps
+    return episodes
+
+
+def replay(path: str | Path, video: str | Path | None = None, plot: str | Path | None = None,
+           stride: int = 1) -> dict[str, Any]:
+    """Draw every episode of the recording ``path``: the live video's frames into ``video``
+    (.mp4 or .gif) and the path plot into ``plot`` (.png). Returns a summary."""
+    from bulletnav.viz.video import EpisodeRecorder
+
+    episodes = read_recording(path)
+    recorder = EpisodeRecorder(video, stride=stride) if video else None
+    tracks = []
+    ok = False
+    try:
+        for k, ep in enumerate(episodes):
+            scene = ReplayScene(ep, k)
+            env = _Env(scene, ep.get("max_episode_steps"))
+            steps, meta = ep["steps"], ep["meta"]
+            if recorder is not None:
+                recorder.on_reset(env, {})
+            track = [scene.start[:2]]
+            for i, st in enumerate(steps, 1):
+                scene.steps = i
+                scene.pose = st["pose"]
+                if st["goal"] is not None:
+                    scene.goal = st["goal"]
+                scene.movers, scene.dynamic = scene.with_routes(st["movers"]), st["dynamic"]
+                lidar = scene.sensors.lidar
+                lidar.ranges, lidar.angles, lidar.config = st["ranges"], st["angles"], _LidarConfig(st["range_max"])
+                last = i == len(steps)
+                info = {"reward_recorded": st["reward"],
+                        "distance_to_goal": math.dist(st["pose"][:2], scene.goal) if scene.goal else math.nan,
+                        "is_success": last and meta.get("is_success") == "True",
+                        "collision": last and meta.get("collision") == "True"}
+                track.append(st["pose"][:2])
+                if recorder is not None:
+                    recorder.on_step(env, info, path=st["plan"])
+            tracks.append({"episode": k, "layout": scene.layout, "start": scene.start, "goal": scene.goal,
+                           "path": track, "outcome": meta.get("end_reason", "")})
+        ok = True
+    finally:
+        if recorder is not None:
+            recorder.close() if ok else recorder.abort()
+    if plot:
+        _plot(tracks, plot)
+    return {"recording": str(path), "episodes": len(episodes), "steps": [len(e["steps"]) for e in episodes],
+            "outcomes": [e["meta"].get("end_reason") for e in episodes], "video": str(video) if video else None,
+            "frames": recorder.frames_written if recorder is not None else 0, "plot": str(plot) if plot else None}
+
+
+def _plot(tracks: list[dict[str, Any]], out: str | Path) -> None:
+    """Every episode's path over its map, one panel each, written beside ``out`` and renamed."""
+    import os
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from bulletnav.viz.video import MapView
+
+    n = len(tracks)
+    cols = min(n, 3)
+    rows = -(-n // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(5 * cols, 5 * rows), squeeze=False)
+    for ax, tr in zip(axes.flat, tracks):
+        view = MapView(tr["layout"])
+        ax.imshow(np.asarray(view.render_static()))
+        px = view.to_px(tr["path"])
+        ax.plot([p[0] for p in px], [p[1] for p in px], color="tab:blue", lw=1.5)
+        (sx, sy), = view.to_px(tr["start"][:2])
+        ax.plot([sx], [sy], "s", color="tab:green", ms=7)
+        if tr["goal"] is not None:
+            (gx, gy), = view.to_px(tr["goal"])
+            ax.plot([gx], [gy], "*", color="tab:red", ms=12)
+        ax.set_title(f"episode {tr['episode'] + 1}: {tr['outcome']}")
+        ax.axis("off")
+    for ax in list(axes.flat)[n:]:
+        ax.axis("off")
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp.png")
+    try:
+        fig.savefig(tmp, dpi=100, bbox_inches="tight")
+        os.replace(tmp, out)
+    finally:
+        plt.close(fig)
+        tmp.unlink(missing_ok=True)
+
+
+__all__ = ["ReplayScene", "read_recording", "replay"]

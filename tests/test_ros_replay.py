@@ -1,0 +1,82 @@
+"""``bulletnav replay``: a recording drawn from the file alone gives the live video's frames
+(map, trajectory, plan, lidar hits, movers, strip), the path plot and one frame; files that are
+no bulletnav recording are refused."""
+
+from __future__ import annotations
+
+import json
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+
+from bulletnav.cli import main
+from bulletnav.errors import BulletnavError
+from bulletnav.ros.replay import read_recording
+from bulletnav.viz.video import MAP_PX, STRIP_Y
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    """Two PID + A* episodes of the dynamic warehouse, their live video and their recording."""
+    import gymnasium as gym
+
+    import bulletnav  # noqa: F401
+    from bulletnav.control.navigator import Navigator
+    from bulletnav.evaluation import run_episodes
+    from bulletnav.ros.record import McapRecorder
+    from bulletnav.viz.video import EpisodeRecorder
+
+    d = tmp_path_factory.mktemp("replay")
+    env = gym.make("bulletnav/WarehouseDynamic-v0", max_episode_steps=200)
+    nav = Navigator(env.unwrapped.scene)
+    rec = McapRecorder(env, d / "run.mcap", plan=lambda: nav.path)
+    with EpisodeRecorder(d / "live.mp4") as video:
+        run_episodes(rec, nav, 2, 11, on_reset=lambda e, i: video.on_reset(e, i, path=nav.path),
+                     on_step=lambda e, i: video.on_step(e, i, path=nav.path))
+    rec.close()
+    return d
+
+
+def test_replay_draws_the_live_frames(recorded, capsys):
+    d = recorded
+    capsys.readouterr()
+    assert main(["replay", str(d / "run.mcap"), "--video", str(d / "replay.mp4"), "--plot", str(d / "paths.png"),
+                 "--frame", str(d / "frame.png"), "--frame-at", "150", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["episodes"] == 2 and summary["steps"] == [200, 200]
+    live = list(iio.imiter(d / "live.mp4"))
+    again = list(iio.imiter(d / "replay.mp4"))
+    assert len(again) == len(live) == summary["frames"] == 402  # a reset frame and 200 steps, twice
+    for k in (0, 1, 100, 200, 201, 350, 401):
+        a, b = live[k].astype(np.int16), again[k].astype(np.int16)
+        # the map panel and the status strip (the camera panel is not replayed): the same picture,
+        # up to the video encoder's noise
+        assert np.abs(a[:STRIP_Y, :MAP_PX] - b[:STRIP_Y, :MAP_PX]).mean() < 1.5, k
+        assert np.abs(a[STRIP_Y:] - b[STRIP_Y:]).mean() < 1.5, k
+    frame = iio.imread(d / "frame.png")
+    assert frame.shape == live[0].shape
+    assert np.abs(frame[:STRIP_Y, :MAP_PX].astype(np.int16) - again[149][:STRIP_Y, :MAP_PX]).mean() < 1.5
+    assert (d / "paths.png").stat().st_size > 0
+
+
+def test_recording_holds_what_replay_needs(recorded):
+    episodes = read_recording(recorded / "run.mcap")
+    assert len(episodes) == 2
+    for ep in episodes:
+        assert len(ep["steps"]) == 200 and ep["layout"]["obstacles"]
+        assert ep["meta"]["end_reason"] == "timeout"
+        assert ep["mover_routes"] and all(len(r) >= 2 for r in ep["mover_routes"])
+        assert any(st["movers"] for st in ep["steps"])
+
+
+def test_replay_refuses_what_is_no_recording(tmp_path, capsys):
+    with pytest.raises(BulletnavError, match="no such recording"):
+        read_recording(tmp_path / "missing.mcap")
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"\x89MCAP0\r\n" + b"\x00" * 64)
+    with pytest.raises(BulletnavError, match="junk.mcap"):
+        read_recording(junk)
+    assert main(["replay", str(junk), "--plot", str(tmp_path / "p.png")]) == 2
+    assert "junk.mcap" in capsys.readouterr().err
+    assert not (tmp_path / "p.png").exists()
