@@ -251,8 +251,6 @@ def write_map_png(bag_map: BagMap, out: str | Path, path: list[tuple[float, floa
                   goal: tuple[float, float] | None = None, title: str = "") -> None:
     """The map as a PNG (unknown grey, free white, occupied black), the lidar's trajectory and
     the planned path drawn over it; written beside ``out`` and renamed."""
-    import os
-
     import matplotlib
 
     matplotlib.use("Agg")
@@ -275,15 +273,13 @@ def write_map_png(bag_map: BagMap, out: str | Path, path: list[tuple[float, floa
     ax.set_ylabel("y (m)")
     ax.set_title(title or f"{bag_map.scans_used} scans, {m.resolution:g} m cells")
     ax.legend(loc="upper right", fontsize=8)
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp.png")
+    from bulletnav.viz.plots import save_figure_atomic
+
     try:
-        fig.savefig(tmp, dpi=100, bbox_inches="tight")
-        os.replace(tmp, out)
+        fig.tight_layout()
+        save_figure_atomic(fig, Path(out), dpi=100)
     finally:
         plt.close(fig)
-        tmp.unlink(missing_ok=True)
 
 
 __all__ = ["BagData", "BagMap", "Scan", "build_map", "plan_path", "pose_at", "read_bag", "write_map_png"]

@@ -249,8 +249,6 @@ def replay(path: str | Path, video: str | Path | None = None, plot: str | Path |
 
 def _plot(tracks: list[dict[str, Any]], out: str | Path) -> None:
     """Every episode's path over its map, one panel each, written beside ``out`` and renamed."""
-    import os
-
     import matplotlib
 
     matplotlib.use("Agg")
@@ -276,15 +274,13 @@ def _plot(tracks: list[dict[str, Any]], out: str | Path) -> None:
         ax.axis("off")
     for ax in list(axes.flat)[n:]:
         ax.axis("off")
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp.png")
+    from bulletnav.viz.plots import save_figure_atomic
+
     try:
-        fig.savefig(tmp, dpi=100, bbox_inches="tight")
-        os.replace(tmp, out)
+        fig.tight_layout()
+        save_figure_atomic(fig, Path(out), dpi=100)
     finally:
         plt.close(fig)
-        tmp.unlink(missing_ok=True)
 
 
 __all__ = ["ReplayScene", "read_recording", "replay"]
