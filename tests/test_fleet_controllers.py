@@ -433,7 +433,7 @@ def test_shields_see_a_turning_robot_as_the_circle_its_corners_sweep():
     both told to turn in place: either turn alone stays clear of the other robot at rest, the
     two together touch (checked without the shield). A shield that saw the other robot as its
     box at rest let both turn; it sees it as the circle its corners sweep (48 points on the
-    half-diagonal), and they never touch."""
+    half-diagonal and 3 cm), and they never touch."""
     assert _spin_side_by_side(shield=False, gap=0.30)[0] > 0  # the premise: unshielded, they touch
     collisions, interventions = _spin_side_by_side(shield=True, gap=0.30)
     assert collisions == 0 and interventions > 0

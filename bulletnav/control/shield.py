@@ -70,8 +70,13 @@ _DISC = np.stack([np.cos(np.arange(12) * math.pi / 6), np.sin(np.arange(12) * ma
 """A worker's footprint: 12 points on its circle (scaled by its radius)."""
 _RING = np.stack([np.cos(np.arange(48) * math.pi / 24), np.sin(np.arange(48) * math.pi / 24)], axis=1)
 """Another robot of a fleet (``kind == "robot"``): 48 points on the circle round its outline
-(scaled by its half-diagonal), so its turns in place, which the constant-velocity forecast does
-not see, sweep nothing outside it; 48 keep a corner from slipping more than 6 mm between two."""
+(scaled by its half-diagonal plus :data:`_RING_MARGIN`), so its turns in place, which the
+constant-velocity forecast does not see, sweep nothing outside it; 48 keep a corner from
+slipping more than 6 mm between two."""
+_RING_MARGIN = 0.03
+"""How far (m) the ring of another robot lies outside its corners: PyBullet reports a contact
+(and the fleet counts a collision) from about 2 cm apart, and two robots both stand still only
+as long as neither creeps."""
 _U = np.linspace(-1.0, 1.0, 5)
 _BOX = np.concatenate([np.stack([_U, np.ones(5)], 1), np.stack([_U, -np.ones(5)], 1),
                        np.stack([np.ones(3), _U[1:4]], 1), np.stack([-np.ones(3), _U[1:4]], 1)])
@@ -268,7 +273,7 @@ class Shield:
             if m.kind == "worker":
                 local = _DISC * lx
             elif m.kind == "robot":
-                local = _RING * math.hypot(lx, ly)
+                local = _RING * (math.hypot(lx, ly) + _RING_MARGIN)
             else:
                 local = _BOX * (lx, ly)
             cm, sm = math.cos(myaw), math.sin(myaw)
@@ -335,9 +340,9 @@ class Shield:
         # every sweep's first pose is where the robot stands: its gap is the clearance now
         clear = gaps.min(axis=1) >= gaps[0, 0] - _CREEP_SLACK
         robots = [m for m in movers if m.kind == "robot"] if movers else []
-        if robots:  # a robot's ring is no body: a robot already on it (gap 0) may not creep
+        if robots:  # a robot's ring is no body: a robot on it (gap 0) may not creep, nor creep nearer to it
             ring = self._pose_clearance(poses, self._mover_points(robots, times, pose))
-            clear &= ring.min(axis=1) > 0.0
+            clear &= (ring.min(axis=1) > 0.0) & (ring.min(axis=1) >= ring[0, 0] - _CREEP_SLACK)
         return clear
 
     def filter(self, v: float, w: float, v_now: float, ranges: np.ndarray, movers: list[Any] | None = None,
