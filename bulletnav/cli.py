@@ -88,6 +88,8 @@ def _file_type(suffixes: tuple[str, ...], what: str):
 VIDEO_FILE = _file_type((".mp4", ".gif"), "a video")
 PNG_FILE = _file_type((".png",), "a plot")
 MCAP_FILE = _file_type((".mcap",), "a ROS 2 recording")
+DATASET_HELP = ("also write the episodes (observations, actions, rewards, terminations, truncations, infos' scalars) "
+                "as the Minari dataset NAME ([namespace/]name-vN) under MINARI_DATASETS_PATH (docs/datasets.md)")
 RECORD_HELP = ("also write every episode as ROS 2 messages (scan, odom, imu, tf, cmd_vel, goal, plan, maps, movers) "
                "into PATH, an MCAP file (docs/ros.md)")
 
@@ -470,7 +472,11 @@ def _run_with_visuals(args, env, policy, line, title: str):
         visuals.on_episode(r)
         line(r)
 
-    recorder = None
+    recorder = dataset = None
+    if getattr(args, "dataset", None):
+        from bulletnav.datasets import DatasetRecorder
+
+        env = dataset = DatasetRecorder(env, args.dataset)
     if getattr(args, "record", None):
         from bulletnav.ros.record import McapRecorder
 
@@ -479,6 +485,8 @@ def _run_with_visuals(args, env, policy, line, title: str):
     try:
         results = run_episodes(env, policy, args.episodes, args.seed, on_episode=on_episode,
                                on_step=visuals.on_step, on_reset=on_reset)
+        if dataset is not None:
+            dataset.save(algorithm=title)
         ok = True
     finally:
         try:
@@ -489,6 +497,8 @@ def _run_with_visuals(args, env, policy, line, title: str):
             env.close()
     if recorder is not None:
         written = [*written, f"recording: {args.record} (ROS 2 MCAP, {recorder.episodes} episodes)"]
+    if dataset is not None:
+        written = [*written, f"dataset: {args.dataset} (Minari, {len(dataset.buffers)} episodes)"]
     return results, written, (sizes[0] if sizes else None)
 
 
@@ -1346,6 +1356,7 @@ def build_parser() -> argparse.ArgumentParser:
     nav.add_argument("--video", type=VIDEO_FILE, metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
     nav.add_argument("--plot", type=PNG_FILE, metavar="PNG", help="write all episodes' paths over their maps")
     nav.add_argument("--record", type=MCAP_FILE, metavar="PATH", help=RECORD_HELP)
+    nav.add_argument("--dataset", metavar="NAME", help=DATASET_HELP)
     _add_overwrite_arg(nav, "--video, --plot and --record files")
     nav.set_defaults(func=cmd_navigate)
 
@@ -1411,6 +1422,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--video", type=VIDEO_FILE, metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
     ev.add_argument("--plot", type=PNG_FILE, metavar="PNG", help="write all episodes' paths over their maps")
     ev.add_argument("--record", type=MCAP_FILE, metavar="PATH", help=RECORD_HELP)
+    ev.add_argument("--dataset", metavar="NAME", help=DATASET_HELP)
     _add_overwrite_arg(ev, "--video, --plot and --record files")
     ev.set_defaults(func=cmd_evaluate)
 
