@@ -585,6 +585,25 @@ def cmd_navigate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _train_bc(args: argparse.Namespace, out) -> int:
+    """``train --algo bc --dataset NAME``: behaviour cloning into PPO's network."""
+    from bulletnav.provenance import command_line
+    from bulletnav.rl.bc import BCConfig, train_bc
+
+    if args.algo != "bc" or not args.dataset:
+        raise BulletnavError("--dataset goes with --algo bc, and --algo bc needs --dataset NAME")
+    if args.resume or args.init_from or args.shield or args.hyperparams:
+        raise BulletnavError("--algo bc takes --dataset, --epochs, --seed and --out (not --resume, --init-from, --shield "
+                             "or --hyperparams)")
+    record = train_bc(BCConfig(dataset=args.dataset, out=out, epochs=args.epochs, seed=args.seed, command=command_line()))
+    final = record["final"]
+    val = f", validation NLL {final['val_nll']:.3f}, action MSE {final['val_action_mse']:.4f}" if "val_nll" in final else ""
+    print(f"behaviour-cloned {args.dataset} ({record['episodes']} episodes, {record['samples']} training pairs) for "
+          f"{record['epochs']} epochs in {record['wall_time_s']:.0f} s: train NLL {final['train_nll']:.3f}{val}")
+    print(f"model: {out / 'model.zip'} (PPO's network; evaluate it, or fine-tune with train --algo ppo --init-from)")
+    return 0
+
+
 def _rollout_note(args: argparse.Namespace) -> str | None:
     """The steps ``train`` will really take when ``--timesteps`` is not a whole number of rollouts.
 
@@ -634,6 +653,8 @@ def cmd_train(args: argparse.Namespace) -> int:
         names = ", ".join(sorted(p.name for p in out.iterdir())[:4])
         raise RunError(f"--out {out} already holds a run ({names}, ...): pass --resume to continue it, --overwrite to "
                        "train into it anyway (files of the same names are replaced), or choose another --out")
+    if args.algo == "bc" or args.dataset:
+        return _train_bc(args, out)
     note = _rollout_note(args)
     if note:
         print(f"bulletnav train: note: {note}", file=sys.stderr)
@@ -1361,7 +1382,10 @@ def build_parser() -> argparse.ArgumentParser:
     nav.set_defaults(func=cmd_navigate)
 
     tr = add("train", "train an SB3 agent (hyperparameters from rl/hyperparams/<algo>.yml)")
-    tr.add_argument("--algo", choices=["ppo", "sac", "td3", "a2c"], default="ppo", help="algorithm (default ppo)")
+    tr.add_argument("--algo", choices=["ppo", "sac", "td3", "a2c", "bc"], default="ppo",
+                    help="algorithm (default ppo); bc: behaviour cloning from --dataset into PPO's network")
+    tr.add_argument("--dataset", metavar="NAME", help="bc: the Minari dataset to clone (docs/datasets.md)")
+    tr.add_argument("--epochs", type=COUNT, default=20, help="bc: passes over the dataset (default 20)")
     tr.add_argument("--timesteps", type=NON_NEGATIVE, default=None,
                     help="total environment steps (default: the hyperparameter file's n_timesteps, else 500000)")
     tr.add_argument("--n-envs", type=COUNT, default=None, help="parallel envs (default: the hyperparameter file's, 4)")

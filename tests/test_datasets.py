@@ -79,3 +79,37 @@ def test_names_are_checked_before_running(store, capsys):
         env.close()
     assert main(["navigate", "--episodes", "1", "--dataset", "bulletnav/short-test-v0"]) == 2
     assert "already exists" in capsys.readouterr().err
+
+
+def test_behaviour_cloning_from_a_dataset(store, tmp_path, capsys):
+    """``train --algo bc``: PPO's network fitted to the expert's actions; the validation loss
+    falls, and the model is saved like every model (evaluate runs it)."""
+    assert main(["navigate", "--env", "bulletnav/WarehouseAisles-v0", "--planner", "astar", "--episodes", "3",
+                 "--seed", "7", "--json", "--dataset", "bulletnav/bc-test-v0"]) == 0
+    out = tmp_path / "bc"
+    assert main(["train", "--algo", "bc", "--dataset", "bulletnav/bc-test-v0", "--epochs", "4", "--out", str(out)]) == 0
+    assert "behaviour-cloned bulletnav/bc-test-v0" in capsys.readouterr().out
+    import json
+
+    history = json.loads((out / "history.json").read_text())
+    assert len(history) == 4 and history[-1]["val_nll"] < history[0]["val_nll"]
+    record = json.loads((out / "run.json").read_text())
+    assert record["algo"] == "bc" and record["episodes"] == 3 and record["validation_episodes"] == 1
+    from bulletnav.rl.io import load_model
+
+    model, meta, _ = load_model(out / "model.zip")
+    assert meta["trained_by"] == "bc" and meta["algo"] == "ppo" and "render_mode" not in meta["env_kwargs"]
+    # PPO's env for the id: its action scale ([-1, 1]) although the expert drove in physical units
+    assert meta["env_kwargs"]["normalize_actions"] is True
+    assert np.allclose(model.action_space.low, -1.0) and np.allclose(model.action_space.high, 1.0)
+    assert main(["evaluate", "--model", str(out / "model.zip"), "--env", "bulletnav/WarehouseAisles-v0",
+                 "--episodes", "1", "--json"]) == 0
+    # and PPO fine-tunes it
+    ppo = tmp_path / "ppo"
+    assert main(["train", "--algo", "ppo", "--env", "bulletnav/WarehouseAisles-v0", "--init-from", str(out / "model.zip"),
+                 "--timesteps", "512", "--n-envs", "1", "--eval-freq", "100000", "--eval-episodes", "1",
+                 "--out", str(ppo), "--no-progress"]) == 0
+    assert json.loads((ppo / "run.json").read_text())["init_from"] == str(out / "model.zip")
+    capsys.readouterr()
+    assert main(["train", "--algo", "bc", "--out", str(tmp_path / "x")]) == 2
+    assert "needs --dataset" in capsys.readouterr().err

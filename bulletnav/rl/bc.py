@@ -1,0 +1,168 @@
+"""Behaviour cloning from a Minari dataset: ``bulletnav train --algo bc --dataset NAME``.
+
+The network is the PPO policy of the dataset's env id (``rl/hyperparams/ppo.yml``'s entry: its
+policy class, feature extractor, architecture and ``log_std_init``) in the env PPO trains in
+(the entry's ``env_kwargs`` over the dataset's; the expert's actions are mapped linearly onto
+that env's action scale when only the scale differs, e.g. physical units onto ``[-1, 1]``),
+built by SB3's own constructor, and its actor is fitted by maximum likelihood: each minibatch of the dataset's
+(observation, action) pairs raises the log-probability the policy's Gaussian gives the expert's
+action (``policy.evaluate_actions``), the Adam optimizer, a held-out tenth of the episodes to
+watch. The result is saved as every model is (``model.zip`` plus the pickle-free
+``model.safetensors`` and sidecar, algorithm ``ppo``), so ``evaluate`` runs it and
+``train --algo ppo --init-from RUN/model.zip`` fine-tunes it with PPO. A short PyTorch loop,
+not a library: the imitation library pins other SB3 and Gymnasium versions.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bulletnav.errors import BulletnavError
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class BCConfig:
+    """One behaviour-cloning run."""
+
+    dataset: str
+    """Minari dataset id (local store: ``MINARI_DATASETS_PATH``)."""
+    out: Path
+    """Run directory (``model.zip`` and its safe files, ``run.json``, ``history.json``)."""
+    epochs: int = 20
+    """Passes over the training episodes."""
+    batch_size: int = 256
+    """(observation, action) pairs per gradient step."""
+    learning_rate: float = 3e-4
+    """Adam's step size."""
+    seed: int = 0
+    """Seeds the network's initialisation, the split and the minibatch order."""
+    validation: float = 0.1
+    """Share of the episodes held out to report the validation loss (at least one when there are two)."""
+    command: str = ""
+    """The command line, for the record."""
+
+
+def _load(dataset_id: str) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray]:
+    """The dataset, its observations and actions (one row per step: the observation the action
+    was taken in) and each row's episode index."""
+    import minari
+
+    try:
+        ds = minari.load_dataset(dataset_id)
+    except (FileNotFoundError, ValueError) as exc:
+        raise BulletnavError(f"--dataset {dataset_id}: no such local Minari dataset ({exc})") from exc
+    obs, acts, owner = [], [], []
+    for k, ep in enumerate(ds.iterate_episodes()):
+        o = np.asarray(ep.observations)
+        if not isinstance(ep.observations, np.ndarray) or o.ndim != 2:
+            raise BulletnavError(f"--dataset {dataset_id}: behaviour cloning needs flat vector observations")
+        obs.append(o[:-1])
+        acts.append(np.asarray(ep.actions))
+        owner.append(np.full(len(ep.actions), k))
+    if not obs:
+        raise BulletnavError(f"--dataset {dataset_id}: no episodes")
+    return ds, np.concatenate(obs).astype(np.float32), np.concatenate(acts).astype(np.float32), np.concatenate(owner)
+
+
+def train_bc(cfg: BCConfig) -> dict[str, Any]:
+    """Fit, save and return the run record (also ``out/run.json``)."""
+    import gymnasium as gym
+    import torch
+    from stable_baselines3 import PPO
+
+    import bulletnav  # noqa: F401  (registers the envs the dataset's spec names)
+    from bulletnav.provenance import git_commit, machine
+    from bulletnav.rl.hyperparams import load_hyperparams, model_kwargs, policy_class
+    from bulletnav.rl.io import atomic_save_model, atomic_write_json, sidecar_path
+    from bulletnav.rl.safe import save_safe
+
+    if cfg.epochs < 1 or cfg.batch_size < 1 or not cfg.learning_rate > 0 or not 0 <= cfg.validation < 1:
+        raise BulletnavError(f"behaviour cloning needs epochs >= 1, batch_size >= 1, learning_rate > 0 and "
+                             f"0 <= validation < 1; got {cfg}")
+    torch.set_num_threads(1)
+    torch.manual_seed(cfg.seed)
+    rng = np.random.default_rng(cfg.seed)
+    ds, obs, acts, owner = _load(cfg.dataset)
+    spec = ds.spec.env_spec
+    if spec is None:
+        raise BulletnavError(f"--dataset {cfg.dataset}: the dataset carries no env spec to build the policy for")
+    hp = load_hyperparams("ppo", env_id=spec.id)
+    # the network is PPO's for this env id, in the env PPO trains in (the hyperparameter file's
+    # env settings over the dataset's): a BC model then fine-tunes with train --init-from
+    env_kwargs = {k: v for k, v in {**dict(spec.kwargs), **hp.get("env_kwargs", {})}.items() if k != "render_mode"}
+    source = ds.action_space
+    env = gym.make(spec.id, **env_kwargs)
+    try:
+        target = env.action_space
+        if env.observation_space.shape != obs.shape[1:] or target.shape != acts.shape[1:]:
+            raise BulletnavError(f"--dataset {cfg.dataset}: observations {obs.shape[1:]} / actions {acts.shape[1:]} do not "
+                                 f"fit PPO's env for {spec.id} ({env.observation_space.shape} / {target.shape}); record the "
+                                 "dataset with the env settings of rl/hyperparams/ppo.yml")
+        model = PPO(policy_class(hp), env, seed=cfg.seed, device="cpu", verbose=0,
+                    **model_kwargs(hp, target.shape[0]))
+    finally:
+        env.close()
+    if not (np.array_equal(source.low, target.low) and np.array_equal(source.high, target.high)):
+        # the same commands in the other action scale (physical units <-> [-1, 1]), linearly
+        acts = (target.low + (acts - source.low) / (source.high - source.low) * (target.high - target.low)).astype(np.float32)
+    policy = model.policy
+    policy.set_training_mode(True)
+    optimizer = torch.optim.Adam(policy.parameters(), lr=cfg.learning_rate)
+    episodes = np.unique(owner)
+    n_held = int(round(cfg.validation * len(episodes)))
+    if cfg.validation > 0 and len(episodes) > 1:
+        n_held = max(n_held, 1)
+    held = rng.permutation(episodes)[:n_held]
+    val = np.isin(owner, held)
+    x_tr, a_tr = torch.as_tensor(obs[~val]), torch.as_tensor(acts[~val])
+    x_va, a_va = torch.as_tensor(obs[val]), torch.as_tensor(acts[val])
+    history = []
+    t0 = time.time()
+    for epoch in range(cfg.epochs):
+        order = torch.as_tensor(rng.permutation(len(x_tr)))
+        losses = []
+        for start in range(0, len(order), cfg.batch_size):
+            idx = order[start:start + cfg.batch_size]
+            _, log_prob, _ = policy.evaluate_actions(x_tr[idx], a_tr[idx])
+            loss = -log_prob.mean()
+            optimizer.zero_grad()
+            loss.backward()
+            optimizer.step()
+            losses.append(loss.item())
+        row = {"epoch": epoch + 1, "train_nll": float(np.mean(losses))}
+        if len(x_va):
+            with torch.no_grad():
+                _, log_prob, _ = policy.evaluate_actions(x_va, a_va)
+                mean = policy.get_distribution(x_va).distribution.mean
+            row.update(val_nll=float(-log_prob.mean()), val_action_mse=float(((mean - a_va) ** 2).mean()))
+        history.append(row)
+        log.info("bc epoch %d: %s", epoch + 1, row)
+    wall = time.time() - t0
+    policy.set_training_mode(False)
+    cfg.out.mkdir(parents=True, exist_ok=True)
+    final = cfg.out / "model.zip"
+    atomic_save_model(model, final)
+    meta = {"algo": "ppo", "trained_by": "bc", "env_id": spec.id, "env_kwargs": env_kwargs, "shield": False,
+            "seed": cfg.seed, "timesteps": 0, "dataset": cfg.dataset, "git_commit": git_commit(), "command": cfg.command}
+    atomic_write_json(sidecar_path(final), save_safe(model, final, None, meta))
+    record = {"command": cfg.command, "algo": "bc", "dataset": cfg.dataset, "env_id": spec.id,
+              "env_kwargs": env_kwargs, "episodes": int(len(episodes)), "validation_episodes": int(len(held)),
+              "samples": int(len(x_tr)), "epochs": cfg.epochs, "batch_size": cfg.batch_size,
+              "learning_rate": cfg.learning_rate, "seed": cfg.seed, "wall_time_s": round(wall, 1),
+              "final": history[-1], "git_commit": git_commit(), "machine": machine(),
+              "network": {"policy": str(hp.get("policy", "MlpPolicy")), "policy_kwargs": str(hp.get("policy_kwargs", {}))}}
+    atomic_write_json(cfg.out / "history.json", history)
+    atomic_write_json(cfg.out / "run.json", json.loads(json.dumps(record, default=str)))
+    return record
+
+
+__all__ = ["BCConfig", "train_bc"]
