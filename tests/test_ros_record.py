@@ -192,3 +192,42 @@ def test_cli_navigate_records(tmp_path, capsys):
     capsys.readouterr()
     assert main(["navigate", "--episodes", "1", "--record", str(out)]) == 2
     assert "already exists" in capsys.readouterr().err
+
+
+def test_camera_topics(tmp_path, recording):
+    """With the camera in the observation every step carries a JPEG image and a 32FC1 depth
+    image equal to the camera's; without it, none unless ``camera_hz`` asks (then at that rate)."""
+    import io
+
+    from PIL import Image
+
+    assert "/camera/depth" not in recording["messages"]  # the fixture's camera is not in its observation
+    env = gym.make("bulletnav/WarehouseAisles-v0", camera_obs=True, max_episode_steps=8)
+    rec = McapRecorder(env, tmp_path / "cam.mcap")
+    rec.reset(seed=0)
+    depths, rgbs = [], []
+    for _ in range(8):
+        rec.step(env.action_space.sample())
+        image = env.unwrapped.scene.sensors.camera.read()
+        depths.append(np.asarray(image.depth, dtype=np.float32).copy())
+        rgbs.append(np.asarray(image.rgb).copy())
+    rec.close()
+    msgs = read_ros2_messages(str(tmp_path / "cam.mcap"), topics=["/camera/image/compressed", "/camera/depth"])
+    depth = [m.ros_msg for m in msgs if m.channel.topic == "/camera/depth"]
+    jpeg = [m.ros_msg for m in msgs if m.channel.topic == "/camera/image/compressed"]
+    assert len(depth) == len(jpeg) == 8
+    for msg, expected in zip(depth, depths):
+        assert msg.encoding == "32FC1" and msg.step == msg.width * 4
+        np.testing.assert_array_equal(np.frombuffer(bytes(msg.data), dtype="<f4").reshape(msg.height, msg.width), expected)
+    decoded = np.asarray(Image.open(io.BytesIO(bytes(jpeg[-1].data))).convert("RGB"), dtype=np.int16)
+    assert jpeg[-1].format == "jpeg" and decoded.shape == rgbs[-1].shape
+    assert np.abs(decoded - rgbs[-1]).mean() < 6.0  # JPEG at quality 90
+    env = gym.make("bulletnav/WarehouseAisles-v0", max_episode_steps=48)  # 2 s
+    rec = McapRecorder(env, tmp_path / "rate.mcap", camera_hz=4.0)
+    rec.reset(seed=0)
+    for _ in range(48):
+        rec.step(env.action_space.sample())
+    rec.close()
+    assert rec.counts["/camera/depth"] == 8  # 4 per simulated second
+    with pytest.raises(BulletnavError, match="camera_hz"):
+        McapRecorder(env, tmp_path / "bad.mcap", camera_hz=0)

@@ -28,6 +28,10 @@ the robot, ``laser`` and ``camera_link`` its sensors):
 - ``/movers`` (``visualization_msgs/msg/MarkerArray``): forklifts (cubes) and workers
   (cylinders), every step in dynamic worlds.
 - ``/reward`` (``std_msgs/msg/Float64``): the step's reward, every step.
+- ``/camera/image/compressed`` (``sensor_msgs/msg/CompressedImage``, JPEG) and ``/camera/depth``
+  (``sensor_msgs/msg/Image``, ``32FC1`` metres), in ``camera_link``: every step when the camera
+  is in the observation (``camera_obs=True``: the env renders it anyway), else at ``camera_hz``
+  when one is given (rendering costs about 10 ms a frame), else never.
 
 Each episode also carries an attachment ``episode-<k>.json`` (``application/json``): the
 warehouse layout (``layout_to_dict``: floor, obstacles with their categories), the start pose,
@@ -72,6 +76,8 @@ TOPIC_TYPES = {
     "/map_truth": "nav_msgs/msg/OccupancyGrid",
     "/movers": "visualization_msgs/msg/MarkerArray",
     "/reward": "std_msgs/msg/Float64",
+    "/camera/image/compressed": "sensor_msgs/msg/CompressedImage",
+    "/camera/depth": "sensor_msgs/msg/Image",
 }
 """Every topic the recorder may write and its message type."""
 
@@ -132,13 +138,16 @@ class McapRecorder(gym.Wrapper):
         map_period_s: seconds of simulated time between two ``/map`` messages.
         gap_s: seconds of the time line between one episode's end and the next one's start.
         overwrite: replace an existing ``path`` (else refused).
+        camera_hz: record camera images at this rate (per simulated second) when the camera is
+            not in the observation; None: only when it is.
 
     Raises:
         BulletnavError: ``path`` exists and ``overwrite`` is off, or does not end in ``.mcap``.
     """
 
     def __init__(self, env: gym.Env, path: str | Path, plan: Callable[[], Any] | None = None,
-                 map_period_s: float = 1.0, gap_s: float = 1.0, overwrite: bool = False) -> None:
+                 map_period_s: float = 1.0, gap_s: float = 1.0, overwrite: bool = False,
+                 camera_hz: float | None = None) -> None:
         super().__init__(env)
         from mcap_ros2.writer import Writer
 
@@ -148,6 +157,9 @@ class McapRecorder(gym.Wrapper):
         if self.path.exists() and not overwrite:
             raise BulletnavError(f"--record {self.path}: the file already exists; pass --overwrite to replace it")
         self.plan = plan
+        if camera_hz is not None and not camera_hz > 0:
+            raise BulletnavError(f"camera_hz must be > 0 (images per simulated second), got {camera_hz!r}")
+        self.camera_hz = camera_hz
         self.map_period_s = float(map_period_s)
         self.gap_s = float(gap_s)
         self._tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
@@ -185,6 +197,7 @@ class McapRecorder(gym.Wrapper):
         self._goal: tuple[float, float] | None = None
         self._plan_sent: Any = None
         self._map_due = 0.0
+        self._camera_due = 0.0
         geometry = scene.geometry
         self._lidar = scene.sensors.lidar
         sx, sy = scene.layout.size  # the floor is centred on the origin
@@ -299,6 +312,7 @@ class McapRecorder(gym.Wrapper):
             state = self._mapper.state()
             cells = np.where(state < 0, -1, np.where(state > 0, 100, 0))
             self._write("/map", occupancy_message(ns, "map", cells, MAP_RESOLUTION, self._bounds[:2]), ns)
+        self._record_camera(scene, t, ns, now_s)
         if scene.dynamic:
             markers = [{"header": {"stamp": t, "frame_id": "map"}, "ns": "movers", "id": 0, "type": 0, "action": 3,
                         "pose": _pose(0.0, 0.0, 0.0), "scale": {"x": 0.0, "y": 0.0, "z": 0.0},
@@ -315,6 +329,29 @@ class McapRecorder(gym.Wrapper):
                                           else {"r": 1.0, "g": 0.6, "b": 0.0, "a": 0.9}),
                                 "text": m.kind})
             self._write("/movers", {"markers": markers}, ns)
+
+    def _record_camera(self, scene: Any, t: dict[str, int], ns: int, now_s: float) -> None:
+        camera = scene.sensors.camera
+        if camera is None:
+            return
+        in_obs = bool(getattr(self.env.unwrapped, "config", None) and self.env.unwrapped.config.camera_obs)
+        if not in_obs:
+            if self.camera_hz is None or now_s + 1e-9 < self._camera_due:
+                return
+            self._camera_due = now_s + 1.0 / self.camera_hz
+        import io
+
+        from PIL import Image
+
+        image = camera.read()
+        buf = io.BytesIO()
+        Image.fromarray(np.asarray(image.rgb, dtype=np.uint8)).save(buf, format="JPEG", quality=90)
+        header = {"stamp": t, "frame_id": "camera_link"}
+        self._write("/camera/image/compressed", {"header": header, "format": "jpeg", "data": buf.getvalue()}, ns)
+        depth = np.ascontiguousarray(image.depth, dtype="<f4")
+        h, w = depth.shape
+        self._write("/camera/depth", {"header": header, "height": h, "width": w, "encoding": "32FC1", "is_bigendian": 0,
+                                      "step": w * 4, "data": depth.tobytes()}, ns)
 
     def _publish_goal(self, scene: Any, ns: int) -> None:
         goal = scene.goal
