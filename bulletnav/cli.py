@@ -1111,7 +1111,7 @@ def cmd_fleet(args: argparse.Namespace) -> int:
         raise ConfigError("--frame-at is the time of the --frame PNG: pass --frame too")
     if args.frame_at is not None and args.frame_at > args.duration:
         raise ConfigError(f"--frame-at {args.frame_at:g} s is after the episode's end (--duration {args.duration:g} s)")
-    _refuse_existing_files(args, "video", "plot", "frame")
+    _refuse_existing_files(args, "video", "plot", "frame", "record")
     model = args.model or DEFAULT_MODEL
     env_kwargs = dict(model_env_kwargs(model)) if args.controller == "policy" else {}
     env_kwargs.update(_fleet_world_kwargs(args, args.env_id))
@@ -1122,15 +1122,28 @@ def cmd_fleet(args: argparse.Namespace) -> int:
 
         visuals = FleetVisuals(video=args.video, frame=args.frame, frame_at_s=args.frame_at, plot=args.plot, episode=0,
                                title=f"{args.controller}{' + shield' if args.shield else ''}, seed {args.seed}")
+    recorder = None
+    if args.record:
+        from bulletnav.ros.fleet_record import FleetMcapRecorder
+
+        recorder = FleetMcapRecorder(args.record, overwrite=True)
+    hooks = [h for h in (visuals, recorder) if h is not None]
+
+    def on_step(env, infos) -> None:
+        for hook in hooks:
+            hook(env, infos)
+
     ok = False
     try:
         result = run_fleet_episodes(
             env_kwargs, lambda env: make_controller(args.controller, env, shield=args.shield,
                                                     model=model if args.controller == "policy" else None),
-            episodes=args.episodes, seed=args.seed, on_step=visuals)
+            episodes=args.episodes, seed=args.seed, on_step=on_step if hooks else None)
         ok = True
     finally:
         written = visuals.close(ok) if visuals is not None else []
+        if recorder is not None:
+            written = [*written, *recorder.close(ok)]
     s = result["summary"]
     keys = ("throughput_per_hour", "throughput_per_robot_per_hour", "errands", "legs", "collisions_robot_robot",
             "collisions_static", "collisions_mover", "collisions_person", "deadlocks", "min_separation_m",
@@ -1537,6 +1550,9 @@ def build_parser() -> argparse.ArgumentParser:
     fl.add_argument("--dynamic", action="store_true", help="add forklifts, walking workers and pallet events")
     _add_fleet_world_args(fl, "the fleet's aisle warehouse, WarehouseAisles-v0's settings")
     fl.add_argument("--json", action="store_true", help="print one JSON object (summary keys plus per-episode rows)")
+    fl.add_argument("--record", type=MCAP_FILE, metavar="PATH",
+                    help="also write the episodes as ROS 2 messages, one namespace per robot (/robot_<i>/scan, ...), "
+                         "into PATH, an MCAP file (docs/ros.md)")
     fl.add_argument("--video", type=VIDEO_FILE, metavar="PATH",
                     help="top-down video of the first episode (episode 0), every robot in its colour with its errand "
                          "(.mp4, or .gif held in memory until written: short runs only; one frame per control step)")
@@ -1545,7 +1561,7 @@ def build_parser() -> argparse.ArgumentParser:
     fl.add_argument("--frame", type=PNG_FILE, metavar="PNG", help="one video frame of the first episode (episode 0) as a PNG")
     fl.add_argument("--frame-at", type=_non_negative_seconds, default=None, metavar="S",
                     help="simulated seconds into the episode of the --frame (default: half the --duration)")
-    _add_overwrite_arg(fl, "--video, --plot and --frame files")
+    _add_overwrite_arg(fl, "--video, --plot, --frame and --record files")
     fl.set_defaults(func=cmd_fleet)
 
     ft = add("fleet-train", "fine-tune a single-robot model in the fleet: parameter-shared PPO, every robot one slot")

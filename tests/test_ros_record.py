@@ -231,3 +231,54 @@ def test_camera_topics(tmp_path, recording):
     assert rec.counts["/camera/depth"] == 8  # 4 per simulated second
     with pytest.raises(BulletnavError, match="camera_hz"):
         McapRecorder(env, tmp_path / "bad.mcap", camera_hz=0)
+
+
+def test_fleet_recording_one_namespace_per_robot(tmp_path, capsys):
+    """``bulletnav fleet --record``: every robot's scan, odometry, IMU and goal under
+    ``/robot_<i>/``, its frames prefixed, one TF tree: ``map -> robot_<i>/odom ->
+    robot_<i>/base_link`` composes to that robot's true pose (checked through a hook that reads
+    the poses in the same steps)."""
+    from bulletnav.fleet.controllers import make_controller
+    from bulletnav.fleet.metrics import run_fleet_episodes
+    from bulletnav.fleet.view import FleetView
+    from bulletnav.ros.fleet_record import FleetMcapRecorder
+
+    path = tmp_path / "fleet.mcap"
+    rec = FleetMcapRecorder(path)
+    poses: list[list[tuple]] = []
+
+    def hook(env, infos):
+        rec(env, infos)
+        view = FleetView(env)
+        poses.append([tuple(view.pose(i)) for i in range(view.num_robots)])
+
+    run_fleet_episodes({"num_robots": 2, "duration_s": 2.0, "dynamic": True},
+                       lambda env: make_controller("independent", env), 1, seed=3, on_step=hook)
+    assert rec.close(True)
+    msgs = defaultdict(list)
+    for m in read_ros2_messages(str(path)):
+        msgs[m.channel.topic].append(m)
+    steps = len(poses) - 1  # the reset's call writes no step
+    assert steps == 48
+    for i in range(2):
+        for topic, kind in (("scan", "sensor_msgs/msg/LaserScan"), ("odom", "nav_msgs/msg/Odometry"),
+                            ("imu", "sensor_msgs/msg/Imu")):
+            items = msgs[f"/robot_{i}/{topic}"]
+            assert len(items) == steps and {m.schema.name for m in items} == {kind}
+        assert msgs[f"/robot_{i}/scan"][0].ros_msg.header.frame_id == f"robot_{i}/laser"
+        assert len(msgs[f"/robot_{i}/goal_pose"]) >= 1
+    assert len(msgs["/tf"]) == 2 * steps and len(msgs["/clock"]) == steps and len(msgs["/movers"]) == steps
+    static = {t.child_frame_id: t.header.frame_id for t in msgs["/tf_static"][0].ros_msg.transforms}
+    assert static["robot_1/laser"] == "robot_1/base_link"
+    for k, m in enumerate(msgs["/tf"]):
+        tf = {(t.header.frame_id, t.child_frame_id): t.transform for t in m.ros_msg.transforms}
+        (odom,) = [c for (p, c) in tf if p == "map"]
+        i = int(odom.split("/")[0].split("_")[1])
+        a, b = tf[("map", odom)], tf[(odom, f"robot_{i}/base_link")]
+        x, y, yaw = compose((a.translation.x, a.translation.y, _yaw(a.rotation)),
+                            (b.translation.x, b.translation.y, _yaw(b.rotation)))
+        truth = poses[1 + k // 2][i]
+        assert (x, y) == pytest.approx(truth[:2], abs=1e-6)
+    with open(path, "rb") as f:
+        meta = [r.metadata for r in make_reader(f).iter_metadata() if r.name == "episode"]
+    assert len(meta) == 1 and meta[0]["robots"] == "2"

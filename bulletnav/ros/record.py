@@ -127,6 +127,142 @@ def occupancy_message(ns: int, frame: str, cells: np.ndarray, resolution: float,
             "data": np.ascontiguousarray(cells.T, dtype=np.int8).reshape(-1).tolist()}
 
 
+def robot_messages(write: Callable[[str, dict[str, Any], int], None], robot: Any, ns: int, dt: float,
+                   prefix: str = "") -> tuple[tuple[float, float, float], np.ndarray, np.ndarray]:
+    """Write one robot's ``/tf`` (``map -> odom -> base_link``), ``/scan``, ``/odom`` and ``/imu`` for
+    the step at ``ns`` (topics and frames under ``prefix``, e.g. ``robot_2``, but ``/tf`` is the one
+    global topic, as RViz and Foxglove read it); returns its true pose, ray angles and ranges.
+    ``robot``: a scene view (``pose``, ``sensors``)."""
+    t = stamp(ns)
+    top = f"/{prefix}" if prefix else ""
+    odom_f, base_f, laser_f = (f"{prefix}/{f}" if prefix else f for f in ("odom", "base_link", "laser"))
+    truth = tuple(float(v) for v in robot.pose)
+    sensors = robot.sensors
+    odo = [float(v) for v in sensors.odometry.read()]
+    est = (odo[0], odo[1], odo[2])
+    drift = compose(truth, inverse(est))  # map -> odom
+    write("/tf", {"transforms": [_transform(ns, "map", odom_f, *drift), _transform(ns, odom_f, base_f, *est)]}, ns)
+    lidar = sensors.lidar
+    cfg = lidar.config
+    ranges = np.asarray(lidar.read(), dtype=np.float32)
+    angles = lidar.angles
+    increment = float(angles[1] - angles[0]) if len(angles) > 1 else 0.0
+    write(f"{top}/scan", {"header": {"stamp": t, "frame_id": laser_f}, "angle_min": float(angles[0]),
+                          "angle_max": float(angles[-1]), "angle_increment": increment, "time_increment": 0.0,
+                          "scan_time": dt, "range_min": float(cfg.min_range), "range_max": float(cfg.max_range),
+                          "ranges": ranges.tolist(), "intensities": []}, ns)
+    zeros36 = [0.0] * 36
+    write(f"{top}/odom", {"header": {"stamp": t, "frame_id": odom_f}, "child_frame_id": base_f,
+                          "pose": {"pose": _pose(*est), "covariance": zeros36},
+                          "twist": {"twist": {"linear": {"x": odo[3], "y": 0.0, "z": 0.0},
+                                              "angular": {"x": 0.0, "y": 0.0, "z": odo[4]}},
+                                    "covariance": zeros36}}, ns)
+    imu = [float(v) for v in sensors.imu.read()] if sensors.imu is not None else [0.0] * 6
+    write(f"{top}/imu", {"header": {"stamp": t, "frame_id": base_f},
+                         "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
+                         "orientation_covariance": [-1.0] + [0.0] * 8,
+                         "angular_velocity": {"x": imu[3], "y": imu[4], "z": imu[5]},
+                         "angular_velocity_covariance": [0.0] * 9,
+                         "linear_acceleration": {"x": imu[0], "y": imu[1], "z": imu[2]},
+                         "linear_acceleration_covariance": [0.0] * 9}, ns)
+    return truth, angles, ranges
+
+
+def goal_message(ns: int, goal: tuple[float, float]) -> dict[str, Any]:
+    """A ``geometry_msgs/msg/PoseStamped`` of the goal point in ``map``."""
+    return {"header": {"stamp": stamp(ns), "frame_id": "map"}, "pose": _pose(float(goal[0]), float(goal[1]), 0.0)}
+
+
+def static_mounts(ns: int, geometry: Any, prefix: str = "") -> list[dict[str, Any]]:
+    """``base_link -> laser`` and ``base_link -> camera_link`` of a robot (frames under ``prefix``)."""
+    base, laser, cam = (f"{prefix}/{f}" if prefix else f for f in ("base_link", "laser", "camera_link"))
+    lx, ly, lz = geometry.lidar_mount
+    mounts = [_transform(ns, base, laser, lx, ly, 0.0, lz)]
+    if geometry.camera_mount is not None:
+        cx, cy, cz = geometry.camera_mount
+        mounts.append(_transform(ns, base, cam, cx, cy, 0.0, cz))
+    return mounts
+
+
+def movers_message(t: dict[str, int], movers: Any) -> dict[str, Any]:
+    """A ``MarkerArray``: a ``DELETEALL``, then each mover (forklift: cube, worker: cylinder)."""
+    markers = [{"header": {"stamp": t, "frame_id": "map"}, "ns": "movers", "id": 0, "type": 0, "action": 3,
+                "pose": _pose(0.0, 0.0, 0.0), "scale": {"x": 0.0, "y": 0.0, "z": 0.0},
+                "color": {"r": 0.0, "g": 0.0, "b": 0.0, "a": 0.0}, "lifetime": stamp(0),
+                "frame_locked": False, "points": [], "colors": [], "text": "", "mesh_resource": "",
+                "mesh_use_embedded_materials": False}]
+    for k, m in enumerate(movers, 1):
+        sx, sy, sz = (float(v) for v in m.size)
+        worker = m.kind == "worker"
+        markers.append({**markers[0], "ns": m.kind, "id": k, "type": 3 if worker else 1, "action": 0,
+                        "pose": _pose(float(m.pose[0]), float(m.pose[1]), float(m.pose[2]), sz / 2),
+                        "scale": {"x": sx, "y": sy, "z": sz},
+                        "color": ({"r": 0.2, "g": 0.5, "b": 1.0, "a": 0.9} if worker
+                                  else {"r": 1.0, "g": 0.6, "b": 0.0, "a": 0.9}),
+                        "text": m.kind})
+    return {"markers": markers}
+
+
+def topic_type(topic: str) -> str:
+    """The message type of ``topic``: :data:`TOPIC_TYPES`'s, a robot's namespaced topic
+    (``/robot_2/scan``) that of its last part (``/scan``)."""
+    if topic in TOPIC_TYPES:
+        return TOPIC_TYPES[topic]
+    for name, kind in sorted(TOPIC_TYPES.items(), key=lambda kv: -len(kv[0])):
+        if topic.endswith(name):
+            return kind
+    raise KeyError(f"no message type for topic {topic!r}")
+
+
+class McapFile:
+    """An MCAP file of ROS 2 messages written beside ``path`` and renamed by :meth:`close`
+    (:meth:`abort` removes it): schemas registered once per type, channels once per topic,
+    ``counts`` per topic.
+
+    Raises:
+        BulletnavError: ``path`` exists and ``overwrite`` is off, or does not end in ``.mcap``.
+    """
+
+    def __init__(self, path: str | Path, overwrite: bool = False) -> None:
+        from mcap_ros2.writer import Writer
+
+        self.path = Path(path)
+        if self.path.suffix != ".mcap":
+            raise BulletnavError(f"--record {self.path}: a recording is an .mcap file")
+        if self.path.exists() and not overwrite:
+            raise BulletnavError(f"--record {self.path}: the file already exists; pass --overwrite to replace it")
+        self._tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._file = open(self._tmp, "wb")  # noqa: SIM115  (closed in close/abort)
+        self.writer = Writer(self._file)
+        self._schemas: dict[str, Any] = {}
+        self.counts: dict[str, int] = {}
+        """Messages written per topic."""
+        self.closed = False
+
+    def write(self, topic: str, message: dict[str, Any], ns: int) -> None:
+        kind = topic_type(topic)
+        schema = self._schemas.get(kind)
+        if schema is None:
+            schema = self._schemas[kind] = self.writer.register_msgdef(kind, msgdef(kind))
+        seq = self.counts.get(topic, 0)
+        self.writer.write_message(topic, schema, message, log_time=ns, publish_time=ns, sequence=seq)
+        self.counts[topic] = seq + 1
+
+    def close(self) -> None:
+        if not self.closed:
+            self.closed = True
+            self.writer.finish()
+            self._file.close()
+            os.replace(self._tmp, self.path)
+
+    def abort(self) -> None:
+        if not self.closed:
+            self.closed = True
+            self._file.close()
+            self._tmp.unlink(missing_ok=True)
+
+
 class McapRecorder(gym.Wrapper):
     """Record every episode of ``env`` into ``path`` (see the module docstring).
 
@@ -149,37 +285,22 @@ class McapRecorder(gym.Wrapper):
                  map_period_s: float = 1.0, gap_s: float = 1.0, overwrite: bool = False,
                  camera_hz: float | None = None) -> None:
         super().__init__(env)
-        from mcap_ros2.writer import Writer
-
         self.path = Path(path)
-        if self.path.suffix != ".mcap":
-            raise BulletnavError(f"--record {self.path}: a recording is an .mcap file")
-        if self.path.exists() and not overwrite:
-            raise BulletnavError(f"--record {self.path}: the file already exists; pass --overwrite to replace it")
         self.plan = plan
         if camera_hz is not None and not camera_hz > 0:
             raise BulletnavError(f"camera_hz must be > 0 (images per simulated second), got {camera_hz!r}")
         self.camera_hz = camera_hz
         self.map_period_s = float(map_period_s)
         self.gap_s = float(gap_s)
-        self._tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = open(self._tmp, "wb")  # noqa: SIM115  (closed in close/abort)
-        self._writer = Writer(self._file)
-        self._schemas = {t: self._writer.register_msgdef(k, msgdef(k)) for t, k in TOPIC_TYPES.items()}
+        self._out = McapFile(self.path, overwrite)
+        self._writer = self._out.writer
+        self.counts = self._out.counts
+        """Messages written per topic."""
+        self._write = self._out.write
         self._next_start_ns = 0
         self._episode: dict[str, Any] | None = None
         self.episodes = 0
         """Episodes recorded so far."""
-        self.counts: dict[str, int] = {}
-        """Messages written per topic."""
-        self._closed = False
-
-    # ------------------------------------------------------------------ writing
-    def _write(self, topic: str, message: dict[str, Any], ns: int) -> None:
-        seq = self.counts.get(topic, 0)
-        self._writer.write_message(topic, self._schemas[topic], message, log_time=ns, publish_time=ns, sequence=seq)
-        self.counts[topic] = seq + 1
 
     def _now_ns(self) -> int:
         ep = self._episode
@@ -198,19 +319,13 @@ class McapRecorder(gym.Wrapper):
         self._plan_sent: Any = None
         self._map_due = 0.0
         self._camera_due = 0.0
-        geometry = scene.geometry
         self._lidar = scene.sensors.lidar
         sx, sy = scene.layout.size  # the floor is centred on the origin
         self._bounds = (-sx / 2, -sy / 2, sx / 2, sy / 2)
         from bulletnav.planning.mapping import LidarMapper
 
         self._mapper = LidarMapper(self._bounds, MAP_RESOLUTION)
-        lx, ly, lz = geometry.lidar_mount
-        mounts = [_transform(start_ns, "base_link", "laser", lx, ly, 0.0, lz)]
-        if geometry.camera_mount is not None:
-            cx, cy, cz = geometry.camera_mount
-            mounts.append(_transform(start_ns, "base_link", "camera_link", cx, cy, 0.0, cz))
-        self._write("/tf_static", {"transforms": mounts}, start_ns)
+        self._write("/tf_static", {"transforms": static_mounts(start_ns, scene.geometry)}, start_ns)
         truth = scene.occupancy(MAP_RESOLUTION)
         corner = (truth.origin[0] - MAP_RESOLUTION / 2, truth.origin[1] - MAP_RESOLUTION / 2)
         self._write("/map_truth", occupancy_message(start_ns, "map", np.where(truth.occupied, 100, 0), MAP_RESOLUTION,
@@ -265,35 +380,8 @@ class McapRecorder(gym.Wrapper):
     def _record_step(self, scene: Any, action: Any, info: dict[str, Any], ns: int) -> None:
         t = stamp(ns)
         self._write("/clock", {"clock": t}, ns)
-        truth = tuple(float(v) for v in scene.pose)
-        sensors = scene.sensors
-        odo = [float(v) for v in sensors.odometry.read()]
-        est = (odo[0], odo[1], odo[2])
-        drift = compose(truth, inverse(est))  # map -> odom
-        self._write("/tf", {"transforms": [_transform(ns, "map", "odom", *drift),
-                                           _transform(ns, "odom", "base_link", *est)]}, ns)
-        lidar, cfg = self._lidar, self._lidar.config
-        ranges = np.asarray(lidar.read(), dtype=np.float32)
-        angles = lidar.angles
-        increment = float(angles[1] - angles[0]) if len(angles) > 1 else 0.0
-        self._write("/scan", {"header": {"stamp": t, "frame_id": "laser"}, "angle_min": float(angles[0]),
-                              "angle_max": float(angles[-1]), "angle_increment": increment, "time_increment": 0.0,
-                              "scan_time": self._dt, "range_min": float(cfg.min_range), "range_max": float(cfg.max_range),
-                              "ranges": ranges.tolist(), "intensities": []}, ns)
-        zeros36 = [0.0] * 36
-        self._write("/odom", {"header": {"stamp": t, "frame_id": "odom"}, "child_frame_id": "base_link",
-                              "pose": {"pose": _pose(*est), "covariance": zeros36},
-                              "twist": {"twist": {"linear": {"x": odo[3], "y": 0.0, "z": 0.0},
-                                                  "angular": {"x": 0.0, "y": 0.0, "z": odo[4]}},
-                                        "covariance": zeros36}}, ns)
-        imu = [float(v) for v in sensors.imu.read()] if sensors.imu is not None else [0.0] * 6
-        self._write("/imu", {"header": {"stamp": t, "frame_id": "base_link"},
-                             "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
-                             "orientation_covariance": [-1.0] + [0.0] * 8,
-                             "angular_velocity": {"x": imu[3], "y": imu[4], "z": imu[5]},
-                             "angular_velocity_covariance": [0.0] * 9,
-                             "linear_acceleration": {"x": imu[0], "y": imu[1], "z": imu[2]},
-                             "linear_acceleration_covariance": [0.0] * 9}, ns)
+        truth, angles, ranges = robot_messages(self._write, scene, ns, self._dt)
+        cfg = self._lidar.config
         v, w = self._command(scene, action, info)
         self._write("/cmd_vel", {"linear": {"x": v, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": w}}, ns)
         self._publish_goal(scene, ns)
@@ -314,21 +402,7 @@ class McapRecorder(gym.Wrapper):
             self._write("/map", occupancy_message(ns, "map", cells, MAP_RESOLUTION, self._bounds[:2]), ns)
         self._record_camera(scene, t, ns, now_s)
         if scene.dynamic:
-            markers = [{"header": {"stamp": t, "frame_id": "map"}, "ns": "movers", "id": 0, "type": 0, "action": 3,
-                        "pose": _pose(0.0, 0.0, 0.0), "scale": {"x": 0.0, "y": 0.0, "z": 0.0},
-                        "color": {"r": 0.0, "g": 0.0, "b": 0.0, "a": 0.0}, "lifetime": stamp(0),
-                        "frame_locked": False, "points": [], "colors": [], "text": "", "mesh_resource": "",
-                        "mesh_use_embedded_materials": False}]
-            for k, m in enumerate(scene.movers, 1):
-                sx, sy, sz = (float(s) for s in m.size)
-                worker = m.kind == "worker"
-                markers.append({**markers[0], "ns": m.kind, "id": k, "type": 3 if worker else 1, "action": 0,
-                                "pose": _pose(float(m.pose[0]), float(m.pose[1]), float(m.pose[2]), sz / 2),
-                                "scale": {"x": sx, "y": sy, "z": sz},
-                                "color": ({"r": 0.2, "g": 0.5, "b": 1.0, "a": 0.9} if worker
-                                          else {"r": 1.0, "g": 0.6, "b": 0.0, "a": 0.9}),
-                                "text": m.kind})
-            self._write("/movers", {"markers": markers}, ns)
+            self._write("/movers", movers_message(t, scene.movers), ns)
 
     def _record_camera(self, scene: Any, t: dict[str, int], ns: int, now_s: float) -> None:
         camera = scene.sensors.camera
@@ -360,7 +434,7 @@ class McapRecorder(gym.Wrapper):
         goal = (float(goal[0]), float(goal[1]))
         if goal != self._goal:
             self._goal = goal
-            self._write("/goal_pose", {"header": {"stamp": stamp(ns), "frame_id": "map"}, "pose": _pose(*goal, 0.0)}, ns)
+            self._write("/goal_pose", goal_message(ns, goal), ns)
 
     def _end_episode(self, info: dict[str, Any] | None, truncated: bool = False) -> None:
         ep = self._episode
@@ -381,22 +455,17 @@ class McapRecorder(gym.Wrapper):
     # ------------------------------------------------------------------ files
     def close(self) -> None:
         """Finish the file and move it to ``path`` (an episode still open is ended first)."""
-        if not self._closed:
-            self._closed = True
+        if not self._out.closed:
             self._end_episode(None)
-            self._writer.finish()
-            self._file.close()
-            os.replace(self._tmp, self.path)
+            self._out.close()
             log.info("recorded %d episode(s) into %s", self.episodes, self.path)
         super().close()
 
     def abort(self) -> None:
         """Drop the recording: nothing is left at ``path`` or beside it."""
-        if not self._closed:
-            self._closed = True
-            self._file.close()
-            self._tmp.unlink(missing_ok=True)
+        self._out.abort()
 
 
-__all__ = ["MAP_RESOLUTION", "McapRecorder", "TOPIC_TYPES", "compose", "inverse", "occupancy_message", "quaternion",
+__all__ = ["MAP_RESOLUTION", "McapFile", "McapRecorder", "TOPIC_TYPES", "goal_message", "movers_message", "robot_messages",
+           "static_mounts", "topic_type", "compose", "inverse", "occupancy_message", "quaternion",
            "stamp"]
