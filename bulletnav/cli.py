@@ -1247,7 +1247,13 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
     from bulletnav.ros.replay import replay
 
-    _refuse_existing_files(args, "video", "plot", "frame")
+    _refuse_existing_files(args, "video", "plot", "frame", "panel")
+    if args.panel and not (args.video or args.plot or args.frame):
+        from bulletnav.ros.replay import panel_view
+
+        summary = {"recording": args.recording, "panel": panel_view(args.recording, args.panel, at_s=args.panel_at)}
+        print(_json(summary) if args.json else f"panel: {args.panel} (t = {summary['panel']['time_s']:.2f} s)")
+        return 0
     video = args.video
     scratch = None
     if args.frame and not video:
@@ -1271,13 +1277,17 @@ def cmd_replay(args: argparse.Namespace) -> int:
             import shutil
 
             shutil.rmtree(scratch, ignore_errors=True)
+    if args.panel:
+        from bulletnav.ros.replay import panel_view
+
+        summary["panel"] = panel_view(args.recording, args.panel, at_s=args.panel_at)["out"]
     if not args.video:
         summary["video"] = None
     if args.json:
         print(_json(summary))
         return 0
     print(f"{args.recording}: {summary['episodes']} episodes, steps {summary['steps']}, outcomes {summary['outcomes']}")
-    for key in ("video", "plot", "frame"):
+    for key in ("video", "plot", "frame", "panel"):
         if summary.get(key):
             print(f"{key}: {summary[key]}")
     return 0
@@ -1629,8 +1639,12 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--frame", type=PNG_FILE, metavar="PNG", help="write one frame of the video (see --frame-at)")
     rp.add_argument("--frame-at", type=COUNT, default=None, metavar="N",
                     help="the video frame --frame writes (default: the middle one)")
+    rp.add_argument("--panel", type=PNG_FILE, metavar="PNG",
+                    help="draw what docs/foxglove_layout.json's 3D panel shows (top-down, from the messages) at --panel-at")
+    rp.add_argument("--panel-at", type=_positive_seconds, default=None, metavar="S",
+                    help="simulated seconds into the first episode for --panel (default: its middle)")
     rp.add_argument("--json", action="store_true", help="print one JSON object")
-    _add_overwrite_arg(rp, "--video, --plot and --frame files")
+    _add_overwrite_arg(rp, "--video, --plot, --frame and --panel files")
     rp.set_defaults(func=cmd_replay)
 
     bench = add("bench", "benchmarks (print JSON with --json)")

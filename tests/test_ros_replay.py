@@ -80,3 +80,21 @@ def test_replay_refuses_what_is_no_recording(tmp_path, capsys):
     assert main(["replay", str(junk), "--plot", str(tmp_path / "p.png")]) == 2
     assert "junk.mcap" in capsys.readouterr().err
     assert not (tmp_path / "p.png").exists()
+
+
+def test_foxglove_layout_and_panel(recorded, tmp_path, capsys):
+    """The shipped Foxglove layout names only topics a recording has, and ``--panel`` draws its
+    3D panel's content from the messages."""
+    from pathlib import Path
+
+    from bulletnav.ros.record import TOPIC_TYPES
+
+    layout = json.loads((Path(__file__).resolve().parent.parent / "docs" / "foxglove_layout.json").read_text())
+    topics = set(layout["configById"]["3D!bulletnav"]["topics"])
+    paths = {p["value"].split(".")[0] for cfg in layout["configById"].values() for p in cfg.get("paths", [])}
+    assert topics | paths <= set(TOPIC_TYPES)
+    assert layout["configById"]["3D!bulletnav"]["followTf"] == "base_link"
+    out = tmp_path / "panel.png"
+    assert main(["replay", str(recorded / "run.mcap"), "--panel", str(out), "--panel-at", "4", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["panel"]["step"] == 96 and out.stat().st_size > 10_000

@@ -283,4 +283,105 @@ def _plot(tracks: list[dict[str, Any]], out: str | Path) -> None:
         plt.close(fig)
 
 
-__all__ = ["ReplayScene", "read_recording", "replay"]
+
+
+def panel_view(path: str | Path, out: str | Path, at_s: float | None = None, episode: int = 0, span_m: float = 14.0) -> dict:
+    """What ``docs/foxglove_layout.json``'s 3D panel shows at ``at_s`` simulated seconds into
+    ``episode`` (default: its middle), drawn top-down from the recording's own messages: the
+    true map (``/map_truth``) under the lidar map (``/map``, the last one before that time), the
+    scan placed through ``/tf`` and ``/tf_static``, the plan, the goal, the movers' markers and the
+    robot with its trajectory, in a ``span_m`` window that follows the robot as the panel does
+    (``followTf: base_link``, ``follow-position``). For when Foxglove itself cannot be run."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Circle, Polygon
+
+    from bulletnav.viz.plots import save_figure_atomic
+
+    episodes = read_recording(path)
+    if not 0 <= episode < len(episodes):
+        raise BulletnavError(f"{path}: no episode {episode} (it holds {len(episodes)})")
+    ep = episodes[episode]
+    steps = ep["steps"]
+    if not steps:
+        raise BulletnavError(f"{path}: episode {episode} has no steps")
+    dt = float(ep["control_dt"])
+    k = len(steps) // 2 if at_s is None else min(max(int(round(at_s / dt)) - 1, 0), len(steps) - 1)
+    t_ns = ep["start_ns"] + int(round((k + 1) * dt * 1e9))
+    maps = _maps_until(path, ep["start_ns"], t_ns)
+    st = steps[k]
+    x, y, yaw = st["pose"]
+    fig, ax = plt.subplots(figsize=(7, 7))
+    ax.set_facecolor("#1e1f24")
+    for name, colour, alpha in (("/map_truth", "#8a8f99", 0.9), ("/map", "#e0e0e0", 0.5)):
+        grid = maps.get(name)
+        if grid is None:
+            continue
+        cells, res, (ox, oy) = grid
+        rgba = np.zeros((*cells.shape, 4))
+        occ = cells == 100
+        rgba[occ] = matplotlib.colors.to_rgba(colour, alpha)
+        if name == "/map":
+            rgba[cells == 0] = (0.35, 0.45, 0.6, 0.25)  # seen free
+        ax.imshow(rgba, origin="lower", extent=(ox, ox + cells.shape[1] * res, oy, oy + cells.shape[0] * res),
+                  interpolation="nearest", zorder=1 if name == "/map_truth" else 2)
+    traj = np.array([s["pose"][:2] for s in steps[: k + 1]])
+    ax.plot(traj[:, 0], traj[:, 1], color="#33b5ff", lw=1.5, zorder=3, label="trajectory (/tf)")
+    if st["plan"]:
+        plan = np.array(st["plan"])
+        ax.plot(plan[:, 0], plan[:, 1], color="#ff66ff", lw=2, zorder=4, label="/plan")
+    mx, my = ep.get("lidar_mount", (0.0, 0.0))[:2]
+    lx, ly = x + mx * math.cos(yaw) - my * math.sin(yaw), y + mx * math.sin(yaw) + my * math.cos(yaw)
+    r = st["ranges"]
+    hit = np.isfinite(r) & (r < st["range_max"] - 1e-6)
+    a = st["angles"][hit] + yaw
+    ax.scatter(lx + r[hit] * np.cos(a), ly + r[hit] * np.sin(a), s=12, color="#ff4d4d", zorder=5, label="/scan")
+    for m in st["movers"]:
+        if m.kind == "worker":
+            ax.add_patch(Circle(m.pose[:2], m.size[0] / 2, color="#3380ff", zorder=5))
+        else:
+            c, s_ = math.cos(m.pose[2]), math.sin(m.pose[2])
+            hx, hy = m.size[0] / 2, m.size[1] / 2
+            box = ((hx, hy), (-hx, hy), (-hx, -hy), (hx, -hy))
+            corners = [(m.pose[0] + c * u - s_ * v, m.pose[1] + s_ * u + c * v) for u, v in box]
+            ax.add_patch(Polygon(corners, color="#ff9900", zorder=5))
+    if st["goal"] is not None:
+        ax.plot(*st["goal"], marker="*", ms=16, color="#33cc66", zorder=6, ls="none", label="/goal_pose")
+    tri = [(x + 0.3 * math.cos(yaw), y + 0.3 * math.sin(yaw)), (x + 0.18 * math.cos(yaw + 2.4), y + 0.18 * math.sin(yaw + 2.4)),
+           (x + 0.18 * math.cos(yaw - 2.4), y + 0.18 * math.sin(yaw - 2.4))]
+    ax.add_patch(Polygon(tri, color="white", zorder=7))
+    ax.set_xlim(x - span_m / 2, x + span_m / 2)
+    ax.set_ylim(y - span_m / 2, y + span_m / 2)
+    ax.set_aspect("equal")
+    ax.set_xlabel("map x (m)")
+    ax.set_ylabel("map y (m)")
+    ax.set_title(f"3D panel, top-down, t = {(k + 1) * dt:.2f} s (episode {episode + 1})")
+    ax.legend(loc="upper right", fontsize=8, facecolor="#2a2c33", labelcolor="white")
+    try:
+        fig.tight_layout()
+        save_figure_atomic(fig, Path(out), dpi=100)
+    finally:
+        plt.close(fig)
+    return {"episode": episode, "step": k + 1, "time_s": (k + 1) * dt, "out": str(out)}
+
+
+def _maps_until(path: str | Path, start_ns: int, t_ns: int) -> dict[str, tuple[np.ndarray, float, tuple[float, float]]]:
+    """The last ``/map_truth`` and ``/map`` at or before ``t_ns`` from ``start_ns`` on, as (cells
+    [row = y, column = x], resolution, origin corner)."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    out = {}
+    with open(path, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        for _, channel, _message, msg in reader.iter_decoded_messages(topics=["/map_truth", "/map"], starting_at=start_ns,
+                                                                      ending_at=t_ns, log_time_order=True):
+            info = msg.info
+            cells = np.asarray(msg.data, dtype=np.int16).reshape(info.height, info.width)
+            out[channel.topic] = (cells, float(info.resolution), (float(info.origin.position.x), float(info.origin.position.y)))
+    return out
+
+
+__all__ = ["ReplayScene", "panel_view", "read_recording", "replay"]
