@@ -69,6 +69,9 @@ class DatasetRecorder(gym.Wrapper):
 
     def __init__(self, env: gym.Env, name: str) -> None:
         super().__init__(env)
+        if not isinstance(env.observation_space, gym.spaces.Box) or not isinstance(env.action_space, gym.spaces.Box):
+            raise BulletnavError(f"--dataset {name}: datasets take vector observations and actions (Box spaces); this "
+                                 f"env has {type(env.observation_space).__name__} observations (camera_obs must be off)")
         self.name = check_name(name)
         self.buffers: list[Any] = []
         self._current: dict[str, Any] | None = None

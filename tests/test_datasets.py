@@ -113,3 +113,12 @@ def test_behaviour_cloning_from_a_dataset(store, tmp_path, capsys):
     capsys.readouterr()
     assert main(["train", "--algo", "bc", "--out", str(tmp_path / "x")]) == 2
     assert "needs --dataset" in capsys.readouterr().err
+
+
+def test_image_observations_are_refused(store):
+    env = gym.make("bulletnav/WarehouseAisles-v0", camera_obs=True)
+    try:
+        with pytest.raises(BulletnavError, match="vector observations"):
+            DatasetRecorder(env, "bulletnav/camera-test-v0")
+    finally:
+        env.close()

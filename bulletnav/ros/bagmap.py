@@ -94,7 +94,8 @@ def read_bag(path: str | Path, scan_topic: str = "/scan", odom_topic: str = "/od
             reader = make_reader(f, decoder_factories=[DecoderFactory()])
             summary = reader.get_summary()
             if summary is not None:
-                types = {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
+                types = {c.topic: (summary.schemas[c.schema_id].name if c.schema_id in summary.schemas else "no schema")
+                         for c in summary.channels.values()}
             for schema, channel, _message, msg in reader.iter_decoded_messages(
                     topics=[scan_topic, odom_topic, "/tf", "/tf_static"], log_time_order=True):
                 topic = channel.topic
