@@ -7,6 +7,10 @@ writes them as a Minari dataset (``minari.create_dataset_from_buffers``, Arrow s
 ``MINARI_DATASETS_PATH`` (Minari's own default without it), with the env's spec, so that
 ``minari.load_dataset(NAME).recover_environment()`` builds the same env again. Minari writes
 the dataset's folder itself; a name that exists already is refused before any episode runs.
+
+Behind a shield wrapper (``--shield``) the actions stored are those carried out: where the shield
+replaced a command, its replacement, mapped onto the action space (the spec recovers the env
+without the shield).
 """
 
 from __future__ import annotations
@@ -91,7 +95,7 @@ class DatasetRecorder(gym.Wrapper):
         if ep is None:
             raise BulletnavError("DatasetRecorder: step() before reset()")
         ep["observations"].append(np.array(obs, copy=True))
-        ep["actions"].append(np.array(action, dtype=self.env.action_space.dtype, copy=True))
+        ep["actions"].append(self._executed(action, info))
         ep["rewards"].append(float(reward))
         ep["terminations"].append(bool(terminated))
         ep["truncations"].append(bool(truncated))
@@ -99,6 +103,20 @@ class DatasetRecorder(gym.Wrapper):
         if terminated or truncated:
             self._flush()
         return obs, reward, terminated, truncated, info
+
+    def _executed(self, action: Any, info: dict[str, Any]) -> np.ndarray:
+        """The action the env carried out: the shield's replacement where a shield wrapper
+        (``info["shield"]``) replaced the command, mapped back onto the action space; else ``action``."""
+        space = self.env.action_space
+        veto = info.get("shield")
+        if not (isinstance(veto, dict) and veto.get("intervened")):
+            return np.array(action, dtype=space.dtype, copy=True)
+        scene = self.env.unwrapped.scene
+        v, w = float(veto["v"]), float(veto["w"])
+        if scene.normalized_actions:
+            (v_lo, v_hi), (w_lo, w_hi) = scene.command_limits
+            v, w = 2.0 * (v - v_lo) / (v_hi - v_lo) - 1.0, 2.0 * (w - w_lo) / (w_hi - w_lo) - 1.0
+        return np.clip(np.array([v, w], dtype=space.dtype), space.low, space.high)
 
     def _flush(self) -> None:
         """Keep the episode under way, if it has a step (an episode cut short by a reset is kept as truncated)."""

@@ -122,3 +122,38 @@ def test_image_observations_are_refused(store):
             DatasetRecorder(env, "bulletnav/camera-test-v0")
     finally:
         env.close()
+
+
+def test_shielded_episodes_store_the_executed_actions(store):
+    """Behind the shield wrapper the dataset holds what the robot was sent: the shield's
+    replacement wherever it acted (mapped onto the action space), the policy's action elsewhere."""
+    from bulletnav.control.shield import ShieldWrapper
+
+    env = ShieldWrapper(gym.make("bulletnav/WarehouseDynamic-v0", normalize_actions=True, max_episode_steps=150))
+    try:
+        rec = DatasetRecorder(env, "bulletnav/shielded-test-v0")
+        rng = np.random.default_rng(0)
+        rec.reset(seed=4)
+        raw, vetoes = [], []
+        for _ in range(150):
+            a = np.array([1.0, rng.uniform(-0.2, 0.2)], dtype=np.float32)  # full speed ahead, into whatever is there
+            _, _, terminated, truncated, info = rec.step(a)
+            raw.append(a)
+            vetoes.append(info["shield"])
+            if terminated or truncated:
+                break
+        ep = rec.buffers[0]
+        acted = [k for k, d in enumerate(vetoes) if d["intervened"]]
+        assert acted  # the shield had to act
+        (v_lo, v_hi), (w_lo, w_hi) = env.unwrapped.scene.command_limits
+        changed = 0
+        for k in acted:
+            v = 2 * (vetoes[k]["v"] - v_lo) / (v_hi - v_lo) - 1
+            w = 2 * (vetoes[k]["w"] - w_lo) / (w_hi - w_lo) - 1
+            assert ep.actions[k] == pytest.approx([v, w], abs=1e-6)
+            changed += not np.allclose(ep.actions[k], raw[k])
+        assert changed == len(acted)  # every replacement differs from what the policy asked
+        untouched = [k for k in range(len(raw)) if k not in acted]
+        np.testing.assert_array_equal(ep.actions[untouched], np.asarray(raw)[untouched])
+    finally:
+        env.close()
