@@ -211,8 +211,8 @@ class BagMap:
 def build_map(data: BagData, resolution: float = 0.1, margin: float | None = None) -> BagMap:
     """Integrate every scan of ``data`` at its lidar pose (see the module docstring).
 
-    The grid covers the trajectory grown by the largest finite ``range_max`` (capped at 30 m),
-    or by ``margin`` (m)."""
+    The grid covers the trajectory grown by the largest finite ``range_max`` (capped at 30 m;
+    10 m when no scan gives one), or by ``margin`` (m)."""
     placed = []
     skipped = 0
     for scan in data.scans:
@@ -226,7 +226,8 @@ def build_map(data: BagData, resolution: float = 0.1, margin: float | None = Non
         raise BulletnavError(f"no scan has a pose: the {data.pose_source} poses span "
                              f"{(data.poses[0][0] if data.poses else 0) / 1e9:.3f}-"
                              f"{(data.poses[-1][0] if data.poses else 0) / 1e9:.3f} s, the scans do not fall in it")
-    reach = margin if margin is not None else min(max(s.range_max for _, s in placed if math.isfinite(s.range_max)), 30.0)
+    finite = [s.range_max for _, s in placed if math.isfinite(s.range_max) and s.range_max > 0]
+    reach = margin if margin is not None else (min(max(finite), 30.0) if finite else 10.0)
     xs = [p[0] for p, _ in placed]
     ys = [p[1] for p, _ in placed]
     mapper = LidarMapper((min(xs) - reach, min(ys) - reach, max(xs) + reach, max(ys) + reach), resolution)
