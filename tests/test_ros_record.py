@@ -282,3 +282,22 @@ def test_fleet_recording_one_namespace_per_robot(tmp_path, capsys):
     with open(path, "rb") as f:
         meta = [r.metadata for r in make_reader(f).iter_metadata() if r.name == "episode"]
     assert len(meta) == 1 and meta[0]["robots"] == "2"
+
+
+def test_cli_fleet_and_evaluate_record(tmp_path, capsys):
+    out = tmp_path / "fleet.mcap"
+    assert main(["fleet", "--robots", "2", "--duration", "1", "--episodes", "2", "--seed", "1", "--record", str(out)]) == 0
+    assert "one namespace per robot" in capsys.readouterr().out
+    with open(out, "rb") as f:
+        meta = [r.metadata for r in make_reader(f).iter_metadata() if r.name == "episode"]
+    assert [m["index"] for m in meta] == ["0", "1"] and int(meta[1]["start_ns"]) > int(meta[0]["end_ns"])
+    assert len(read_ros2_messages(str(out), topics=["/robot_1/scan"])) == 2 * 24
+    ev = tmp_path / "ev.mcap"
+    from pathlib import Path
+
+    model = Path(__file__).resolve().parent.parent / "models" / "ppo_warehouse.zip"
+    assert main(["evaluate", "--model", str(model), "--episodes", "1", "--seed", "1000", "--json",
+                 "--record", str(ev)]) == 0
+    capsys.readouterr()
+    scans = read_ros2_messages(str(ev), topics=["/scan", "/cmd_vel"])
+    assert len(scans) >= 2 and len({m.channel.topic for m in scans}) == 2
