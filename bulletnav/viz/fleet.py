@@ -71,6 +71,7 @@ from bulletnav.viz.video import (
     category_rgb,
     draw_events,
     draw_movers,
+    label_image,
     mix_colour,
     ui_font,
 )
@@ -366,11 +367,7 @@ class FleetFrames:
         key = (text, colour, small)
         img = self._labels.get(key)
         if img is None:
-            font = self._small if small else self._font
-            probe = ImageDraw.Draw(Image.new("RGB", (1, 1)))
-            x0, y0, x1, y1 = probe.textbbox((0, 0), text, font=font)
-            img = Image.new("RGB", (int(x1) + 6, int(y1) + 4), BACKGROUND)
-            ImageDraw.Draw(img).text((3, 2), text, fill=colour, font=font)
+            img = label_image(text, self._small if small else self._font, colour)
             if len(self._labels) > 256:  # per-step texts would otherwise pile up
                 self._labels.clear()
             self._labels[key] = img

@@ -635,10 +635,7 @@ class EpisodeRecorder:
         key = (text, colour, small)
         img = self._labels.get(key)
         if img is None:
-            font = self._small if small else self._font
-            x0, y0, x1, y1 = ImageDraw.Draw(self._base).textbbox((0, 0), text, font=font)
-            img = Image.new("RGB", (int(x1) + 6, int(y1) + 4), BACKGROUND)
-            ImageDraw.Draw(img).text((3, 2), text, fill=colour, font=font)
+            img = label_image(text, self._small if small else self._font, colour)
             if len(self._labels) > 64:  # per-episode lines would otherwise pile up
                 self._labels.clear()
             self._labels[key] = img
@@ -687,6 +684,14 @@ class EpisodeRecorder:
         if self._video.closed:
             raise RuntimeError(f"{self.path}: recorder is closed")
         self._video.append(frame)
+
+
+def label_image(text: str, font: Any, colour: tuple[int, int, int] = TEXT) -> Image.Image:
+    """``text`` in ``colour`` on a background box 3 px wider on each side (the frames' labels)."""
+    x0, y0, x1, y1 = ImageDraw.Draw(Image.new("RGB", (1, 1))).textbbox((0, 0), text, font=font)
+    img = Image.new("RGB", (int(x1) + 6, int(y1) + 4), BACKGROUND)
+    ImageDraw.Draw(img).text((3, 2), text, fill=colour, font=font)
+    return img
 
 
 def draw_movers(draw: ImageDraw.ImageDraw, view: MapView, movers: Sequence[Any],
