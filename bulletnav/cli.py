@@ -59,6 +59,17 @@ def _non_negative_seconds(text: str) -> float:
     return value
 
 
+def FRACTION(text: str) -> float:
+    """A rate in (0, 1] (``--stop-at-success``)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a rate above 0 and at most 1, got {text!r}") from None
+    if not 0 < value <= 1:
+        raise argparse.ArgumentTypeError(f"expected a rate above 0 and at most 1, got {text!r}")
+    return value
+
+
 def _positive_seconds(text: str) -> float:
     try:
         value = float(text)
@@ -666,7 +677,8 @@ def cmd_train(args: argparse.Namespace) -> int:
         resume=args.resume, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
         checkpoint_freq=args.checkpoint_freq, progress_bar=not args.no_progress, vec_env=args.vec_env,
         hyperparams=Path(args.hyperparams) if args.hyperparams else None, command=command_line(), shield=args.shield,
-        init_from=Path(args.init_from) if args.init_from else None, trust_pickle=args.trust_pickle, **extra,
+        init_from=Path(args.init_from) if args.init_from else None, trust_pickle=args.trust_pickle,
+        stop_at_success=args.stop_at_success, **extra,
     )
     record = train(cfg)
     final = record.get("final_eval") or {}
@@ -676,6 +688,10 @@ def cmd_train(args: argparse.Namespace) -> int:
         t = record["throughput"]
         print(f"throughput     {t['env_steps_per_s']:.0f} env steps/s; wall time in env {t['env_share'] * 100:.0f} %, "
               f"learner {t['learner_share'] * 100:.0f} %, evaluation {t['eval_share'] * 100:.0f} %")
+    if args.stop_at_success is not None:
+        hit = record.get("reached_success")
+        print(f"target success {args.stop_at_success * 100:.0f} %: " + (
+            f"reached at {hit['timesteps']} steps, {hit['wall_time']:.0f} s" if hit else "not reached in the budget"))
     if final:
         print(f"final evaluation ({args.eval_episodes} unseen episodes): success {final['success_rate'] * 100:.0f} %, "
               f"collisions {final['collision_rate'] * 100:.0f} %, mean reward {final['mean_reward']:.1f}")
@@ -1423,6 +1439,9 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--eval-freq", type=COUNT, default=25_000, help="evaluate every N timesteps (default 25000)")
     tr.add_argument("--eval-episodes", type=COUNT, default=20, help="unseen episodes per evaluation (default 20)")
     tr.add_argument("--checkpoint-freq", type=COUNT, default=25_000, help="checkpoint every N timesteps (default 25000)")
+    tr.add_argument("--stop-at-success", type=FRACTION, default=None, metavar="RATE",
+                    help="stop at the first in-training evaluation with this success rate (0-1; the start is "
+                         "evaluated too); run.json records the steps and wall time it took")
     tr.add_argument("--vec-env", choices=["auto", "subproc", "dummy"], default="auto",
                     help="one process per env (subproc), all in this one (dummy), or auto (default): subprocesses "
                          "for several envs on a machine with more than one core")

@@ -218,6 +218,39 @@ def test_init_from_starts_a_new_run_from_a_models_weights(ppo_run, tmp_path, cap
     assert re.search(r"ppo_mission\.zip: its observation_space has shape \(62,\), this run's \(43,\)", capsys.readouterr().err)
 
 
+@pytest.mark.slow
+def test_stop_at_success_stops_when_an_evaluation_reaches_the_rate(tmp_path, capsys):
+    shipped = ROOT / "models" / "ppo_warehouse.zip"
+
+    def weights(path: Path) -> dict:
+        return torch.load(zipfile.ZipFile(path).open("policy.pth"), weights_only=True)
+
+    # a start that already succeeds is evaluated before its first update and stops there:
+    # the saved model is the start, and the record says at what steps and time it got there
+    run = _train(tmp_path, "ppo", steps=4096, name="reached",
+                 extra=("--init-from", str(shipped), "--stop-at-success", "0.5"))
+    record = json.loads((run / "run.json").read_text())
+    hit = record["reached_success"]
+    assert hit["timesteps"] == 0 and hit["success_rate"] >= 0.5 and hit["wall_time"] > 0
+    # (SB3 steps the envs once before its callback can stop it; no update follows)
+    assert record["total_timesteps"] == 2 and record["stop_at_success"] == 0.5
+    history = json.loads((run / "eval_history.json").read_text())
+    assert [row["timesteps"] for row in history] == [0]
+    a, b = weights(shipped), weights(run / "model.zip")
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    assert "target success 50 %: reached at 0 steps" in capsys.readouterr().out
+    # a fresh network does not reach 100 %: the whole budget is trained, the start evaluated too
+    run = _train(tmp_path, "ppo", steps=1024, name="unreached", extra=("--stop-at-success", "1"))
+    record = json.loads((run / "run.json").read_text())
+    assert record["reached_success"] is None and record["total_timesteps"] == 1024
+    assert [row["timesteps"] for row in json.loads((run / "eval_history.json").read_text())] == [0, 1024]
+    assert "not reached in the budget" in capsys.readouterr().out
+    # a rate outside (0, 1] is refused by name
+    with pytest.raises(SystemExit):
+        main(["train", "--stop-at-success", "90", "--out", str(tmp_path / "bad")])
+    assert "--stop-at-success: expected a rate above 0 and at most 1, got '90'" in capsys.readouterr().err
+
+
 @pytest.mark.slow  # uses the module's smoke PPO training (14 s), or trains itself
 def test_bad_model_files_give_clear_errors(tmp_path, ppo_run, capsys):
     missing = tmp_path / "nope.zip"

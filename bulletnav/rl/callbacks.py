@@ -79,12 +79,19 @@ class EvaluationCallback(BaseCallback):
             wall time since.
         shield: evaluate behind the safety shield (a run trained with ``--shield``).
         on_row: called with each new row (a sweep reports it to Ray Tune).
+        stop_at_success: stop training at the first evaluation whose success rate reaches this
+            (``train --stop-at-success``); the model is then also evaluated before its first
+            update, so a start that already succeeds (a fine-tuned one) stops at 0 steps.
     """
 
     def __init__(self, out: Path, every: int, episodes: int, env_kwargs: dict[str, Any],
                  history: list[dict[str, Any]], env_id: str = ENV_ID, started: float | None = None,
-                 shield: bool = False, on_row: Callable[[dict[str, Any]], None] | None = None) -> None:
+                 shield: bool = False, on_row: Callable[[dict[str, Any]], None] | None = None,
+                 stop_at_success: float | None = None) -> None:
         super().__init__()
+        self.stop_at_success = stop_at_success
+        self.reached: dict[str, Any] | None = None
+        """The first row that reached ``stop_at_success``, once one has."""
         self.on_row = on_row
         self.out = out
         self.every = every
@@ -101,12 +108,22 @@ class EvaluationCallback(BaseCallback):
 
     def _on_training_start(self) -> None:
         self.next_at = (self.num_timesteps // self.every + 1) * self.every
+        if self.stop_at_success is not None and self.num_timesteps == 0:
+            self._check(self.evaluate(self.model))
 
     def _on_step(self) -> bool:
+        if self.reached is not None:
+            return False
         if self.num_timesteps >= self.next_at:
             self.next_at += self.every
-            self.evaluate(self.model)
-        return True
+            self._check(self.evaluate(self.model))
+        return self.reached is None
+
+    def _check(self, row: dict[str, Any]) -> None:
+        if self.stop_at_success is not None and self.reached is None and row["success_rate"] >= self.stop_at_success:
+            self.reached = dict(row)
+            log.info("success %.2f reached the target %.2f at %d steps, %.0f s: training stops",
+                     row["success_rate"], self.stop_at_success, row["timesteps"], row["wall_time"])
 
     def evaluate(self, model: Any) -> dict[str, Any]:
         """Evaluate ``model`` now and record the row (also callable after training)."""

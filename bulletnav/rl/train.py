@@ -74,6 +74,10 @@ class TrainConfig:
     on_evaluation: Callable[[dict[str, Any]], None] | None = None
     """Called with every evaluation row (timesteps, wall_time, success_rate, ...) as it is
     recorded; a sweep reports them to Ray Tune for early stopping."""
+    stop_at_success: float | None = None
+    """Stop at the first in-training evaluation whose success rate reaches this (0-1), the
+    model also evaluated before its first update; the run records the steps and wall time it
+    took (``reached_success``). None trains the whole budget."""
     trust_pickle: bool = False
     """Let ``--resume`` / ``--init-from`` files be unpickled (older checkpoints with a
     ``*_vecnormalize.pkl``, zips with entries bulletnav does not rebuild): runs their code."""
@@ -173,7 +177,8 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
         last = json.loads(ckpt.with_suffix(".json").read_text()) if ckpt.with_suffix(".json").is_file() else {}
         prior = float(last.get("wall_time", history[-1]["wall_time"] if history else 0.0))
     evaluation = EvaluationCallback(cfg.out, cfg.eval_freq, cfg.eval_episodes, env_kwargs, history, env_id=cfg.env_id,
-                                    shield=shield, started=time.time() - prior, on_row=cfg.on_evaluation)
+                                    shield=shield, started=time.time() - prior, on_row=cfg.on_evaluation,
+                                    stop_at_success=cfg.stop_at_success)
     throughput = ThroughputCallback(_timer(venv), evaluation)
     callbacks = [evaluation, throughput]
     curriculum = None
@@ -214,19 +219,21 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
     atomic_save_model(model, final_path)
     if vecnorm is not None:
         atomic_save_vecnormalize(vecnorm, vecnormalize_path(final_path))
-    if history and history[-1]["timesteps"] == model.num_timesteps and remaining:
+    stopped = evaluation.reached is not None  # learn() stopped before updating on that rollout
+    if history and history[-1]["timesteps"] == model.num_timesteps and remaining and not stopped:
         # that evaluation ran inside the last rollout, before the last update: evaluate the
         # model that is saved instead, so the record and model.zip agree
         history.pop()
-    if not history or history[-1]["timesteps"] != model.num_timesteps:
-        evaluation.evaluate(model)
+    if not stopped and (not history or history[-1]["timesteps"] != model.num_timesteps):
+        evaluation.evaluate(model)  # (a stopped run's weights are those of its last evaluation)
     evaluation.close()
     venv.close()
     if curriculum is not None:
         record["curriculum_final"] = curriculum.curriculum.state()
     record.update(throughput=timing)
     record.update(wall_time_s=round(wall, 1), wall_time_total_s=round(prior + wall, 1), total_timesteps=int(model.num_timesteps),
-                  final_eval=history[-1] if history else None, eval_seeds=f"{EVAL_SEED_BASE}..")
+                  final_eval=history[-1] if history else None, eval_seeds=f"{EVAL_SEED_BASE}..",
+                  stop_at_success=cfg.stop_at_success, reached_success=evaluation.reached)
     meta = {"algo": cfg.algo, "env_id": cfg.env_id, "env_kwargs": env_kwargs, "shield": shield, "seed": cfg.seed,
             "timesteps": int(model.num_timesteps), "git_commit": record["git_commit"], "command": cfg.command}
     atomic_write_json(sidecar_path(final_path), save_safe(model, final_path, vecnorm, meta))
