@@ -797,12 +797,13 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     from bulletnav.viz.compare import REACH_SUCCESS, compare_runs
 
-    rows = compare_runs([Path(r) for r in args.runs], Path(args.out), group_by=args.group_by)
+    rate = REACH_SUCCESS if args.reach is None else args.reach
+    rows = compare_runs([Path(r) for r in args.runs], Path(args.out), group_by=args.group_by, reach=rate)
     if args.json:
         print(_json(rows))
         return 0
-    reach = f"first >= {REACH_SUCCESS * 100:.0f} % at (steps, s)"
-    head = "algorithm" if args.group_by == "algo" else "hyperparameters"
+    reach = f"first >= {rate * 100:.0f} % at (steps, s)"
+    head = {"algo": "algorithm", "hyperparams": "hyperparameters", "start": "start"}[args.group_by]
     name = (lambda r: r["group"].upper()) if args.group_by == "algo" else (lambda r: r["group"])
     print(f"| {head} | seed | timesteps | wall time (s) | final success | final collisions | final reward | "
           f"best success (at) | {reach} |")
@@ -1496,9 +1497,12 @@ def build_parser() -> argparse.ArgumentParser:
     cmp_.add_argument("runs", nargs="+", metavar="RUN_DIR", help="directories written by train")
     cmp_.add_argument("--out", type=PNG_FILE, default="docs/algorithms.png", metavar="PNG",
                       help="figure to write (default docs/algorithms.png)")
-    cmp_.add_argument("--group-by", choices=("algo", "hyperparams"), default="algo",
-                      help="colour and summarize runs by algorithm (default) or by hyperparameter file "
-                           "(ablations of one algorithm)")
+    cmp_.add_argument("--group-by", choices=("algo", "hyperparams", "start"), default="algo",
+                      help="colour and summarize runs by algorithm (default), by hyperparameter file "
+                           "(ablations of one algorithm), or by start (scratch, or the --init-from model)")
+    cmp_.add_argument("--reach", type=FRACTION, default=None, metavar="RATE",
+                      help="the table's 'first reached' column: the first evaluation with this success rate "
+                           "(0-1, default 0.8)")
     cmp_.add_argument("--json", action="store_true", help="print the table as JSON")
     cmp_.set_defaults(func=cmd_compare)
 

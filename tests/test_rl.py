@@ -245,6 +245,12 @@ def test_stop_at_success_stops_when_an_evaluation_reaches_the_rate(tmp_path, cap
     assert record["reached_success"] is None and record["total_timesteps"] == 1024
     assert [row["timesteps"] for row in json.loads((run / "eval_history.json").read_text())] == [0, 1024]
     assert "not reached in the budget" in capsys.readouterr().out
+    # compare groups the two by their start and reads the rate the table asks for
+    assert main(["compare", str(tmp_path / "reached"), str(run), "--group-by", "start", "--reach", "0.5",
+                 "--out", str(tmp_path / "curves.png"), "--json"]) == 0
+    rows = {r["group"]: r for r in json.loads(capsys.readouterr().out)}
+    assert rows["from ppo_warehouse"]["reached_at"] == 0 and rows["scratch"]["reached_at"] is None
+    assert (tmp_path / "curves.png").is_file()
     # a rate outside (0, 1] is refused by name
     with pytest.raises(SystemExit):
         main(["train", "--stop-at-success", "90", "--out", str(tmp_path / "bad")])
@@ -458,7 +464,10 @@ def test_compare_groups_runs_by_hyperparameter_file():
     assert run_group(record, "hyperparams") == "ppo_dynamic_both"
     assert run_group({"algo": "sac", "command": "bulletnav train --hyperparams=x/sac_fast.yaml"}, "hyperparams") == "sac_fast"
     assert run_group({"algo": "sac", "command": "bulletnav train --algo sac"}, "hyperparams") == "sac (default)"
-    with pytest.raises(ValueError, match="group_by must be one of algo, hyperparams"):
+    assert run_group({"algo": "ppo", "init_from": None}, "start") == "scratch"
+    assert run_group({"algo": "ppo", "init_from": "runs/bc/model.zip"}, "start") == "from bc"
+    assert run_group({"algo": "ppo", "init_from": "models/ppo_dynamic.zip"}, "start") == "from ppo_dynamic"
+    with pytest.raises(ValueError, match="group_by must be one of algo, hyperparams, start"):
         run_group(record, "arm")
 
 

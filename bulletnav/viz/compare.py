@@ -49,10 +49,12 @@ def _steps_label(value: float, _pos: int) -> str:
     return f"{value / 1e3:g}k" if abs(value) >= 1e3 else f"{value:g}"
 
 
-GROUPS = ("algo", "hyperparams")
-"""What ``compare_runs`` colours runs by: the algorithm, or the hyperparameter file's name
+GROUPS = ("algo", "hyperparams", "start")
+"""What ``compare_runs`` colours runs by: the algorithm, the hyperparameter file's name
 (``ppo_dynamic_curriculum`` for ``--hyperparams .../ppo_dynamic_curriculum.yml``; the
-algorithm's default file where ``train`` was given none)."""
+algorithm's default file where ``train`` was given none), or where the weights started:
+``scratch``, or ``from NAME`` for a run with ``--init-from`` (NAME the model file's stem, or
+its folder's name for a run's ``model.zip``: ``from bc`` for ``runs/bc/model.zip``)."""
 
 
 def run_group(record: dict[str, Any], group_by: str) -> str:
@@ -63,6 +65,12 @@ def run_group(record: dict[str, Any], group_by: str) -> str:
         raise ValueError(f"group_by must be one of {', '.join(GROUPS)}, got {group_by!r}")
     if group_by == "algo":
         return str(record["algo"])
+    if group_by == "start":
+        init = record.get("init_from")
+        if not init:
+            return "scratch"
+        path = Path(init)
+        return f"from {path.parent.name if path.stem == 'model' and path.parent.name else path.stem}"
     words = shlex.split(record.get("command", ""))
     for i, word in enumerate(words):
         if word == "--hyperparams" and i + 1 < len(words):
@@ -72,12 +80,13 @@ def run_group(record: dict[str, Any], group_by: str) -> str:
     return f"{record['algo']} (default)"
 
 
-def compare_runs(run_dirs: list[Path], out_png: Path, group_by: str = "algo") -> list[dict[str, Any]]:
+def compare_runs(run_dirs: list[Path], out_png: Path, group_by: str = "algo",
+                 reach: float = REACH_SUCCESS) -> list[dict[str, Any]]:
     """Learning curves of several runs in one PNG (success rate against timesteps and
     against wall-clock time, mean reward against timesteps; one colour per group -- algorithm
     or hyperparameter file, see :data:`GROUPS` --, one line per seed) and one summary row per
     run: final and best evaluation, wall time, and when the in-training evaluation first
-    reached :data:`REACH_SUCCESS`."""
+    reached ``reach`` (:data:`REACH_SUCCESS` by default)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -110,7 +119,7 @@ def compare_runs(run_dirs: list[Path], out_png: Path, group_by: str = "algo") ->
                  alpha=0.8, ms=3, label=label)
         final = history[-1]
         best = max(history, key=lambda h: h["success_rate"])
-        reached = next((h for h in history if h["success_rate"] >= REACH_SUCCESS), None)
+        reached = next((h for h in history if h["success_rate"] >= reach), None)
         rows.append({"run": str(run), "algo": record["algo"], "group": group, "seed": record["seed"],
                      "timesteps": record["total_timesteps"],
                      # a resumed run's wall_time_s times only its last part; wall_time_total_s (newer
