@@ -606,7 +606,8 @@ def _train_bc(args: argparse.Namespace, out) -> int:
     if args.resume or args.init_from or args.shield or args.hyperparams:
         raise BulletnavError("--algo bc takes --dataset, --epochs, --seed and --out (not --resume, --init-from, --shield "
                              "or --hyperparams)")
-    record = train_bc(BCConfig(dataset=args.dataset, out=out, epochs=args.epochs, seed=args.seed, command=command_line()))
+    record = train_bc(BCConfig(dataset=args.dataset, out=out, epochs=args.epochs, seed=args.seed, fit_std=args.fit_std,
+                               command=command_line()))
     final = record["final"]
     val = f", validation NLL {final['val_nll']:.3f}, action MSE {final['val_action_mse']:.4f}" if "val_nll" in final else ""
     print(f"behaviour-cloned {args.dataset} ({record['episodes']} episodes, {record['samples']} training pairs) for "
@@ -1426,6 +1427,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="algorithm (default ppo); bc: behaviour cloning from --dataset into PPO's network")
     tr.add_argument("--dataset", metavar="NAME", help="bc: the Minari dataset to clone (docs/datasets.md)")
     tr.add_argument("--epochs", type=COUNT, default=20, help="bc: passes over the dataset (default 20)")
+    tr.add_argument("--fit-std", action="store_true",
+                    help="bc: fit the policy's action spread too (default: hold it at PPO's log_std_init, so PPO "
+                         "fine-tuning from the model explores)")
     tr.add_argument("--timesteps", type=NON_NEGATIVE, default=None,
                     help="total environment steps (default: the hyperparameter file's n_timesteps, else 500000)")
     tr.add_argument("--n-envs", type=COUNT, default=None, help="parallel envs (default: the hyperparameter file's, 4)")

@@ -102,6 +102,13 @@ def test_behaviour_cloning_from_a_dataset(store, tmp_path, capsys):
     # PPO's env for the id: its action scale ([-1, 1]) although the expert drove in physical units
     assert meta["env_kwargs"]["normalize_actions"] is True
     assert np.allclose(model.action_space.low, -1.0) and np.allclose(model.action_space.high, 1.0)
+    # the spread is held at PPO's log_std_init (-0.5) unless --fit-std: fine-tuning explores
+    assert np.allclose(model.policy.log_std.detach().numpy(), -0.5) and record["log_std"] == [-0.5, -0.5]
+    fitted = tmp_path / "bc_std"
+    assert main(["train", "--algo", "bc", "--dataset", "bulletnav/bc-test-v0", "--epochs", "4", "--fit-std",
+                 "--out", str(fitted)]) == 0
+    log_std = json.loads((fitted / "run.json").read_text())["log_std"]
+    assert max(abs(v + 0.5) for v in log_std) > 1e-3, log_std  # fitted with the mean (the 1,000-episode run: -2.5, -2.1)
     assert main(["evaluate", "--model", str(out / "model.zip"), "--env", "bulletnav/WarehouseAisles-v0",
                  "--episodes", "1", "--json"]) == 0
     # and PPO fine-tunes it

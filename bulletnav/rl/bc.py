@@ -7,7 +7,9 @@ that env's action scale when only the scale differs, e.g. physical units onto ``
 built by SB3's own constructor, and its actor is fitted by maximum likelihood: each minibatch of the dataset's
 (observation, action) pairs raises the log-probability the policy's Gaussian gives the expert's
 action (``policy.evaluate_actions``), the Adam optimizer, a held-out tenth of the episodes to
-watch. The result is saved as every model is (``model.zip`` plus the pickle-free
+watch. The Gaussian's spread is held at PPO's ``log_std_init`` by default (``fit_std``): fitted
+too, it shrinks to the expert's few-centimetre scatter (log std -2.5 and -2.1 on the aisle A*
+dataset), and PPO fine-tuned from it barely explores (measured: docs/datasets.md). The result is saved as every model is (``model.zip`` plus the pickle-free
 ``model.safetensors`` and sidecar, algorithm ``ppo``), so ``evaluate`` runs it and
 ``train --algo ppo --init-from RUN/model.zip`` fine-tunes it with PPO. A short PyTorch loop,
 not a library: the imitation library pins other SB3 and Gymnasium versions.
@@ -47,6 +49,10 @@ class BCConfig:
     """Seeds the network's initialisation, the split and the minibatch order."""
     validation: float = 0.1
     """Share of the episodes held out to report the validation loss (at least one when there are two)."""
+    fit_std: bool = False
+    """Fit the Gaussian's log std as well; False (default) holds it at PPO's ``log_std_init``,
+    so the mean alone is fitted (the same fit as least squares) and PPO fine-tuning from the
+    model explores as a fresh PPO does."""
     command: str = ""
     """The command line, for the record."""
 
@@ -116,7 +122,9 @@ def train_bc(cfg: BCConfig) -> dict[str, Any]:
         acts = (target.low + (acts - source.low) / (source.high - source.low) * (target.high - target.low)).astype(np.float32)
     policy = model.policy
     policy.set_training_mode(True)
-    optimizer = torch.optim.Adam(policy.parameters(), lr=cfg.learning_rate)
+    if not cfg.fit_std and hasattr(policy, "log_std"):
+        policy.log_std.requires_grad_(False)
+    optimizer = torch.optim.Adam([q for q in policy.parameters() if q.requires_grad], lr=cfg.learning_rate)
     episodes = np.unique(owner)
     n_held = int(round(cfg.validation * len(episodes)))
     if cfg.validation > 0 and len(episodes) > 1:
@@ -148,6 +156,8 @@ def train_bc(cfg: BCConfig) -> dict[str, Any]:
         log.info("bc epoch %d: %s", epoch + 1, row)
     wall = time.time() - t0
     policy.set_training_mode(False)
+    if hasattr(policy, "log_std"):
+        policy.log_std.requires_grad_(True)  # a fine-tuning run trains it
     cfg.out.mkdir(parents=True, exist_ok=True)
     final = cfg.out / "model.zip"
     atomic_save_model(model, final)
@@ -157,7 +167,8 @@ def train_bc(cfg: BCConfig) -> dict[str, Any]:
     record = {"command": cfg.command, "algo": "bc", "dataset": cfg.dataset, "env_id": spec.id,
               "env_kwargs": env_kwargs, "episodes": int(len(episodes)), "validation_episodes": int(len(held)),
               "samples": int(len(x_tr)), "epochs": cfg.epochs, "batch_size": cfg.batch_size,
-              "learning_rate": cfg.learning_rate, "seed": cfg.seed, "wall_time_s": round(wall, 1),
+              "learning_rate": cfg.learning_rate, "seed": cfg.seed, "wall_time_s": round(wall, 1), "fit_std": cfg.fit_std,
+              "log_std": [round(float(v), 4) for v in policy.log_std.detach()] if hasattr(policy, "log_std") else None,
               "final": history[-1], "git_commit": git_commit(), "machine": machine(),
               "network": {"policy": str(hp.get("policy", "MlpPolicy")), "policy_kwargs": str(hp.get("policy_kwargs", {}))}}
     atomic_write_json(cfg.out / "history.json", history)
