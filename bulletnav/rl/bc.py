@@ -8,11 +8,12 @@ built by SB3's own constructor, and its actor is fitted by maximum likelihood: e
 (observation, action) pairs raises the log-probability the policy's Gaussian gives the expert's
 action (``policy.evaluate_actions``), the Adam optimizer, a held-out tenth of the episodes to
 watch. The Gaussian's spread is held at PPO's ``log_std_init`` by default (``fit_std``): fitted
-too, it shrinks to the expert's few-centimetre scatter (log std -2.5 and -2.1 on the aisle A*
-dataset), and PPO fine-tuned from it barely explores (measured: docs/datasets.md). The result is saved as every model is (``model.zip`` plus the pickle-free
-``model.safetensors`` and sidecar, algorithm ``ppo``), so ``evaluate`` runs it and
-``train --algo ppo --init-from RUN/model.zip`` fine-tunes it with PPO. A short PyTorch loop,
-not a library: the imitation library pins other SB3 and Gymnasium versions.
+too, it shrinks to the expert's small scatter (log std -2.5 and -2.1 on the aisle A* dataset),
+and PPO fine-tuned from it barely explores (measured: docs/datasets.md). The result is saved as
+every model is (``model.zip`` plus the pickle-free ``model.safetensors`` and sidecar,
+algorithm ``ppo``), so ``evaluate`` runs it and ``train --algo ppo --init-from RUN/model.zip``
+fine-tunes it with PPO. A short PyTorch loop, not a library: the imitation library pins other
+SB3 and Gymnasium versions.
 """
 
 from __future__ import annotations
