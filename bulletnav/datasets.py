@@ -111,12 +111,8 @@ class DatasetRecorder(gym.Wrapper):
         veto = info.get("shield")
         if not (isinstance(veto, dict) and veto.get("intervened")):
             return np.array(action, dtype=space.dtype, copy=True)
-        scene = self.env.unwrapped.scene
-        v, w = float(veto["v"]), float(veto["w"])
-        if scene.normalized_actions:
-            (v_lo, v_hi), (w_lo, w_hi) = scene.command_limits
-            v, w = 2.0 * (v - v_lo) / (v_hi - v_lo) - 1.0, 2.0 * (w - w_lo) / (w_hi - w_lo) - 1.0
-        return np.clip(np.array([v, w], dtype=space.dtype), space.low, space.high)
+        executed = self.env.unwrapped.scene.action_for(float(veto["v"]), float(veto["w"]))
+        return np.clip(executed.astype(space.dtype, copy=False), space.low, space.high)
 
     def _flush(self) -> None:
         """Keep the episode under way, if it has a step (an episode cut short by a reset is kept as truncated)."""

@@ -279,10 +279,7 @@ class Navigator:
         return self._action(v, w)
 
     def _action(self, v: float, w: float) -> np.ndarray:
-        if self.scene.normalized_actions:  # the env expects [-1, 1] mapped onto the physical ranges
-            (v_lo, v_hi), (w_lo, w_hi) = self.scene.command_limits
-            v, w = 2.0 * (v - v_lo) / (v_hi - v_lo) - 1.0, 2.0 * (w - w_lo) / (w_hi - w_lo) - 1.0
-        return np.array([v, w], dtype=np.float32)
+        return self.scene.action_for(v, w)
 
     def _mover_ahead(self, pose) -> bool:
         """A moving mover overlaps the corridor ahead: the robot's disc swept ``wait_distance``

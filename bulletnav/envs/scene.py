@@ -376,6 +376,14 @@ class SceneReader:
         """True when actions are [-1, 1] mapped linearly onto :attr:`command_limits`."""
         return self._scene.config.normalize_actions
 
+    def action_for(self, v: float, w: float) -> np.ndarray:
+        """The action (float32) that commands ``v`` m/s and ``w`` rad/s: the physical pair, or
+        with :attr:`normalized_actions` its linear image in [-1, 1] (not clipped)."""
+        if self.normalized_actions:
+            (v_lo, v_hi), (w_lo, w_hi) = self.command_limits
+            v, w = 2.0 * (v - v_lo) / (v_hi - v_lo) - 1.0, 2.0 * (w - w_lo) / (w_hi - w_lo) - 1.0
+        return np.array([v, w], dtype=np.float32)
+
     # ------------------------------------------------------------------ time
     @property
     def control_dt(self) -> float:

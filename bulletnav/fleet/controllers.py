@@ -357,8 +357,7 @@ class CoordinatedController:
         self._lidar_offset = view.geometry.lidar_offset
         self.dt = view.control_dt
         self.trackers = [GoToGoal(cfg.controller, lidar.angles, view.geometry) for _ in range(n)]
-        self.normalized = first.normalized_actions
-        self.limits = first.command_limits
+        self._action = first.action_for  # the same action scale for every robot
         self.replans = self.failed_plans = self.restarted_plans = 0
         self._rotation = 0
         self.order = []
@@ -694,12 +693,6 @@ class CoordinatedController:
                 v, w = self.trackers[i].command(pose, target, self._ranges(observations[agent]), self.dt, ahead)
             actions[agent] = self._action(v, w)
         return actions
-
-    def _action(self, v: float, w: float) -> np.ndarray:
-        if self.normalized:
-            (v_lo, v_hi), (w_lo, w_hi) = self.limits
-            v, w = 2.0 * (v - v_lo) / (v_hi - v_lo) - 1.0, 2.0 * (w - w_lo) / (w_hi - w_lo) - 1.0
-        return np.array([v, w], dtype=np.float32)
 
 
 # ---------------------------------------------------------------------- shield
