@@ -17,18 +17,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from bulletnav.ros.record import (
-    MAP_RESOLUTION,
-    McapFile,
-    goal_message,
-    movers_message,
-    occupancy_message,
-    robot_messages,
-    stamp,
-    static_mounts,
-)
+from bulletnav.ros.record import McapFile, goal_message, movers_message, robot_messages, stamp, static_mounts, truth_map_message
 
 
 class FleetMcapRecorder:
@@ -84,10 +73,7 @@ class FleetMcapRecorder:
         for i in range(len(agents)):
             mounts += static_mounts(ns, view.robot(i).geometry, prefix=f"robot_{i}")
         self.out.write("/tf_static", {"transforms": mounts}, ns)
-        truth = view.occupancy(MAP_RESOLUTION)
-        corner = (truth.origin[0] - MAP_RESOLUTION / 2, truth.origin[1] - MAP_RESOLUTION / 2)
-        self.out.write("/map_truth", occupancy_message(ns, "map", np.where(truth.occupied, 100, 0), MAP_RESOLUTION, corner),
-                       ns)
+        self.out.write("/map_truth", truth_map_message(ns, view), ns)
         self._goals = [None] * len(agents)
         for i, agent in enumerate(agents):
             self._goal(i, infos.get(agent, {}), ns)

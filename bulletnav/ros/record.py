@@ -168,6 +168,13 @@ def robot_messages(write: Callable[[str, dict[str, Any], int], None], robot: Any
     return truth, angles, ranges
 
 
+def truth_map_message(ns: int, view: Any) -> dict[str, Any]:
+    """``/map_truth``: the scene's true static map (``view.occupancy``) at :data:`MAP_RESOLUTION`."""
+    truth = view.occupancy(MAP_RESOLUTION)
+    corner = (truth.origin[0] - MAP_RESOLUTION / 2, truth.origin[1] - MAP_RESOLUTION / 2)
+    return occupancy_message(ns, "map", np.where(truth.occupied, 100, 0), MAP_RESOLUTION, corner)
+
+
 def goal_message(ns: int, goal: tuple[float, float]) -> dict[str, Any]:
     """A ``geometry_msgs/msg/PoseStamped`` of the goal point in ``map``."""
     return {"header": {"stamp": stamp(ns), "frame_id": "map"}, "pose": _pose(float(goal[0]), float(goal[1]), 0.0)}
@@ -326,10 +333,7 @@ class McapRecorder(gym.Wrapper):
 
         self._mapper = LidarMapper(self._bounds, MAP_RESOLUTION)
         self._write("/tf_static", {"transforms": static_mounts(start_ns, scene.geometry)}, start_ns)
-        truth = scene.occupancy(MAP_RESOLUTION)
-        corner = (truth.origin[0] - MAP_RESOLUTION / 2, truth.origin[1] - MAP_RESOLUTION / 2)
-        self._write("/map_truth", occupancy_message(start_ns, "map", np.where(truth.occupied, 100, 0), MAP_RESOLUTION,
-                                                    corner), start_ns)
+        self._write("/map_truth", truth_map_message(start_ns, scene), start_ns)
         self._publish_goal(scene, start_ns)
         self._attach_episode(scene, start_ns)
         self.episodes += 1
@@ -467,5 +471,5 @@ class McapRecorder(gym.Wrapper):
 
 
 __all__ = ["MAP_RESOLUTION", "McapFile", "McapRecorder", "TOPIC_TYPES", "goal_message", "movers_message", "robot_messages",
-           "static_mounts", "topic_type", "compose", "inverse", "occupancy_message", "quaternion",
+           "static_mounts", "topic_type", "truth_map_message", "compose", "inverse", "occupancy_message", "quaternion",
            "stamp"]

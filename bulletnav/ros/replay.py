@@ -298,6 +298,7 @@ def panel_view(path: str | Path, out: str | Path, at_s: float | None = None, epi
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle, Polygon
 
+    from bulletnav.sim.movers import box_corners
     from bulletnav.viz.plots import save_figure_atomic
 
     episodes = read_recording(path)
@@ -342,11 +343,7 @@ def panel_view(path: str | Path, out: str | Path, at_s: float | None = None, epi
         if m.kind == "worker":
             ax.add_patch(Circle(m.pose[:2], m.size[0] / 2, color="#3380ff", zorder=5))
         else:
-            c, s_ = math.cos(m.pose[2]), math.sin(m.pose[2])
-            hx, hy = m.size[0] / 2, m.size[1] / 2
-            box = ((hx, hy), (-hx, hy), (-hx, -hy), (hx, -hy))
-            corners = [(m.pose[0] + c * u - s_ * v, m.pose[1] + s_ * u + c * v) for u, v in box]
-            ax.add_patch(Polygon(corners, color="#ff9900", zorder=5))
+            ax.add_patch(Polygon(box_corners(m.pose[:2], m.pose[2], m.size[0], m.size[1]), color="#ff9900", zorder=5))
     if st["goal"] is not None:
         ax.plot(*st["goal"], marker="*", ms=16, color="#33cc66", zorder=6, ls="none", label="/goal_pose")
     tri = [(x + 0.3 * math.cos(yaw), y + 0.3 * math.sin(yaw)), (x + 0.18 * math.cos(yaw + 2.4), y + 0.18 * math.sin(yaw + 2.4)),
