@@ -370,23 +370,20 @@ class McapRecorder(gym.Wrapper):
         return obs, reward, terminated, truncated, info
 
     # ------------------------------------------------------------------ one step
-    def _command(self, scene: Any, action: Any, info: dict[str, Any]) -> tuple[float, float]:
+    def _command(self, action: Any, info: dict[str, Any]) -> tuple[float, float]:
+        """The command carried out: the shield's, else the env's own reading of the action
+        (``WarehouseEnv.command``: scaled and clipped to the robot's limits)."""
         veto = info.get("shield")
         if isinstance(veto, dict) and "v" in veto:
             return float(veto["v"]), float(veto["w"])
-        a = np.asarray(action, dtype=np.float64).reshape(-1)
-        if scene.normalized_actions:
-            (v_lo, v_hi), (w_lo, w_hi) = scene.command_limits
-            a = np.clip(a, -1.0, 1.0)
-            return float(v_lo + (a[0] + 1) / 2 * (v_hi - v_lo)), float(w_lo + (a[1] + 1) / 2 * (w_hi - w_lo))
-        return float(a[0]), float(a[1])
+        return self.env.unwrapped.command(action)
 
     def _record_step(self, scene: Any, action: Any, info: dict[str, Any], ns: int) -> None:
         t = stamp(ns)
         self._write("/clock", {"clock": t}, ns)
         truth, angles, ranges = robot_messages(self._write, scene, ns, self._dt)
         cfg = self._lidar.config
-        v, w = self._command(scene, action, info)
+        v, w = self._command(action, info)
         self._write("/cmd_vel", {"linear": {"x": v, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": w}}, ns)
         self._publish_goal(scene, ns)
         if self.plan is not None:
