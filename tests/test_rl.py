@@ -59,6 +59,11 @@ def _train(tmp_path: Path, algo: str, seed: int = 0, steps: int = 1024, name: st
     return out
 
 
+def _weights(model_zip: Path) -> dict:
+    """The policy's tensors as a model zip stores them."""
+    return torch.load(zipfile.ZipFile(model_zip).open("policy.pth"), weights_only=True)
+
+
 def _evaluate_json(capsys, model: Path, episodes: int, seed: int) -> dict:
     """``bulletnav evaluate --json`` on ``model`` for episodes ``seed .. seed + episodes - 1``."""
     capsys.readouterr()
@@ -194,7 +199,7 @@ def test_resume_continues_from_the_checkpoint(ppo_run, tmp_path):
 @pytest.mark.slow  # uses the module's smoke PPO training (14 s), or trains itself
 def test_init_from_starts_a_new_run_from_a_models_weights(ppo_run, tmp_path, capsys):
     def weights(run: Path) -> dict:
-        return torch.load(zipfile.ZipFile(run / "model.zip").open("policy.pth"), weights_only=True)
+        return _weights(run / "model.zip")
 
     # no steps: the saved model is the one it started from, statistics included
     copy = _train(tmp_path, "ppo", steps=0, name="copy", extra=("--init-from", str(ppo_run / "model.zip")))
@@ -221,10 +226,7 @@ def test_init_from_starts_a_new_run_from_a_models_weights(ppo_run, tmp_path, cap
 @pytest.mark.slow
 def test_stop_at_success_stops_when_an_evaluation_reaches_the_rate(tmp_path, capsys):
     shipped = ROOT / "models" / "ppo_warehouse.zip"
-
-    def weights(path: Path) -> dict:
-        return torch.load(zipfile.ZipFile(path).open("policy.pth"), weights_only=True)
-
+    weights = _weights
     # a start that already succeeds is evaluated before its first update and stops there:
     # the saved model is the start, and the record says at what steps and time it got there
     run = _train(tmp_path, "ppo", steps=4096, name="reached",

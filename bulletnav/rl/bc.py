@@ -161,16 +161,17 @@ def train_bc(cfg: BCConfig) -> dict[str, Any]:
         policy.log_std.requires_grad_(True)  # a fine-tuning run trains it
     cfg.out.mkdir(parents=True, exist_ok=True)
     final = cfg.out / "model.zip"
+    commit = git_commit()
     atomic_save_model(model, final)
     meta = {"algo": "ppo", "trained_by": "bc", "env_id": spec.id, "env_kwargs": env_kwargs, "shield": False,
-            "seed": cfg.seed, "timesteps": 0, "dataset": cfg.dataset, "git_commit": git_commit(), "command": cfg.command}
+            "seed": cfg.seed, "timesteps": 0, "dataset": cfg.dataset, "git_commit": commit, "command": cfg.command}
     atomic_write_json(sidecar_path(final), save_safe(model, final, None, meta))
     record = {"command": cfg.command, "algo": "bc", "dataset": cfg.dataset, "env_id": spec.id,
               "env_kwargs": env_kwargs, "episodes": int(len(episodes)), "validation_episodes": int(len(held)),
               "samples": int(len(x_tr)), "epochs": cfg.epochs, "batch_size": cfg.batch_size,
               "learning_rate": cfg.learning_rate, "seed": cfg.seed, "wall_time_s": round(wall, 1), "fit_std": cfg.fit_std,
               "log_std": [round(float(v), 4) for v in policy.log_std.detach()] if hasattr(policy, "log_std") else None,
-              "final": history[-1], "git_commit": git_commit(), "machine": machine(),
+              "final": history[-1], "git_commit": commit, "machine": machine(),
               "network": {"policy": str(hp.get("policy", "MlpPolicy")), "policy_kwargs": str(hp.get("policy_kwargs", {}))}}
     atomic_write_json(cfg.out / "history.json", history)
     atomic_write_json(cfg.out / "run.json", json.loads(json.dumps(record, default=str)))
