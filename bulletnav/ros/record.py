@@ -326,6 +326,8 @@ class McapRecorder(gym.Wrapper):
         self._plan_sent: Any = None
         self._map_due = 0.0
         self._camera_due = 0.0
+        config = getattr(self.env.unwrapped, "config", None)
+        self._camera_in_obs = bool(config is not None and config.camera_obs)  # the env renders it every step anyway
         self._lidar = scene.sensors.lidar
         sx, sy = scene.layout.size  # the floor is centred on the origin
         self._bounds = (-sx / 2, -sy / 2, sx / 2, sy / 2)
@@ -409,8 +411,7 @@ class McapRecorder(gym.Wrapper):
         camera = scene.sensors.camera
         if camera is None:
             return
-        in_obs = bool(getattr(self.env.unwrapped, "config", None) and self.env.unwrapped.config.camera_obs)
-        if not in_obs:
+        if not self._camera_in_obs:
             if self.camera_hz is None or now_s + 1e-9 < self._camera_due:
                 return
             self._camera_due = now_s + 1.0 / self.camera_hz
