@@ -19,7 +19,7 @@ from bulletnav.benchmark.metrics import (
     episode_metrics,
     optimal_time,
 )
-from bulletnav.benchmark.runner import build_results, run_suite
+from bulletnav.benchmark.runner import build_results, run_in_pool, run_suite
 from bulletnav.benchmark.suite import SuiteError, load_suite, parse_suite
 from bulletnav.cli import main
 from bulletnav.errors import BulletnavError
@@ -273,3 +273,17 @@ def test_an_address_with_no_cluster_is_one_clear_error(tmp_path):
     pytest.importorskip("ray")
     with pytest.raises(BulletnavError, match="--address 127.0.0.1:1: cannot connect"):
         run_suite(load_suite(str(TINY)), tmp_path / "none", workers=1, address="127.0.0.1:1")
+
+
+def test_pool_raises_a_jobs_error_without_starting_the_queued_jobs(tmp_path):
+    """A failing job stops the run at once: before this, the pool ran every queued job (hours of
+    a fleet comparison) and only then raised, its results thrown away."""
+    import os
+
+    made = [tmp_path / f"job{k}" for k in range(6)]
+    jobs = [(math.sqrt, (-1.0,))] + [(os.mkdir, (str(p),)) for p in made]
+    kept = []
+    with pytest.raises(ValueError, match="math domain error"):
+        run_in_pool(jobs, 1, kept.append)
+    assert kept == [] or all(k is None for k in kept)
+    assert sum(p.exists() for p in made) <= 2  # at most the job handed to the worker with the failing one

@@ -236,6 +236,39 @@ def test_stations_derived_from_an_aisle_warehouse():
         env.close()
 
 
+def test_dock_moves_in_where_racks_line_every_wall(tmp_path):
+    """Racks along all four walls (procedural aisles draw such floors, e.g. seed 1015): no
+    station fits 0.55 m from a wall, so the dock is the first free line farther in."""
+    path = tmp_path / "lined.yaml"
+    rack = {"type": "box", "label": "rack"}
+    path.write_text(yaml.safe_dump({"name": "lined", "size": [10.0, 8.0], "obstacles": [
+        {**rack, "center": [-4.6, 0.0], "size": [0.8, 8.0, 2.0]}, {**rack, "center": [4.6, 0.0], "size": [0.8, 8.0, 2.0]},
+        {**rack, "center": [0.0, -3.6], "size": [10.0, 0.8, 2.0]}, {**rack, "center": [0.0, 3.6], "size": [10.0, 0.8, 2.0]},
+        {**rack, "center": [0.0, 0.0], "size": [4.0, 1.0, 2.0]}]}))
+    env = fleet_v0.parallel_env(num_robots=2, world=str(path), duration_s=1.0)
+    try:
+        env.reset(seed=0)
+        st = env.stations
+        # south and north hold as many; south is first. 0.55 + 3 x 0.25 m in: the first line 0.4 m clear of the rack
+        assert st.dock_wall == "south" and len(st.drop) >= 3
+        assert all(y == pytest.approx(-4.0 + 1.3) for _, y in st.drop)
+        layout, free = env._scene.layout, env._scene.free_space
+        for pt in st.drop:
+            assert float(layout.clearance(np.array(pt[0]), np.array(pt[1]))) > env.config.sampler.clearance
+            assert free.reachable(st.pick[0], pt)
+    finally:
+        env.close()
+
+
+def test_procedural_floor_with_racks_on_every_wall_gets_a_dock():
+    env = fleet_v0.parallel_env(num_robots=2, duration_s=1.0, dynamic=True)
+    try:
+        env.reset(seed=1015)  # raised "no drop stations" before the dock could move in
+        assert len(env.stations.drop) >= 1
+    finally:
+        env.close()
+
+
 # ------------------------------------------------------------------ bad arguments
 @pytest.mark.parametrize("n", [0, 17, 2.5])
 def test_num_robots_out_of_range(n):

@@ -266,16 +266,21 @@ class RowLog:
 def run_in_pool(jobs: list[tuple[Callable, tuple]], workers: int, keep: Callable[[Any], None]) -> None:
     """Run each ``(function, args)`` job in a pool of ``workers`` processes (forkserver:
     nothing of this process's PyBullet state is inherited) and ``keep`` each result as it
-    finishes. A job's exception is raised here."""
+    finishes. A job's exception is raised here, at once: the jobs not yet started are dropped
+    (the running ones finish first)."""
     import multiprocessing
 
     ctx = multiprocessing.get_context("forkserver")
     with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
         pending = {pool.submit(fn, *args) for fn, args in jobs}
-        while pending:
-            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for future in finished:
-                keep(future.result())
+        try:
+            while pending:
+                finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for future in finished:
+                    keep(future.result())
+        except BaseException:
+            pool.shutdown(wait=False, cancel_futures=True)  # fail fast: the queued jobs never start
+            raise
 
 
 def _run_ray(suite: Suite, root: Path, chunks: list, address: str, keep: Callable) -> None:

@@ -4,7 +4,9 @@
 labelled ``rack``, ``station_offset`` (0.55 m) out from the face, one every
 ``station_spacing`` (1 m). **Drop stations** line the dock: one wall (``dock_wall``; with
 ``"auto"`` the wall with the most stations along it), ``station_offset`` from it, one every
-``station_spacing``. A station is kept where the floor around it is free (more than the
+``station_spacing``; where racks line every wall, the dock is the first line farther in (in
+steps of ``DOCK_STEP``, up to 3 m) with free floor along some wall: the aisle in front of the
+racks. A station is kept where the floor around it is free (more than the
 sampler's clearance, 0.4 m, from every obstacle and wall: a pallet stacked against a rack
 takes the stations in front of it) and where it is reachable for the robot's disc. Of the
 connected regions of the floor the one holding the most stations is used, so every station
@@ -146,6 +148,13 @@ def _keep(points: list[Point], layout: Layout, free: FreeSpace, clearance: float
     return out
 
 
+DOCK_STEP = 0.25
+"""Where no wall has free floor ``station_offset`` from it (racks line every wall), the dock's
+line moves in by this much (m) at a time ..."""
+DOCK_STEPS = 12
+"""... at most this many times (3 m): the first line with a free station on some wall is the dock."""
+
+
 def find_stations(layout: Layout, free: FreeSpace, clearance: float, offset: float, spacing: float,
                   dock_wall: str = "auto", named: dict[str, tuple[Point, ...]] | None = None) -> Stations:
     """The pick and drop stations of ``layout`` (see the module docstring).
@@ -178,11 +187,15 @@ def find_stations(layout: Layout, free: FreeSpace, clearance: float, offset: flo
         wall = "named"
     else:
         walls = ("south", "north", "west", "east") if dock_wall == "auto" else (dock_wall,)
-        options = [(w, _keep(wall_points(layout, w, offset, spacing), layout, free, clearance)) for w in walls]
-        wall, drop = max(options, key=lambda item: len(item[1]))  # the first of equals: a fixed order
+        for step in range(DOCK_STEPS + 1):  # racks along every wall: the dock moves in, to the first free aisle
+            at = offset + step * DOCK_STEP
+            options = [(w, _keep(wall_points(layout, w, at, spacing), layout, free, clearance)) for w in walls]
+            wall, drop = max(options, key=lambda item: len(item[1]))  # the first of equals: a fixed order
+            if drop:
+                break
         if not drop:
-            raise ConfigError(f"{where} has no drop stations: no free floor {offset} m from the "
-                              f"{'walls' if dock_wall == 'auto' else dock_wall + ' wall'} (dock_wall={dock_wall!r}); "
+            raise ConfigError(f"{where} has no drop stations: no free floor {offset}-{offset + DOCK_STEPS * DOCK_STEP:g} m "
+                              f"from the {'walls' if dock_wall == 'auto' else dock_wall + ' wall'} (dock_wall={dock_wall!r}); "
                               f"name them with drop_stations=[(x, y), ...] or 'stations: {{drop: [...]}}' in the world file")
     counts: dict[int, list[int]] = {}
     for _, label in pick:
