@@ -3,6 +3,8 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+# pytest-xdist processes of `make test`, each running whole test modules (2: the CI machine's cores)
+TEST_WORKERS ?= 2
 
 .PHONY: demo test fuzz install clean
 
@@ -19,7 +21,7 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/ruff check bulletnav tests
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet --site-dir build/site
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 # Property-based fuzzing of every parser, the env's kwargs and actions and the CLI with 20 times the
 # examples of `make test`'s derandomized run, on random seeds; prints the examples per property.

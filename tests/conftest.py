@@ -86,9 +86,19 @@ def report(request):
     """Record a measured figure; all are printed in a 'measurements' section after the run."""
 
     def _report(what: str, value: str) -> None:
-        _MEASUREMENTS.append((f"{request.node.name}: {what}", value))
+        # carried on the test's reports, so they reach the controller of a pytest-xdist run too
+        request.node.user_properties.append((_MEASUREMENT, (f"{request.node.name}: {what}", str(value))))
 
     return _report
+
+
+_MEASUREMENT = "bulletnav_measurement"
+
+
+def pytest_runtest_logreport(report):
+    """Collect the measurements a test recorded (its teardown report carries them all)."""
+    if report.when == "teardown":
+        _MEASUREMENTS.extend(tuple(v) for k, v in report.user_properties if k == _MEASUREMENT)
 
 
 _GUI_CHILD = "BULLETNAV_GUI_TEST_CHILD"
@@ -129,7 +139,7 @@ def pytest_pyfunc_call(pyfuncitem):
                     pytest.fail(f"GUI test {pyfuncitem.nodeid} hung in two child processes ({exc.timeout} s each)")
                 pyfuncitem.warn(pytest.PytestWarning(f"its GUI child hung for {exc.timeout} s; run once more in a new one"))
         if measurements.exists():
-            _MEASUREMENTS.extend(tuple(m) for m in json.loads(measurements.read_text()))
+            pyfuncitem.user_properties.extend((_MEASUREMENT, tuple(m)) for m in json.loads(measurements.read_text()))
     if out.returncode != 0:
         pytest.fail(f"GUI test failed in its child process (exit {out.returncode}):\n{out.stdout[-6000:]}\n{out.stderr[-2000:]}",
                     pytrace=False)
@@ -145,10 +155,10 @@ def pytest_sessionfinish(session):
         Path(path).write_text(json.dumps(_MEASUREMENTS))
 
 
-def pytest_terminal_summary(terminalreporter):
+def pytest_terminal_summary(terminalreporter, config):
     import os
 
-    if _MEASUREMENTS and not os.environ.get(_GUI_CHILD):
+    if _MEASUREMENTS and not os.environ.get(_GUI_CHILD) and not hasattr(config, "workerinput"):
         terminalreporter.section("measurements")
         for what, value in _MEASUREMENTS:
             terminalreporter.write_line(f"{what} = {value}")
@@ -226,3 +236,13 @@ def bit_equal(a, b) -> bool:
     if isinstance(a, np.ndarray):
         return a.dtype == b.dtype and np.array_equal(a, b)
     return a == b and type(a) is type(b)
+
+
+def pytest_collection_modifyitems(config, items):
+    """Modules with the most ``slow`` tests first (their order otherwise kept): `make test` hands
+    whole modules to its two pytest-xdist workers in this order, and a long module left to the
+    end would keep one worker busy while the other idles."""
+    slow: dict[str, int] = {}
+    for item in items:
+        slow[item.module.__name__] = slow.get(item.module.__name__, 0) + (item.get_closest_marker("slow") is not None)
+    items.sort(key=lambda item: -slow[item.module.__name__])

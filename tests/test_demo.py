@@ -46,7 +46,8 @@ def test_view_runs_under_xvfb():
 @needs_xvfb
 @needs_model
 def test_demo_with_gui_runs_under_xvfb(tmp_path):
-    done = _cli("demo", "--gui", "--episodes", "1", "--out", str(tmp_path / "demo"))
+    # seed 1000186: the shortest of the model card's 200 episodes (83 steps; the GUI paces real time)
+    done = _cli("demo", "--gui", "--episodes", "1", "--seed", "1000186", "--out", str(tmp_path / "demo"))
     assert done.returncode == 0, done.stderr[-2000:]
     assert "EVALUATION RESULTS" in done.stdout
 

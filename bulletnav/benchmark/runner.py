@@ -266,21 +266,27 @@ class RowLog:
 def run_in_pool(jobs: list[tuple[Callable, tuple]], workers: int, keep: Callable[[Any], None]) -> None:
     """Run each ``(function, args)`` job in a pool of ``workers`` processes (forkserver:
     nothing of this process's PyBullet state is inherited) and ``keep`` each result as it
-    finishes. A job's exception is raised here, at once: the jobs not yet started are dropped
-    (the running ones finish first)."""
+    finishes. At most ``workers`` jobs are handed to the pool at a time, so a job's exception
+    is raised here at once: the jobs not yet handed over never start (the running ones finish
+    first). ``ProcessPoolExecutor`` would otherwise queue jobs ahead of its workers, and those
+    would run after the failure."""
     import multiprocessing
 
     ctx = multiprocessing.get_context("forkserver")
+    queue = iter(jobs)
     with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-        pending = {pool.submit(fn, *args) for fn, args in jobs}
-        try:
-            while pending:
-                finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-                for future in finished:
-                    keep(future.result())
-        except BaseException:
-            pool.shutdown(wait=False, cancel_futures=True)  # fail fast: the queued jobs never start
-            raise
+        pending = set()
+        for fn, args in queue:
+            pending.add(pool.submit(fn, *args))
+            if len(pending) == workers:
+                break
+        while pending:
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for future in finished:
+                keep(future.result())
+                for fn, args in queue:
+                    pending.add(pool.submit(fn, *args))
+                    break
 
 
 def _run_ray(suite: Suite, root: Path, chunks: list, address: str, keep: Callable) -> None:
