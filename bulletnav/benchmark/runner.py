@@ -20,6 +20,7 @@ import time
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from importlib import import_module
+from itertools import islice
 from pathlib import Path
 from typing import Any
 
@@ -275,18 +276,12 @@ def run_in_pool(jobs: list[tuple[Callable, tuple]], workers: int, keep: Callable
     ctx = multiprocessing.get_context("forkserver")
     queue = iter(jobs)
     with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-        pending = set()
-        for fn, args in queue:
-            pending.add(pool.submit(fn, *args))
-            if len(pending) == workers:
-                break
+        pending = {pool.submit(fn, *args) for fn, args in islice(queue, workers)}
         while pending:
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)
             for future in finished:
                 keep(future.result())
-                for fn, args in queue:
-                    pending.add(pool.submit(fn, *args))
-                    break
+                pending.update(pool.submit(fn, *args) for fn, args in islice(queue, 1))
 
 
 def _run_ray(suite: Suite, root: Path, chunks: list, address: str, keep: Callable) -> None:
