@@ -493,3 +493,51 @@ def test_a_shielded_episode_among_movers_reproduces_the_committed_result_to_the_
     for key in ("steps", "reward", "path_length", "final_distance", "shield_steps", "shield_change", "near_miss_steps",
                 "success", "collision"):
         assert got[key] == want[key], key
+
+
+def test_with_a_creep_floor_it_does_not_creep_along_a_gap_narrower_than_the_floor():
+    """A passage 1.5 cm wider than the robot on each side (wall left, yielding worker right):
+    without a floor the stuck robot creeps along it (its clearance kept); with the fleet's
+    floor of 2 cm a creep must also end 1 cm farther from both sides, which no forward creep
+    between two parallel sides does, so the shield holds the robot instead: a creep's
+    millimetres of error can no longer walk it into a side."""
+    from bulletnav.fleet.controllers import FLEET_SHIELD
+
+    assert FLEET_SHIELD.creep_floor == ShieldConfig().close_margin == 0.02
+    side = 0.135
+    worker = (0.0, -(side + 0.25))
+    ranges = _passage(worker, side)
+    now = _gap_to(np.zeros((1, 3)), worker, side)
+    assert 0.005 < now < 0.02
+    movers = [_worker(*worker, yielding=True)]
+    d = _shield().filter(0.5, 0.0, 0.0, ranges, movers, stuck=0.0)
+    assert d.creep and d.v > 0.0  # the floorless rule: no closer than now is enough
+    floored = Shield(GEOMETRY, ANGLES, 5.0, 1 / 24, 0.5, 1.5, FLEET_SHIELD)
+    d = floored.filter(0.5, 0.0, 0.0, ranges, movers, stuck=0.0)
+    assert not d.creep and d.v == 0.0
+    with pytest.raises(ValueError, match="creep_floor"):
+        ShieldConfig(creep_floor=-0.01)
+
+
+def test_nearer_than_the_floor_it_still_creeps_away_from_what_it_is_near():
+    """A wall 1 cm behind the robot's rear face and a worker yielding 20 cm ahead: inside the
+    margin, nothing normal passes; with the fleet's floor the stuck robot may creep forward,
+    since that ends at least 5 mm farther from the wall (closed form) and no closer to the worker."""
+    from bulletnav.fleet.controllers import FLEET_SHIELD
+
+    rear = min(r.cx - r.half_x for r in GEOMETRY.rectangles)
+    front = max(r.cx + r.half_x for r in GEOMETRY.rectangles)
+    wall_x = rear - 0.01
+    worker = (front + 0.20 + 0.25, 0.0)
+    ranges = _passage(worker, 5.0)
+    for k, a in enumerate(ANGLES):  # the wall x = wall_x behind, ray-cast from the lidar
+        if math.cos(a) < -1e-9:
+            ranges[k] = min(ranges[k], (wall_x - OX) / math.cos(a))
+    floored = Shield(GEOMETRY, ANGLES, 5.0, 1 / 24, 0.5, 1.5, FLEET_SHIELD)
+    d = floored.filter(0.5, 0.0, 0.0, ranges, [_worker(*worker, yielding=True)], stuck=0.0)
+    assert d.intervened and d.creep and d.v > 0.0
+    poses, _ = floored.sweep(d.v, d.w, 0.0, 0.0)
+    end = poses[0, -1]
+    corners = [end[0] + math.cos(end[2]) * (r.cx + sx * r.half_x) - math.sin(end[2]) * (r.cy + sy * r.half_y)
+               for r in GEOMETRY.rectangles for sx in (-1, 1) for sy in (-1, 1)]
+    assert min(corners) - wall_x >= 0.01 + 0.005 - 1e-4  # 5 mm farther from the wall, by closed form

@@ -119,12 +119,20 @@ class ShieldConfig:
     brings the bare outline closer to the finely filled scan or to a mover than it already is:
     the mover waits for as long as the robot stands near it, so standing would be a deadlock.
     0 turns creeping off."""
+    creep_floor: float = 0.0
+    """Nearer than this (m) to the scan or a mover, a creep must also end at least 5 mm
+    farther away than the robot is now (or at this distance). Without it (0, the
+    single-robot default, with which the published shielded results were measured) a creep
+    only never comes closer than the robot is, and clearances of a few millimetres can
+    ratchet down step by step: the filled scan and the sweep's motion model are each off by
+    a few millimetres, so a creep that keeps the measured clearance can shrink the true one
+    until the robot touches. The fleet's shield sets it to ``close_margin``."""
 
     def __post_init__(self) -> None:
         if (not 0 <= self.margin_min <= self.margin or self.decel <= 0 or self.samples < 3 or self.join < 0
-                or self.patience < 1 or self.creep_speed < 0):
+                or self.patience < 1 or self.creep_speed < 0 or self.creep_floor < 0):
             raise ValueError("shield needs 0 <= margin_min <= margin, decel > 0, samples >= 3, join >= 0, patience >= 1, "
-                             f"creep_speed >= 0; got {self}")
+                             f"creep_speed >= 0, creep_floor >= 0; got {self}")
 
 
 @dataclass(frozen=True)
@@ -150,6 +158,11 @@ class ShieldDecision:
 
 _CREEP_SLACK = 1e-5
 """How much closer (m) than it already is a creep may bring the robot (the arithmetic's rounding)."""
+_CREEP_GAIN = 0.005
+"""Nearer than ``ShieldConfig.creep_floor``, a creep must end at least this much (m) farther
+from everything than the robot is now (or at the floor), by the sweep's model: a forward creep
+sweeps about 7.5 mm (0.1 m/s for one period, then braking), so it can back away from what is
+behind; two parallel sides it cannot, and then the robot stands."""
 _SIN_CORNER = math.sin(math.radians(15.0))
 """Two surfaces meeting at less than this angle are one surface to :meth:`Shield.points`."""
 
@@ -338,7 +351,10 @@ class Shield:
         if movers:
             gaps = np.minimum(gaps, self._pose_clearance(poses, self._mover_points(movers, times, pose)))
         # every sweep's first pose is where the robot stands: its gap is the clearance now
-        clear = gaps.min(axis=1) >= gaps[0, 0] - _CREEP_SLACK
+        now, floor = float(gaps[0, 0]), self.config.creep_floor
+        clear = gaps.min(axis=1) >= now - _CREEP_SLACK
+        if now < floor:  # nearer than the floor already: away by _CREEP_GAIN too (or to the floor)
+            clear &= gaps[:, -1] >= min(floor, now + _CREEP_GAIN)
         robots = [m for m in movers if m.kind == "robot"] if movers else []
         if robots:  # a robot's ring is no body: a robot on it (gap 0) may not creep, nor creep nearer to it
             ring = self._pose_clearance(poses, self._mover_points(robots, times, pose))

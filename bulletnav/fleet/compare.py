@@ -262,10 +262,15 @@ def run_comparison(out: Path, entries: list[Entry], robots: Sequence[int] = (4, 
 
 def entry_record(entry: Entry, root: Path) -> dict[str, Any]:
     """``entry``'s fields plus its model file's sha256 (so a retrained model under the same
-    name never joins rows of the one before)."""
+    name never joins rows of the one before) and, behind the shield, the shield's settings
+    (so rows of a shield with other settings are never joined either)."""
     record: dict[str, Any] = asdict(entry)
     if entry.model:
         record["model_sha256"] = hashlib.sha256(Path(resolve(entry.model, root)).read_bytes()).hexdigest()
+    if entry.shield:
+        from bulletnav.fleet.controllers import FLEET_SHIELD
+
+        record["shield_config"] = json.loads(json.dumps(asdict(FLEET_SHIELD)))
     return record
 
 

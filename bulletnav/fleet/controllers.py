@@ -708,6 +708,13 @@ class _RobotEnv:
         self.command = env.command
 
 
+FLEET_SHIELD = ShieldConfig(creep_floor=ShieldConfig().close_margin)
+"""The fleet's shield settings: the defaults, with creeping kept off the last ``close_margin``
+(2 cm) of a gap. Robots of a fleet wait for one another far more often than a single robot
+waits for a yielding worker, so they creep often, and without the floor a creep's
+millimetre-sized errors let one robot ratchet into a rack (seed 1035, N = 8, docs/fleet.md)."""
+
+
 class ShieldedController:
     """A fleet controller behind the safety shield: every robot's action goes through its
     own :class:`~bulletnav.control.shield.Veto`, which sees its lidar scan, odometry, the
@@ -724,7 +731,7 @@ class ShieldedController:
         config: the shield's settings.
     """
 
-    def __init__(self, inner: FleetController, env: FleetEnv, config: ShieldConfig = ShieldConfig()) -> None:
+    def __init__(self, inner: FleetController, env: FleetEnv, config: ShieldConfig = FLEET_SHIELD) -> None:
         self.inner = inner
         view = self.view = FleetView(env)
         self.commitments: dict[int, float] = {}
