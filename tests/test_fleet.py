@@ -7,6 +7,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -96,6 +97,25 @@ def test_spaces_equal_single_robot(kwargs, single_id):
         env.close()
         single.close()
 
+
+
+@pytest.mark.parametrize("normalize", [False, True])
+def test_each_robot_maps_actions_as_the_single_robot_env_does(normalize):
+    """The fleet's action map is the single-robot env's: the same (v, w) for in-range,
+    out-of-range and integer actions, and the same error for a bad one."""
+    single = gym.make("bulletnav/WarehouseAisles-v0", normalize_actions=normalize).unwrapped
+    env = fleet_v0.parallel_env(num_robots=2, duration_s=1.0, normalize_actions=normalize)
+    try:
+        for action in (np.array([0.3, -0.7], np.float32), np.array([9.0, -9.0]), [1, 0], (0.25, 1.25)):
+            assert env.command(action) == single.command(action)
+        for bad in (np.array([np.nan, 0.0]), [0.1], {"v": 1}):
+            with pytest.raises(ValueError) as theirs:
+                single.command(bad)
+            with pytest.raises(ValueError, match=re.escape(str(theirs.value))):
+                env.command(bad)
+    finally:
+        env.close()
+        single.close()
 
 # ------------------------------------------------------------------ determinism
 def rollout_hash(seed: int = 7, steps: int = 48) -> str:

@@ -462,32 +462,12 @@ class WarehouseEnv(gym.Env):
         return self._observation(), reward, terminated, truncated, self._info(terms, reason)
 
     def command(self, action: Any) -> tuple[float, float]:
-        """The (v m/s, w rad/s) an action commands, after scaling and clipping.
+        """The (v m/s, w rad/s) an action commands, after scaling and clipping (:func:`action_command`).
 
         Raises:
             ValueError: the action is not 2 finite numbers (a dict, a wrong shape, NaN).
         """
-        if type(action) is np.ndarray and action.shape == (2,) and action.dtype.kind == "f":
-            a0, a1 = action.tolist()  # the common case, fast
-        else:
-            try:
-                with warnings.catch_warnings():  # a complex number inside an object array: refused, not cast
-                    warnings.simplefilter("error", np.exceptions.ComplexWarning)
-                    arr = np.asarray(action, dtype=np.float64)
-            except (TypeError, ValueError, OverflowError, np.exceptions.ComplexWarning):  # Overflow: an int beyond float64
-                arr = None
-            if arr is None or arr.shape != (2,) or np.iscomplexobj(action):
-                raise ValueError(f"action must be 2 numbers (v, w), got {action!r} of type {type(action).__name__}"
-                                 f"{'' if arr is None else f' and shape {arr.shape}'}")
-            a0, a1 = float(arr[0]), float(arr[1])
-        if not (math.isfinite(a0) and math.isfinite(a1)):
-            names = [n for n, x in (("v", a0), ("w", a1)) if not math.isfinite(x)]
-            raise ValueError(f"action {[a0, a1]} has non-finite entries: {', '.join(names)}")
-        v_lo, v_hi, w_lo, w_hi = self._bounds
-        if self.config.normalize_actions:  # [-1, 1] -> physical range
-            a0 = v_lo + (a0 + 1.0) * 0.5 * (v_hi - v_lo)
-            a1 = w_lo + (a1 + 1.0) * 0.5 * (w_hi - w_lo)
-        return min(max(a0, v_lo), v_hi), min(max(a1, w_lo), w_hi)
+        return action_command(action, self._bounds, self.config.normalize_actions)
 
     def render(self):
         if self.render_mode == "rgb_array":
@@ -541,3 +521,34 @@ class WarehouseEnv(gym.Env):
         if wait > 0:
             time.sleep(wait)
         self._last_frame_time = time.perf_counter()
+
+
+def action_command(action: Any, bounds: tuple[float, float, float, float], normalize: bool) -> tuple[float, float]:
+    """The (v m/s, w rad/s) that ``action`` commands: with ``normalize``, [-1, 1] mapped
+    linearly onto ``bounds`` = (v min, v max, w min, w max), then clipped to them. The one
+    action map of the single-robot env and of every robot of a fleet.
+
+    Raises:
+        ValueError: the action is not 2 finite numbers (a dict, a wrong shape, NaN).
+    """
+    if type(action) is np.ndarray and action.shape == (2,) and action.dtype.kind == "f":
+        a0, a1 = action.tolist()  # the common case, fast
+    else:
+        try:
+            with warnings.catch_warnings():  # a complex number inside an object array: refused, not cast
+                warnings.simplefilter("error", np.exceptions.ComplexWarning)
+                arr = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError, OverflowError, np.exceptions.ComplexWarning):  # Overflow: an int beyond float64
+            arr = None
+        if arr is None or arr.shape != (2,) or np.iscomplexobj(action):
+            raise ValueError(f"action must be 2 numbers (v, w), got {action!r} of type {type(action).__name__}"
+                             f"{'' if arr is None else f' and shape {arr.shape}'}")
+        a0, a1 = float(arr[0]), float(arr[1])
+    if not (math.isfinite(a0) and math.isfinite(a1)):
+        names = [n for n, x in (("v", a0), ("w", a1)) if not math.isfinite(x)]
+        raise ValueError(f"action {[a0, a1]} has non-finite entries: {', '.join(names)}")
+    v_lo, v_hi, w_lo, w_hi = bounds
+    if normalize:  # [-1, 1] -> physical range
+        a0 = v_lo + (a0 + 1.0) * 0.5 * (v_hi - v_lo)
+        a1 = w_lo + (a1 + 1.0) * 0.5 * (w_hi - w_lo)
+    return min(max(a0, v_lo), v_hi), min(max(a1, w_lo), w_hi)

@@ -13,7 +13,7 @@ from pettingzoo import ParallelEnv
 
 from bulletnav import AISLES_KWARGS, DYNAMIC_KWARGS
 from bulletnav.config import EnvConfig
-from bulletnav.envs.warehouse import make_config
+from bulletnav.envs.warehouse import action_command, make_config
 from bulletnav.errors import ConfigError, SamplingError
 from bulletnav.fleet.config import FleetConfig
 from bulletnav.fleet.scene import KINDS, FleetScene
@@ -271,23 +271,13 @@ class FleetEnv(ParallelEnv):
         return obs, rewards, terminations, truncations, infos
 
     def command(self, action: Any) -> tuple[float, float]:
-        """The (v m/s, w rad/s) an action commands, after scaling and clipping (as the single-robot env).
+        """The (v m/s, w rad/s) an action commands, after scaling and clipping: the single-robot
+        env's map (:func:`~bulletnav.envs.warehouse.action_command`).
 
         Raises:
             ValueError: the action is not 2 finite numbers.
         """
-        try:
-            arr = np.asarray(action, dtype=np.float64)
-        except (TypeError, ValueError):
-            arr = None
-        if arr is None or arr.shape != (2,) or not np.all(np.isfinite(arr)):
-            raise ValueError(f"action must be 2 finite numbers (v, w), got {action!r}")
-        a0, a1 = float(arr[0]), float(arr[1])
-        v_lo, v_hi, w_lo, w_hi = self._bounds
-        if self.config.normalize_actions:
-            a0 = v_lo + (a0 + 1.0) * 0.5 * (v_hi - v_lo)
-            a1 = w_lo + (a1 + 1.0) * 0.5 * (w_hi - w_lo)
-        return min(max(a0, v_lo), v_hi), min(max(a1, w_lo), w_hi)
+        return action_command(action, self._bounds, self.config.normalize_actions)
 
     def render(self) -> None:
         return None
