@@ -1132,6 +1132,13 @@ def cmd_fleet(args: argparse.Namespace) -> int:
     _refuse_existing_files(args, "video", "plot", "frame", "record")
     model = args.model or DEFAULT_MODEL
     env_kwargs = dict(model_env_kwargs(model)) if args.controller == "policy" else {}
+    if args.controller == "policy":
+        import torch
+
+        # one thread, as fleet-compare's workers (the same arithmetic as their rows): a forward
+        # pass of a few robots is too small for two, and two threads beside other work spend
+        # their time waiting for each other (a 40-episode run took 46 CPU-min and was not done)
+        torch.set_num_threads(1)
     env_kwargs.update(_fleet_world_kwargs(args, args.env_id))
     env_kwargs.update(num_robots=args.robots, duration_s=args.duration, dynamic=args.dynamic)
     visuals = None
