@@ -1339,7 +1339,8 @@ def cmd_fleet_compare(args: argparse.Namespace) -> int:
 
     try:
         results = run_comparison(Path(args.out), entries, robots=args.robots, episodes=args.episodes, seed=args.seed,
-                                 env_kwargs=env_kwargs, workers=args.workers, resume=args.resume, progress=progress)
+                                 env_kwargs=env_kwargs, workers=args.workers, resume=args.resume, progress=progress,
+                                 run=not args.tables_only)
     finally:
         if bar is not None:
             bar.close()
@@ -1650,6 +1651,9 @@ def build_parser() -> argparse.ArgumentParser:
     fc.add_argument("--workers", type=COUNT, default=1, help="worker processes (default 1); rows are the same for any count")
     fc.add_argument("--out", default="runs/fleet-compare", help="output directory (default runs/fleet-compare)")
     fc.add_argument("--resume", action="store_true", help="go on with the episodes already in --out")
+    fc.add_argument("--tables-only", action="store_true",
+                    help="run nothing: write comparison.json/.md from the rows in --out (same settings), on the "
+                         "episodes every entry has at each size (a run stopped early)")
     fc.add_argument("--json", action="store_true", help="print the settings, per-cell summaries and provenance as JSON")
     fc.set_defaults(func=cmd_fleet_compare)
 

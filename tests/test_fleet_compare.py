@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import asdict
 
 import pytest
 
@@ -98,3 +99,28 @@ def test_chunks_cover_every_entry_block_by_block():
         ("independent", 8, [0, 1, 2, 3]), ("coordinated", 8, [0]), ("coordinated", 8, [2, 3]),
         ("independent", 4, [0, 1, 2, 3]), ("coordinated", 4, [0, 1, 2, 3]),
         ("independent", 8, [4, 5]), ("coordinated", 8, [4, 5]), ("independent", 4, [4, 5]), ("coordinated", 4, [4, 5])]
+
+
+def test_tables_of_a_stopped_run_cover_the_episodes_every_entry_has(tmp_path):
+    """A run stopped early: ``run=False`` runs nothing and tabulates only the episodes that
+    every entry has, each cell saying how many; the shielded entry's settings record its shield."""
+    from bulletnav.fleet.compare import comparison_markdown
+    from bulletnav.fleet.controllers import FLEET_SHIELD
+
+    entries = parse_entries(["independent"], "both")
+    with pytest.raises(BulletnavError, match="no episodes.jsonl"):
+        run_comparison(tmp_path / "none", entries, robots=(2,), episodes=3, seed=7, env_kwargs=ENV, run=False)
+    out = tmp_path / "cut"
+    full = run_comparison(out, entries, robots=(2,), episodes=3, seed=7, env_kwargs=ENV)
+    assert "not finished" not in comparison_markdown(full)
+    settings = json.loads((out / "settings.json").read_text())
+    assert [e.get("shield_config") for e in settings["entries"]] == [None, json.loads(json.dumps(asdict(FLEET_SHIELD)))]
+    rows = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
+    kept = [r for r in rows if not (r["entry"] == "independent + shield" and r["episode"] == 2)]
+    (out / "episodes.jsonl").write_text("".join(json.dumps(r) + "\n" for r in kept))
+    part = run_comparison(out, entries, robots=(2,), episodes=3, seed=7, env_kwargs=ENV, run=False)
+    assert len((out / "episodes.jsonl").read_text().splitlines()) == 5  # nothing ran
+    assert [c["episodes"] for c in part["cells"]] == [2, 2]
+    assert sorted({r["episode"] for r in part["episodes"]}) == [0, 1]
+    assert _rows(part) == [r for r in _rows(full) if json.loads(r)["episode"] < 2]
+    assert "not finished" in (out / "comparison.md").read_text()

@@ -186,7 +186,7 @@ def plan_chunks(entries: list[Entry], robots: Sequence[int], episodes: int, done
 def run_comparison(out: Path, entries: list[Entry], robots: Sequence[int] = (4, 8), episodes: int = 40,
                    seed: int = 1000, env_kwargs: dict[str, Any] | None = None, workers: int = 1,
                    resume: bool = False, progress: Callable[[int, int], None] | None = None,
-                   root: Path | None = None) -> dict[str, Any]:
+                   root: Path | None = None, run: bool = True) -> dict[str, Any]:
     """Run every entry at every fleet size on ``episodes`` seeded episodes into ``out``.
 
     Args:
@@ -202,10 +202,17 @@ def run_comparison(out: Path, entries: list[Entry], robots: Sequence[int] = (4, 
             must be the same).
         progress: ``progress(done, total)`` after every chunk.
         root: where relative model paths are found (the project root by default).
+        run: False runs no episode: the tables are written from the rows already in ``out``
+            (a resumed run's settings must match), on the episodes every entry has at each
+            size, so a run stopped early still gives a fair comparison on fewer episodes.
+
+    The tables always cover only the episodes every entry has at a size (all of them once
+    the run is complete).
 
     Raises:
         BulletnavError: ``out`` holds an earlier run and ``resume`` is off, or a run of other
-            settings; bad settings; a model that cannot be loaded.
+            settings; bad settings; a model that cannot be loaded; ``run`` off and no rows
+            of every entry at some size.
     """
     root = Path(root or PROJECT_ROOT)
     env_kwargs = dict(env_kwargs or {})
@@ -227,6 +234,10 @@ def run_comparison(out: Path, entries: list[Entry], robots: Sequence[int] = (4, 
                 "seed": seed, "env_kwargs": env_kwargs}
     out.mkdir(parents=True, exist_ok=True)
     log_path, meta_path = out / "episodes.jsonl", out / "settings.json"
+    if not run:
+        resume = True
+        if not log_path.is_file():
+            raise BulletnavError(f"{out}: no {log_path.name} to make tables from (run the comparison first)")
     if log_path.exists() and not resume:
         raise BulletnavError(f"{out} holds an earlier run ({log_path.name}): pass --resume to go on with it, "
                              "or choose another --out")
@@ -241,7 +252,7 @@ def run_comparison(out: Path, entries: list[Entry], robots: Sequence[int] = (4, 
         write_strict_json(meta_path, settings)
     rows = [r for r in rows if r["entry"] in labels and r["robots"] in robots and r["episode"] < episodes]
     done = {row_key(r["entry"], r["robots"], r["episode"]) for r in rows}
-    chunks = plan_chunks(entries, robots, episodes, done)
+    chunks = plan_chunks(entries, robots, episodes, done) if run else []
     total = len(entries) * len(robots) * episodes
     t0 = time.perf_counter()
     with RowLog(log_path, rows, total, progress) as keep:
@@ -251,13 +262,26 @@ def run_comparison(out: Path, entries: list[Entry], robots: Sequence[int] = (4, 
         else:
             run_in_pool([(run_chunk, (entry, n, env_kwargs, seed, eps, str(root))) for entry, n, eps in chunks],
                         workers, keep)
-    results = build_comparison(settings, rows)
+    common = common_episodes(rows, labels, robots)
+    if not run and not all(common.values()):
+        raise BulletnavError(f"{out}: no episode that every entry has at "
+                             f"{', '.join(str(n) for n, ks in common.items() if not ks)} robots: nothing to compare")
+    results = build_comparison(settings, [r for r in rows if r["episode"] in common[r["robots"]]])
     results["provenance"] = run_provenance(time.perf_counter() - t0, workers, None)
     write_strict_json(out / "comparison.json", results)
     from bulletnav.rl.io import atomic_write_bytes
 
     atomic_write_bytes(out / "comparison.md", comparison_markdown(results).encode())
     return results
+
+
+def common_episodes(rows: list[dict[str, Any]], labels: Sequence[str], robots: Sequence[int]) -> dict[int, set[int]]:
+    """Per fleet size, the episodes every entry in ``labels`` has a row for."""
+    out = {}
+    for n in robots:
+        have = [{r["episode"] for r in rows if r["robots"] == n and r["entry"] == label} for label in labels]
+        out[n] = set.intersection(*have) if have else set()
+    return out
 
 
 def entry_record(entry: Entry, root: Path) -> dict[str, Any]:
@@ -328,8 +352,14 @@ def comparison_markdown(results: dict[str, Any]) -> str:
     """One markdown table per fleet size: throughput, collisions by kind, deadlocks, separation."""
     s = results["settings"]
     prov = results.get("provenance", {})
-    lines = [f"# Fleet comparison: {s['episodes']} episodes per entry, seeds {s['seed']}-{s['seed'] + s['episodes'] - 1}",
-             "", f"Env: `{json.dumps(s['env_kwargs'], sort_keys=True)}`. "
+    counts = {c["episodes"] for c in results["cells"]}
+    if counts == {s["episodes"]}:
+        title = f"# Fleet comparison: {s['episodes']} episodes per entry, seeds {s['seed']}-{s['seed'] + s['episodes'] - 1}"
+    else:  # tables of a run not finished: the episodes every entry has
+        title = (f"# Fleet comparison (not finished): {' / '.join(str(c) for c in sorted(counts))} of "
+                 f"{s['episodes']} episodes per entry, the ones every entry has (`episodes` column), "
+                 f"seeds from {s['seed']}")
+    lines = [title, "", f"Env: `{json.dumps(s['env_kwargs'], sort_keys=True)}`. "
              f"Command: `{prov.get('command', '?')}`; commit {prov.get('git_commit', '?')}"
              f"{' (dirty)' if prov.get('dirty') else ''}; {prov.get('machine', '?')}.", ""]
     for n in s["robots"]:
@@ -354,5 +384,5 @@ def _num(value: Any, fmt: str) -> str:
     return "-" if value is None or (isinstance(value, float) and not math.isfinite(value)) else format(value, fmt)
 
 
-__all__ = ["DEFAULT_CONTROLLERS", "Entry", "build_comparison", "check_resumable", "comparison_markdown",
+__all__ = ["DEFAULT_CONTROLLERS", "Entry", "build_comparison", "check_resumable", "common_episodes", "comparison_markdown",
            "entry_record", "episode_fingerprint", "parse_entries", "plan_chunks", "run_chunk", "run_comparison"]
