@@ -117,3 +117,92 @@ def test_a_killed_benchmark_leaves_whole_files_and_resumes_to_the_same_rows(tmp_
     _check_whole(out)
     expected = json.loads(GOLDEN.read_text())["episodes"]
     assert json.loads((out / "results.json").read_text())["episodes"] == expected
+
+
+def _tiny_model_and_stats():
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    venv = VecNormalize(DummyVecEnv([lambda: gym.make("CartPole-v1")]))
+    return PPO("MlpPolicy", venv, n_steps=16, batch_size=16, device="cpu", seed=0), venv
+
+
+def _checkpoint_set(out: Path) -> tuple[int, int, float]:
+    """The step of the weights, of ``last.json`` and the statistics' first mean, read back."""
+    from stable_baselines3 import PPO
+
+    from bulletnav.rl.safe import load_zip
+
+    folder = out / "checkpoints"
+    model = load_zip(folder / "last.zip", PPO)
+    stats = json.loads((folder / "last_vecnormalize.json").read_text())
+    return int(model.num_timesteps), json.loads((folder / "last.json").read_text())["timesteps"], stats["obs"]["mean"][0]
+
+
+class _Killed(BaseException):
+    """Stands for a SIGKILL: nothing after it runs."""
+
+
+@pytest.mark.parametrize("moves", [0, 1, 2])
+def test_a_checkpoint_interrupted_after_its_commit_is_completed_whole(tmp_path, monkeypatch, moves):
+    """Weights, statistics and step count of a checkpoint are one set: a run killed while moving
+    a committed set into place (after 0, 1 or 2 of its 3 files) leaves a set that
+    ``finish_checkpoint`` completes, never weights of one step beside statistics of another."""
+    from bulletnav.rl import callbacks
+
+    model, venv = _tiny_model_and_stats()
+    venv.obs_rms.mean[0] = 1.5
+    callbacks.save_checkpoint(model, tmp_path, venv, {"wall_time": 1.0})
+    assert _checkpoint_set(tmp_path) == (0, 0, 1.5)
+    model.num_timesteps, venv.obs_rms.mean[0] = 512, 2.5  # the next checkpoint: other weights and statistics
+    real, done = os.replace, []
+
+    def replace(src, dst):
+        if Path(src).parent.name == ".pending" and Path(dst).parent.name == "checkpoints":  # a move into place
+            if len(done) == moves:
+                raise _Killed
+            done.append(src)
+        real(src, dst)
+
+    monkeypatch.setattr(callbacks.os, "replace", replace)
+    with pytest.raises(_Killed):
+        callbacks.save_checkpoint(model, tmp_path, venv)
+    monkeypatch.setattr(callbacks.os, "replace", real)
+    assert callbacks.finish_checkpoint(tmp_path) is True
+    assert _checkpoint_set(tmp_path) == (512, 512, 2.5)
+    assert not (tmp_path / "checkpoints" / ".pending").exists()
+    assert callbacks.finish_checkpoint(tmp_path) is False  # nothing left to do
+
+
+def test_a_checkpoint_interrupted_before_its_commit_leaves_the_previous_set(tmp_path, monkeypatch):
+    from bulletnav.rl import callbacks
+
+    model, venv = _tiny_model_and_stats()
+    venv.obs_rms.mean[0] = 1.5
+    callbacks.save_checkpoint(model, tmp_path, venv)
+    model.num_timesteps, venv.obs_rms.mean[0] = 512, 2.5
+    real = callbacks.atomic_write_json
+
+    def write_json(path, data):
+        if Path(path).name == "COMMIT":
+            raise _Killed
+        real(path, data)
+
+    monkeypatch.setattr(callbacks, "atomic_write_json", write_json)
+    with pytest.raises(_Killed):
+        callbacks.save_checkpoint(model, tmp_path, venv)
+    assert (tmp_path / "checkpoints" / ".pending" / "last.zip").is_file()  # the new set was written, not committed
+    assert callbacks.finish_checkpoint(tmp_path) is False
+    assert _checkpoint_set(tmp_path) == (0, 0, 1.5)
+    assert not (tmp_path / "checkpoints" / ".pending").exists()
+
+
+def test_a_checkpoint_without_statistics_removes_the_older_sets(tmp_path):
+    """A committed set without normalisation statistics does not leave an older set's beside it."""
+    from bulletnav.rl import callbacks
+
+    model, venv = _tiny_model_and_stats()
+    callbacks.save_checkpoint(model, tmp_path, venv)
+    callbacks.save_checkpoint(model, tmp_path, None)
+    assert sorted(p.name for p in (tmp_path / "checkpoints").iterdir()) == ["last.json", "last.zip"]

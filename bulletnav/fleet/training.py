@@ -162,7 +162,7 @@ def train_fleet(cfg: FleetTrainConfig) -> dict[str, Any]:
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
-    from bulletnav.rl.callbacks import CheckpointCallback, ThroughputCallback, TimedVecEnv, save_checkpoint
+    from bulletnav.rl.callbacks import CheckpointCallback, ThroughputCallback, TimedVecEnv, finish_checkpoint, save_checkpoint
     from bulletnav.rl.hyperparams import load_hyperparams, model_kwargs, policy_class, upgrade_hyperparams
     from bulletnav.rl.io import (
         atomic_save_model,
@@ -179,6 +179,7 @@ def train_fleet(cfg: FleetTrainConfig) -> dict[str, Any]:
     ckpt = out / "checkpoints" / "last.zip"
     recorded = out / "config.json"
     if cfg.resume:
+        finish_checkpoint(out)  # a run killed while writing its last checkpoint
         if not ckpt.is_file() or not recorded.is_file():
             raise ModelError(f"{ckpt}: no checkpoint to resume from")
         original = json.loads(recorded.read_text())

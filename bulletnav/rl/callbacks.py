@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import json
 import logging
+import os
+import shutil
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -24,14 +27,59 @@ EVAL_KEYS = ("success_rate", "collision_rate", "mean_reward", "std_reward", "mea
 """Summary entries each evaluation row keeps."""
 
 
+CHECKPOINT_NAMES = ("last_vecnormalize.json", "last.json", "last.zip")
+"""The files of a checkpoint in ``out/checkpoints/``: one set, committed together."""
+
+_PENDING, _COMMIT = ".pending", "COMMIT"
+
+
 def save_checkpoint(model: Any, out: Path, vecnorm: Any, extra: dict[str, Any] | None = None) -> None:
     """``out/checkpoints/last.zip`` (+ normalisation statistics, step count and ``extra``, such
-    as the curriculum's state, in ``last.json``), atomically."""
-    ckpt = out / "checkpoints" / "last.zip"
-    atomic_save_model(model, ckpt)
+    as the curriculum's state, in ``last.json``), as one set.
+
+    The three files must match (statistics of another step than the weights would skew every
+    observation after a resume), and a run can be killed between any two writes. So the set is
+    written whole into ``checkpoints/.pending/``, then a ``COMMIT`` file naming it is written
+    (atomically: from here the new set counts), then the files are moved into place and the
+    folder dropped. A run killed mid-way leaves either no ``COMMIT`` (the old set stands; the
+    partial one is dropped) or a ``COMMIT`` that :func:`finish_checkpoint` completes before any
+    resume reads the set.
+    """
+    folder = out / "checkpoints"
+    pending = folder / _PENDING
+    finish_checkpoint(out)
+    pending.mkdir(parents=True, exist_ok=True)
+    atomic_save_model(model, pending / "last.zip")
+    names = ["last.json", "last.zip"]
     if vecnorm is not None:
-        atomic_save_vecnormalize(vecnorm, vecnormalize_path(ckpt))
-    atomic_write_json(out / "checkpoints" / "last.json", {"timesteps": int(model.num_timesteps), **(extra or {})})
+        atomic_save_vecnormalize(vecnorm, vecnormalize_path(pending / "last.zip"))
+        names.insert(0, vecnormalize_path(pending / "last.zip").name)
+    atomic_write_json(pending / "last.json", {"timesteps": int(model.num_timesteps), **(extra or {})})
+    atomic_write_json(pending / _COMMIT, {"files": names, "timesteps": int(model.num_timesteps)})
+    finish_checkpoint(out)
+
+
+def finish_checkpoint(out: Path) -> bool:
+    """Complete a checkpoint whose writing was interrupted (see :func:`save_checkpoint`): a
+    committed set is moved into place (files of the older set it does not name are removed), an
+    uncommitted one is dropped. Safe to repeat; returns whether a committed set was completed."""
+    folder = out / "checkpoints"
+    pending = folder / _PENDING
+    if not pending.is_dir():
+        return False
+    commit = pending / _COMMIT
+    done = commit.is_file()
+    if done:
+        names = json.loads(commit.read_text())["files"]
+        for name in names:
+            if (pending / name).is_file():
+                os.replace(pending / name, folder / name)
+        for name in set(CHECKPOINT_NAMES) - set(names):
+            (folder / name).unlink(missing_ok=True)
+        commit.unlink()
+        log.warning("%s: completed a checkpoint whose writing was interrupted", folder)
+    shutil.rmtree(pending, ignore_errors=True)
+    return done
 
 
 def _vecnorm(model: Any) -> Any:

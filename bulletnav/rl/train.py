@@ -19,7 +19,14 @@ from bulletnav import ENV_ID
 from bulletnav.errors import ModelError
 from bulletnav.provenance import git_commit, machine
 from bulletnav.rl.algos import algo_class
-from bulletnav.rl.callbacks import CheckpointCallback, EvaluationCallback, ThroughputCallback, TimedVecEnv, save_checkpoint
+from bulletnav.rl.callbacks import (
+    CheckpointCallback,
+    EvaluationCallback,
+    ThroughputCallback,
+    TimedVecEnv,
+    finish_checkpoint,
+    save_checkpoint,
+)
 from bulletnav.rl.envs import EVAL_SEED_BASE, make_env_fn
 from bulletnav.rl.hyperparams import apply_overrides, load_hyperparams, model_kwargs, policy_class, upgrade_hyperparams
 from bulletnav.rl.io import (
@@ -145,6 +152,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
     history: list[dict[str, Any]] = []
     start_steps = 0
     if cfg.resume:
+        finish_checkpoint(cfg.out)  # a run killed while writing its last checkpoint
         if not ckpt.is_file():
             raise ModelError(f"{ckpt}: no checkpoint to resume from")
         if normalize:

@@ -217,6 +217,9 @@ def _trial(config: dict[str, Any], spec: dict[str, Any], base: dict[str, Any]) -
     checkpoint = tune.get_checkpoint()
     if checkpoint is not None:  # a resumed sweep: this trial's training state from its last report
         checkpoint.to_directory(str(out))
+        from bulletnav.rl.callbacks import finish_checkpoint
+
+        finish_checkpoint(out)
         resume = (out / "checkpoints" / "last.zip").is_file()
     hp_file = out / "hyperparams.yml"  # the base hyperparameters, so no node needs the driver's files
     atomic_write_bytes(hp_file, yaml.safe_dump({sweep.env_id: base}, sort_keys=False).encode())
