@@ -1131,10 +1131,11 @@ def cmd_fleet(args: argparse.Namespace) -> int:
         raise ConfigError(f"--frame-at {args.frame_at:g} s is after the episode's end (--duration {args.duration:g} s)")
     _refuse_existing_files(args, "video", "plot", "frame", "record")
     model = args.model or DEFAULT_MODEL
-    env_kwargs = dict(model_env_kwargs(model)) if args.controller == "policy" else {}
+    env_kwargs: dict[str, object] = {}
     if args.controller == "policy":
         import torch
 
+        env_kwargs = dict(model_env_kwargs(model))
         # one thread, as fleet-compare's workers (the same arithmetic as their rows): a forward
         # pass of a few robots is too small for two, and two threads beside other work spend
         # their time waiting for each other (a 40-episode run took 46 CPU-min and was not done)
