@@ -206,3 +206,14 @@ def test_a_checkpoint_without_statistics_removes_the_older_sets(tmp_path):
     callbacks.save_checkpoint(model, tmp_path, venv)
     callbacks.save_checkpoint(model, tmp_path, None)
     assert sorted(p.name for p in (tmp_path / "checkpoints").iterdir()) == ["last.json", "last.zip"]
+
+
+def test_a_checkpoint_commit_naming_other_files_is_refused(tmp_path):
+    from bulletnav.errors import ModelError
+    from bulletnav.rl import callbacks
+
+    pending = tmp_path / "checkpoints" / ".pending"
+    pending.mkdir(parents=True)
+    (pending / "COMMIT").write_text(json.dumps({"files": ["../../outside.txt"]}))
+    with pytest.raises(ModelError, match="COMMIT: not a checkpoint commit record"):
+        callbacks.finish_checkpoint(tmp_path)

@@ -16,6 +16,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
 from bulletnav import ENV_ID
+from bulletnav.errors import ModelError
 from bulletnav.evaluation import run_episodes, summarize
 from bulletnav.rl.envs import EVAL_SEED_BASE, evaluation_env_kwargs, make_env
 from bulletnav.rl.io import atomic_save_model, atomic_save_vecnormalize, atomic_write_json, vecnormalize_path
@@ -70,7 +71,12 @@ def finish_checkpoint(out: Path) -> bool:
     commit = pending / _COMMIT
     done = commit.is_file()
     if done:
-        names = json.loads(commit.read_text())["files"]
+        try:
+            names = json.loads(commit.read_text())["files"]
+            if not isinstance(names, list) or not set(names) <= set(CHECKPOINT_NAMES):
+                raise ValueError(f"files must name checkpoint files among {CHECKPOINT_NAMES}")
+        except (ValueError, KeyError, TypeError) as exc:
+            raise ModelError(f"{commit}: not a checkpoint commit record ({exc})") from None
         for name in names:
             if (pending / name).is_file():
                 os.replace(pending / name, folder / name)
