@@ -28,7 +28,7 @@ EVAL_KEYS = ("success_rate", "collision_rate", "mean_reward", "std_reward", "mea
 """Summary entries each evaluation row keeps."""
 
 
-CHECKPOINT_NAMES = ("last_vecnormalize.json", "last.json", "last.zip")
+CHECKPOINT_NAMES = (vecnormalize_path("last.zip").name, "last.json", "last.zip")
 """The files of a checkpoint in ``out/checkpoints/``: one set, committed together."""
 
 _PENDING, _COMMIT = ".pending", "COMMIT"
@@ -53,8 +53,9 @@ def save_checkpoint(model: Any, out: Path, vecnorm: Any, extra: dict[str, Any] |
     atomic_save_model(model, pending / "last.zip")
     names = ["last.json", "last.zip"]
     if vecnorm is not None:
-        atomic_save_vecnormalize(vecnorm, vecnormalize_path(pending / "last.zip"))
-        names.insert(0, vecnormalize_path(pending / "last.zip").name)
+        stats = vecnormalize_path(pending / "last.zip")
+        atomic_save_vecnormalize(vecnorm, stats)
+        names.insert(0, stats.name)
     atomic_write_json(pending / "last.json", {"timesteps": int(model.num_timesteps), **(extra or {})})
     atomic_write_json(pending / _COMMIT, {"files": names, "timesteps": int(model.num_timesteps)})
     finish_checkpoint(out)
