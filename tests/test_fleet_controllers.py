@@ -566,3 +566,66 @@ def test_cli_fleet_bad_arguments(args, message):
     assert r.returncode == 2
     errors = [x for x in r.stderr.splitlines() if "error" in x]
     assert len(errors) == 1 and message in errors[0], r.stderr
+
+
+def test_cell_points_keep_a_passage_off_the_cell_centres_open():
+    """Seed 3020's aisle warehouse has an obstacle in the cross aisle that leaves a passage
+    narrower than a plan cell, off the cells' centres. The plan's map must connect what the
+    robot's free space connects (an independent check: components of the fine free grid), and
+    every open move must be a free segment."""
+    from scipy import ndimage
+
+    env = fleet_v0.parallel_env(num_robots=8, duration_s=10.0, dynamic=True)
+    try:
+        _, infos = env.reset(seed=3020)
+        maps = {}
+        for repair in (False, True):
+            ctl = CoordinatedController(env, CoordinatedConfig(repair_points=repair))
+            ctl.reset(infos)
+            maps[repair] = ctl
+        fine = maps[True].view.occupancy(0.1, maps[True].config.clearance)
+        labels, _ = ndimage.label(~fine.occupied)
+        sizes = np.bincount(labels.ravel())
+        sizes[0] = 0
+        main = int(np.argmax(sizes))
+        for repair, ctl in maps.items():
+            free = ~ctl.static_blocked
+            in_main = np.zeros_like(free)
+            for x, y in zip(*np.nonzero(free)):
+                fx, fy = fine.world_to_cell(tuple(ctl.cell_points[x, y]))
+                in_main[x, y] = labels[fx, fy] == main
+            missing = int((in_main & ~ctl._floor).sum())
+            if repair:
+                assert missing == 0  # every cell the robot can reach is on the plan's map
+            else:
+                assert missing > 100  # without the repair the map falls in two
+            nx, ny = free.shape
+            for x, y in zip(*np.nonzero(free)):
+                for m, (dx, dy) in enumerate(MOVES[1:], 1):
+                    u, v = x + dx, y + dy
+                    if 0 <= u < nx and 0 <= v < ny and free[u, v] and not ctl.closed[x, y, m]:
+                        assert fine.segment_free(ctl.cell_points[x, y], ctl.cell_points[u, v])
+    finally:
+        env.close()
+
+
+def test_unknot_commits_a_swapping_turn_to_one_side():
+    env = fleet_v0.parallel_env(num_robots=2, duration_s=10.0)
+    try:
+        ctl = CoordinatedController(env)
+        _, infos = env.reset(seed=3)
+        ctl.reset(infos)
+        pose, target = (0.0, 0.0, 0.0), (0.0, 1.0)  # the target is to the left: turn +
+        out = [ctl.unknot(0, 0.1 * k, pose, target, 0.0, (-1.0) ** k) for k in range(4)]
+        assert out == [(0.0, (-1.0) ** k) for k in range(4)]  # three swaps: left alone
+        assert ctl.unknot(0, 0.4, pose, target, 0.0, 1.0) == (0.0, 0.8)  # the fourth: committed
+        for k in range(5, 40):  # whatever the tracker asks for, it turns left until 4 s pass
+            assert ctl.unknot(0, 0.1 * k, pose, target, 0.0, (-1.0) ** k) == (0.0, 0.8)
+        assert ctl.unknot(0, 4.5, pose, target, 0.3, -1.0) == (0.3, -1.0)  # then the tracker again
+        # facing the target ends the commitment at once; a moving robot is never taken over
+        for k in range(5):
+            ctl.unknot(1, 10 + 0.1 * k, pose, target, 0.0, (-1.0) ** k)
+        assert ctl.unknot(1, 10.6, (0.0, 0.0, 1.5), target, 0.0, -0.5) == (0.0, -0.5)
+        assert all(ctl.unknot(1, 20 + 0.1 * k, pose, target, 0.4, (-1.0) ** k) == (0.4, (-1.0) ** k) for k in range(10))
+    finally:
+        env.close()

@@ -185,6 +185,12 @@ class CoordinatedConfig:
     cell nearest its centre (a cell with none is blocked). Robots drive from point to point;
     a move is open when the segment between the two points is free, so a narrow passage off
     the cell centres stays open."""
+    repair_points: bool = True
+    """Where no open move joins two parts of the map but the segment between two neighbouring
+    cells' points, one in each, could be free, move those two points to the free pair nearest
+    the centres that opens the move and closes no other: a passage narrower than a cell and off
+    the centres (a gap beside an obstacle in a cross aisle) stays on the plan's map. Without it
+    seed 3020's map fell in two halves and robots in the smaller one never moved."""
     window: int = 16
     """Steps each robot plans and reserves (WHCA*'s window)."""
     replan_margin: int = 6
@@ -254,6 +260,12 @@ class CoordinatedConfig:
     ``stuck_distance`` in this long (its plan moves it, but a mover ahead stops it), away from
     its goal, plans around the seen obstacles whatever the detour and out of the way of a
     mover yielding to it (a forklift or worker yielding to it waits for it to leave)."""
+    unknot_flips: int = 4
+    """A robot commanded to stand and turn whose turn swapped direction this many times in the
+    last second turns in place toward its next point, one way, until it faces it within
+    0.3 rad or 4 s pass (0: off; :meth:`CoordinatedController.unknot`). Without it a robot
+    boxed in between a rack and a mover can turn left and right on the spot for the rest of
+    the episode (two such knots in 32 dev episodes, N = 8, seeds 3000-3031; none with it)."""
     stuck_distance: float = 0.25
     """How far (m) a robot must move to count as moving for ``stuck_s``."""
     controller: ControllerConfig = field(default_factory=lambda: ControllerConfig(safety_distance=0.35, side_margin=0.1))
@@ -367,6 +379,8 @@ class CoordinatedController:
         self._still_since = [view.time_s] * n
         self._anchors = [view.pose(i)[:2] for i in range(n)]
         self._moved_at = [view.time_s] * n
+        self._knot = [(0.0, 0.0)] * n
+        self._turns_seen: list[list[tuple[float, float]]] = [[] for _ in range(n)]
         self.replan()
 
     def _points(self, fine: Any) -> None:
@@ -382,15 +396,19 @@ class CoordinatedController:
         offsets = [o for o in offsets if abs(o[0]) < half and abs(o[1]) < half]
         points = np.full((nx, ny, 2), np.nan)
         blocked = np.ones((nx, ny), dtype=bool)
+        candidates: dict[Cell, list[tuple[float, float]]] = {}
         for x in range(nx):
             for y in range(ny):
                 cx, cy = grid.cell_to_world(x, y)
                 for ox, oy in offsets:
                     fx, fy = fine.world_to_cell((cx + ox, cy + oy))
                     if 0 <= fx < fnx and 0 <= fy < fny and not occ[fx, fy]:
-                        points[x, y] = fine.cell_to_world(fx, fy)
-                        blocked[x, y] = False
-                        break
+                        candidates.setdefault((x, y), []).append(fine.cell_to_world(fx, fy))
+                if (x, y) in candidates:
+                    points[x, y] = candidates[x, y][0]
+                    blocked[x, y] = False
+        if cfg.repair_points:
+            self._repair_points(points, blocked, candidates, fine)
         closed = np.zeros((nx, ny, len(MOVES)), dtype=bool)
         conflicts: dict[Cell, list[Cell]] = {}
         for x in range(nx):
@@ -413,6 +431,54 @@ class CoordinatedController:
         """Each cell's point (m), NaN in blocked cells."""
         self.closed = closed
         self.conflicts = {c: tuple(o) for c, o in conflicts.items()}
+
+    def _repair_points(self, points: np.ndarray, blocked: np.ndarray, candidates: dict[Cell, list[tuple[float, float]]],
+                       fine: Any) -> None:
+        """``repair_points``: where two neighbouring cells lie in parts of the map that no open
+        move joins and the segment between their points is not free, move the two points to the
+        pair of their cells' free points nearest the centres whose segment is free and that keeps
+        every other open move of the two cells open (a passage narrower than a cell and off the
+        centres joins the parts). Maps without such parts keep their points."""
+        nx, ny = blocked.shape
+        free = fine.segment_free
+        parent = {c: c for c in candidates}
+
+        def root(c: Cell) -> Cell:
+            while parent[c] != c:
+                parent[c] = parent[parent[c]]
+                c = parent[c]
+            return c
+
+        pairs = [((x, y), (x + dx, y + dy)) for (x, y) in candidates for dx, dy in ((1, 0), (0, 1))
+                 if (x + dx, y + dy) in candidates]
+        shut = []
+        for a, b in pairs:
+            if free(points[a], points[b]):
+                parent[root(a)] = root(b)
+            else:
+                shut.append((a, b))
+
+        def open_neighbours(cell: Cell, but: Cell) -> list[tuple[float, float]]:
+            out = []
+            for dx, dy in MOVES[1:]:
+                n = (cell[0] + dx, cell[1] + dy)
+                if n != but and n in candidates and free(points[cell], points[n]):
+                    out.append(points[n])
+            return out
+
+        for a, b in shut:
+            if root(a) == root(b):
+                continue
+            keep_a, keep_b = open_neighbours(a, b), open_neighbours(b, a)
+            ca = [p for p in candidates[a] if all(free(p, q) for q in keep_a)]
+            cb = [p for p in candidates[b] if all(free(p, q) for q in keep_b)]
+            centre_a, centre_b = self.grid.cell_to_world(*a), self.grid.cell_to_world(*b)
+            for _, pa, pb in sorted(((math.dist(pa, centre_a) + math.dist(pb, centre_b), pa, pb) for pa in ca for pb in cb),
+                                    key=lambda e: e[0]):
+                if free(pa, pb):
+                    points[a], points[b] = pa, pb
+                    parent[root(a)] = root(b)
+                    break
 
     def _goal(self, info: dict[str, Any]) -> tuple[float, float]:
         return float(info["goal"][0]), float(info["goal"][1])
@@ -652,6 +718,35 @@ class CoordinatedController:
                 return (path[w][0] - path[u][0], path[w][1] - path[u][1]) != before
         return True  # it stops there: treat as a turn (reach it closely)
 
+    def unknot(self, i: int, now: float, pose: tuple[float, float, float], target: tuple[float, float],
+               v: float, w: float) -> tuple[float, float]:
+        """Robot ``i``'s command ``(v, w)`` at time ``now`` (s) after the knot check
+        (``unknot_flips``): a robot commanded to stand (``v`` under 5 cm/s) and turn (over 0.3
+        rad/s) whose turn swapped sides ``unknot_flips`` times within the last second turns in
+        place toward ``target`` at 0.8 rad/s, one way, until it faces it within 0.3 rad or 4 s
+        have passed."""
+        bearing = math.atan2(target[1] - pose[1], target[0] - pose[0]) - pose[2]
+        error = math.atan2(math.sin(bearing), math.cos(bearing))
+        sign, until = self._knot[i]
+        if sign:
+            if abs(error) < 0.3 or now >= until:
+                self._knot[i] = (0.0, 0.0)
+            else:
+                return 0.0, 0.8 * sign
+        hist = self._turns_seen[i]
+        if v < 0.05 and abs(w) > 0.3:
+            hist.append((now, math.copysign(1.0, w)))
+        else:
+            hist.clear()
+        while hist and hist[0][0] < now - 1.0:
+            hist.pop(0)
+        flips = sum(1 for a, b in zip(hist, hist[1:]) if a[1] != b[1])
+        if flips >= self.config.unknot_flips and abs(error) >= 0.3:
+            self._knot[i] = (math.copysign(1.0, error), now + 4.0)
+            hist.clear()
+            return 0.0, 0.8 * self._knot[i][0]
+        return v, w
+
     def _point(self, i: int, cell: Cell) -> tuple[float, float]:
         return self.goals[i] if cell == self.goal_cells[i] else self._centre(cell)
 
@@ -691,6 +786,8 @@ class CoordinatedController:
                 v, w = 0.0, 0.0  # at the last cell it may enter: hold
             else:
                 v, w = self.trackers[i].command(pose, target, self._ranges(observations[agent]), self.dt, ahead)
+                if cfg.unknot_flips > 0:
+                    v, w = self.unknot(i, view.time_s, pose, target, v, w)
             actions[agent] = self._action(v, w)
         return actions
 
