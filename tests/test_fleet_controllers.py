@@ -627,5 +627,13 @@ def test_unknot_commits_a_swapping_turn_to_one_side():
             ctl.unknot(1, 10 + 0.1 * k, pose, target, 0.0, (-1.0) ** k)
         assert ctl.unknot(1, 10.6, (0.0, 0.0, 1.5), target, 0.0, -0.5) == (0.0, -0.5)
         assert all(ctl.unknot(1, 20 + 0.1 * k, pose, target, 0.4, (-1.0) ** k) == (0.4, (-1.0) ** k) for k in range(10))
+        # something inside the circle its outline sweeps (a forklift beside it): no turn in place
+        clear = np.full(ctl.n_rays, ctl.max_range)
+        beside = clear.copy()
+        beside[np.argmin(np.abs(ctl._cos))] = 0.15  # 0.15 m to its side: inside the 0.18 m outline radius + 3 cm
+        for k in range(8):
+            assert ctl.unknot(0, 30 + 0.1 * k, pose, target, 0.0, (-1.0) ** k, beside) == (0.0, (-1.0) ** k)
+        assert ctl.unknot(0, 30.8, pose, target, 0.0, 1.0, clear) == (0.0, 0.8)  # room again: it turns
+        assert ctl.unknot(0, 30.9, pose, target, 0.0, -1.0, beside) == (0.0, -1.0)  # and stops when it has none
     finally:
         env.close()

@@ -266,6 +266,10 @@ class CoordinatedConfig:
     0.3 rad or 4 s pass (0: off; :meth:`CoordinatedController.unknot`). Without it a robot
     boxed in between a rack and a mover can turn left and right on the spot for the rest of
     the episode (two such knots in 32 dev episodes, N = 8, seeds 3000-3031; none with it)."""
+    unknot_margin: float = 0.03
+    """The knot turn is made only while no lidar return lies within the robot's outline radius
+    plus this (m) of its centre (a turn in place sweeps that circle), so it never turns into a
+    mover or rack beside it."""
     stuck_distance: float = 0.25
     """How far (m) a robot must move to count as moving for ``stuck_s``."""
     controller: ControllerConfig = field(default_factory=lambda: ControllerConfig(safety_distance=0.35, side_margin=0.1))
@@ -367,6 +371,7 @@ class CoordinatedController:
         self.n_rays, self.max_range = lidar.config.num_rays, lidar.config.max_range
         self._cos, self._sin = np.cos(lidar.angles), np.sin(lidar.angles)
         self._lidar_offset = view.geometry.lidar_offset
+        self._turn_reach = view.geometry.outline_radius + cfg.unknot_margin
         self.dt = view.control_dt
         self.trackers = [GoToGoal(cfg.controller, lidar.angles, view.geometry) for _ in range(n)]
         self._action = first.action_for  # the same action scale for every robot
@@ -719,17 +724,19 @@ class CoordinatedController:
         return True  # it stops there: treat as a turn (reach it closely)
 
     def unknot(self, i: int, now: float, pose: tuple[float, float, float], target: tuple[float, float],
-               v: float, w: float) -> tuple[float, float]:
+               v: float, w: float, ranges: np.ndarray | None = None) -> tuple[float, float]:
         """Robot ``i``'s command ``(v, w)`` at time ``now`` (s) after the knot check
         (``unknot_flips``): a robot commanded to stand (``v`` under 5 cm/s) and turn (over 0.3
         rad/s) whose turn swapped sides ``unknot_flips`` times within the last second turns in
         place toward ``target`` at 0.8 rad/s, one way, until it faces it within 0.3 rad or 4 s
-        have passed."""
+        have passed, and only while its scan ``ranges`` (m, None: not checked) shows nothing
+        within the circle its outline sweeps turning in place, grown by ``unknot_margin``."""
         bearing = math.atan2(target[1] - pose[1], target[0] - pose[0]) - pose[2]
         error = math.atan2(math.sin(bearing), math.cos(bearing))
+        clear = ranges is None or self._turn_clear(ranges)
         sign, until = self._knot[i]
         if sign:
-            if abs(error) < 0.3 or now >= until:
+            if abs(error) < 0.3 or now >= until or not clear:
                 self._knot[i] = (0.0, 0.0)
             else:
                 return 0.0, 0.8 * sign
@@ -741,11 +748,18 @@ class CoordinatedController:
         while hist and hist[0][0] < now - 1.0:
             hist.pop(0)
         flips = sum(1 for a, b in zip(hist, hist[1:]) if a[1] != b[1])
-        if flips >= self.config.unknot_flips and abs(error) >= 0.3:
+        if flips >= self.config.unknot_flips and abs(error) >= 0.3 and clear:
             self._knot[i] = (math.copysign(1.0, error), now + 4.0)
             hist.clear()
             return 0.0, 0.8 * self._knot[i][0]
         return v, w
+
+    def _turn_clear(self, ranges: np.ndarray) -> bool:
+        """True when no lidar return lies within the circle the robot's outline sweeps turning
+        in place, grown by ``unknot_margin``."""
+        x = self._lidar_offset + ranges * self._cos
+        y = ranges * self._sin
+        return bool(np.hypot(x, y).min() >= self._turn_reach)
 
     def _point(self, i: int, cell: Cell) -> tuple[float, float]:
         return self.goals[i] if cell == self.goal_cells[i] else self._centre(cell)
@@ -785,9 +799,10 @@ class CoordinatedController:
             if nxt is None and ahead < cfg.hold_radius:
                 v, w = 0.0, 0.0  # at the last cell it may enter: hold
             else:
-                v, w = self.trackers[i].command(pose, target, self._ranges(observations[agent]), self.dt, ahead)
+                ranges = self._ranges(observations[agent])
+                v, w = self.trackers[i].command(pose, target, ranges, self.dt, ahead)
                 if cfg.unknot_flips > 0:
-                    v, w = self.unknot(i, view.time_s, pose, target, v, w)
+                    v, w = self.unknot(i, view.time_s, pose, target, v, w, ranges)
             actions[agent] = self._action(v, w)
         return actions
 
