@@ -265,11 +265,14 @@ class CoordinatedConfig:
     last second turns in place toward its next point, one way, until it faces it within
     0.3 rad or 4 s pass (0: off; :meth:`CoordinatedController.unknot`). Without it a robot
     boxed in between a rack and a mover can turn left and right on the spot for the rest of
-    the episode (two such knots in 32 dev episodes, N = 8, seeds 3000-3031; none with it)."""
+    the episode (two such knots in 32 dev episodes, N = 8, seeds 3000-3031: with the turn's
+    room checked, ``unknot_margin``, it undoes the one at seed 3008; at seed 3003 the turn
+    would touch the robot beside it and is not made)."""
     unknot_margin: float = 0.03
     """The knot turn is made only while no lidar return lies within the robot's outline radius
-    plus this (m) of its centre (a turn in place sweeps that circle), so it never turns into a
-    mover or rack beside it."""
+    plus this (m) of its centre (a turn in place sweeps that circle; PyBullet reports contact
+    from about 2 cm), so it does not swing the robot's corners into what stands beside it
+    (unchecked, it did: four mover collisions at N = 8, seed 1000)."""
     stuck_distance: float = 0.25
     """How far (m) a robot must move to count as moving for ``stuck_s``."""
     controller: ControllerConfig = field(default_factory=lambda: ControllerConfig(safety_distance=0.35, side_margin=0.1))
@@ -324,9 +327,13 @@ class CoordinatedController:
     PID controller at its next cell (its goal point in its goal's cell), reaching it within
     ``arrive_tolerance`` (``turn_tolerance`` where the path turns) and driving on without
     stopping while the cells after it are free; it slows down toward, and stops at the
-    centre of, the last cell it may enter. The fleet replans from where the robots stand at
-    every goal change, when a robot nears the end of its plan (``replan_margin``) and every
-    ``replan_period_s``.
+    centre of, the last cell it may enter; a robot whose turn on the spot keeps swapping sides
+    commits to one where it has room (:meth:`unknot`). The fleet replans from where the robots
+    stand at every goal change, when a robot nears the end of its plan (``replan_margin``) and
+    every ``replan_period_s``.
+
+    **Map.** Each cell's point is its free point nearest the centre, except where a passage
+    narrower than a cell would otherwise leave parts of the map unjoined (``repair_points``).
 
     Args:
         env: the fleet env it drives.
