@@ -5,6 +5,7 @@ other robots, the deadlock detector and throughput on synthetic traces, and the 
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import subprocess
@@ -241,12 +242,21 @@ def test_priorities_rotate_round_robin():
         env.close()
 
 
-def test_coordinated_two_robots_no_robot_collision():
-    env = fleet_v0.parallel_env(num_robots=2, duration_s=20.0)
+@contextlib.contextmanager
+def _coordinated(seed: int, **env_kwargs):
+    """A fleet env reset on ``seed`` and its coordinated controller reset on it: (env, ctl, obs, infos)."""
+    env = fleet_v0.parallel_env(**env_kwargs)
     try:
         ctl = CoordinatedController(env)
-        obs, infos = env.reset(seed=3)
+        obs, infos = env.reset(seed=seed)
         ctl.reset(infos)
+        yield env, ctl, obs, infos
+    finally:
+        env.close()
+
+
+def test_coordinated_two_robots_no_robot_collision():
+    with _coordinated(3, num_robots=2, duration_s=20.0) as (env, ctl, obs, infos):
         sep = math.inf
         view = FleetView(env)
         while env.agents:
@@ -256,8 +266,6 @@ def test_coordinated_two_robots_no_robot_collision():
         assert sum(i["collisions_static"] for i in infos.values()) == 0
         assert sum(i["legs_completed"] for i in infos.values()) >= 1  # it does drive its errands
         assert ctl.replans > 1 and sep > 0.4
-    finally:
-        env.close()
 
 
 def _dependencies_met(ctl):
@@ -610,11 +618,7 @@ def test_cell_points_keep_a_passage_off_the_cell_centres_open():
 
 
 def test_unknot_commits_a_swapping_turn_to_one_side():
-    env = fleet_v0.parallel_env(num_robots=2, duration_s=10.0)
-    try:
-        ctl = CoordinatedController(env)
-        _, infos = env.reset(seed=3)
-        ctl.reset(infos)
+    with _coordinated(3, num_robots=2, duration_s=10.0) as (_, ctl, _, _):
         pose, target = (0.0, 0.0, 0.0), (0.0, 1.0)  # the target is to the left: turn +
         out = [ctl.unknot(0, 0.1 * k, pose, target, 0.0, (-1.0) ** k) for k in range(4)]
         assert out == [(0.0, (-1.0) ** k) for k in range(4)]  # three swaps: left alone
@@ -635,5 +639,3 @@ def test_unknot_commits_a_swapping_turn_to_one_side():
             assert ctl.unknot(0, 30 + 0.1 * k, pose, target, 0.0, (-1.0) ** k, beside) == (0.0, (-1.0) ** k)
         assert ctl.unknot(0, 30.8, pose, target, 0.0, 1.0, clear) == (0.0, 0.8)  # room again: it turns
         assert ctl.unknot(0, 30.9, pose, target, 0.0, -1.0, beside) == (0.0, -1.0)  # and stops when it has none
-    finally:
-        env.close()
