@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -408,19 +409,23 @@ class CoordinatedController:
         offsets = [o for o in offsets if abs(o[0]) < half and abs(o[1]) < half]
         points = np.full((nx, ny, 2), np.nan)
         blocked = np.ones((nx, ny), dtype=bool)
-        candidates: dict[Cell, list[tuple[float, float]]] = {}
+
+        def free_points(cell: Cell) -> Iterator[tuple[float, float]]:
+            """The cell's free fine points, nearest its centre first."""
+            cx, cy = grid.cell_to_world(*cell)
+            for ox, oy in offsets:
+                fx, fy = fine.world_to_cell((cx + ox, cy + oy))
+                if 0 <= fx < fnx and 0 <= fy < fny and not occ[fx, fy]:
+                    yield fine.cell_to_world(fx, fy)
+
         for x in range(nx):
             for y in range(ny):
-                cx, cy = grid.cell_to_world(x, y)
-                for ox, oy in offsets:
-                    fx, fy = fine.world_to_cell((cx + ox, cy + oy))
-                    if 0 <= fx < fnx and 0 <= fy < fny and not occ[fx, fy]:
-                        candidates.setdefault((x, y), []).append(fine.cell_to_world(fx, fy))
-                if (x, y) in candidates:
-                    points[x, y] = candidates[x, y][0]
+                point = next(free_points((x, y)), None)
+                if point is not None:
+                    points[x, y] = point
                     blocked[x, y] = False
         if cfg.repair_points:
-            self._repair_points(points, blocked, candidates, fine)
+            self._repair_points(points, blocked, free_points, fine)
         closed = np.zeros((nx, ny, len(MOVES)), dtype=bool)
         conflicts: dict[Cell, list[Cell]] = {}
         for x in range(nx):
@@ -444,16 +449,16 @@ class CoordinatedController:
         self.closed = closed
         self.conflicts = {c: tuple(o) for c, o in conflicts.items()}
 
-    def _repair_points(self, points: np.ndarray, blocked: np.ndarray, candidates: dict[Cell, list[tuple[float, float]]],
-                       fine: Any) -> None:
+    def _repair_points(self, points: np.ndarray, blocked: np.ndarray,
+                       free_points: Callable[[Cell], Iterator[tuple[float, float]]], fine: Any) -> None:
         """``repair_points``: where two neighbouring cells lie in parts of the map that no open
         move joins and the segment between their points is not free, move the two points to the
         pair of their cells' free points nearest the centres whose segment is free and that keeps
         every other open move of the two cells open (a passage narrower than a cell and off the
         centres joins the parts). Maps without such parts keep their points."""
-        nx, ny = blocked.shape
         free = fine.segment_free
-        parent = {c: c for c in candidates}
+        cells = {(int(x), int(y)) for x, y in zip(*np.nonzero(~blocked))}
+        parent = {c: c for c in cells}
 
         def root(c: Cell) -> Cell:
             while parent[c] != c:
@@ -461,8 +466,8 @@ class CoordinatedController:
                 c = parent[c]
             return c
 
-        pairs = [((x, y), (x + dx, y + dy)) for (x, y) in candidates for dx, dy in ((1, 0), (0, 1))
-                 if (x + dx, y + dy) in candidates]
+        pairs = [((x, y), (x + dx, y + dy)) for (x, y) in sorted(cells) for dx, dy in ((1, 0), (0, 1))
+                 if (x + dx, y + dy) in cells]
         shut = []
         for a, b in pairs:
             if free(points[a], points[b]):
@@ -474,7 +479,7 @@ class CoordinatedController:
             out = []
             for dx, dy in MOVES[1:]:
                 n = (cell[0] + dx, cell[1] + dy)
-                if n != but and n in candidates and free(points[cell], points[n]):
+                if n != but and n in cells and free(points[cell], points[n]):
                     out.append(points[n])
             return out
 
@@ -482,8 +487,8 @@ class CoordinatedController:
             if root(a) == root(b):
                 continue
             keep_a, keep_b = open_neighbours(a, b), open_neighbours(b, a)
-            ca = [p for p in candidates[a] if all(free(p, q) for q in keep_a)]
-            cb = [p for p in candidates[b] if all(free(p, q) for q in keep_b)]
+            ca = [p for p in free_points(a) if all(free(p, q) for q in keep_a)]
+            cb = [p for p in free_points(b) if all(free(p, q) for q in keep_b)]
             centre_a, centre_b = self.grid.cell_to_world(*a), self.grid.cell_to_world(*b)
             for _, pa, pb in sorted(((math.dist(pa, centre_a) + math.dist(pb, centre_b), pa, pb) for pa in ca for pb in cb),
                                     key=lambda e: e[0]):
