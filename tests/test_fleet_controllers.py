@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bulletnav.errors import ConfigError
 from bulletnav.fleet import fleet_v0
 from bulletnav.fleet.controllers import CoordinatedConfig, CoordinatedController, ErrandNavigator, ShieldedController, make_controller
 from bulletnav.fleet.metrics import (
@@ -33,6 +34,7 @@ from bulletnav.fleet.spacetime import (
     largest_component,
     path_cost,
     plan_dependencies,
+    reserve_starts,
     space_time_astar,
 )
 from bulletnav.fleet.view import FleetView
@@ -119,6 +121,35 @@ def test_space_time_planner_passes_in_a_corridor_and_matches_brute_force():
     # 6 corridor moves + into and out of the niche + one wait in it
     assert cost_b == _brute_force_cost(blocked, b, b_goal, table, 1, window) == 9.0
     assert cost_b == path_cost(path_b, b_goal, distance_map(blocked, b_goal))
+
+
+def test_two_robots_pressed_together_can_both_plan_out():
+    # robot 0 in (2, 2) stands close enough to robot 1 in (1, 2) to hold its cell too, and the
+    # two cells' points conflict: with robot 0's hold reserved before robot 1's own cell, robot
+    # 1 can neither wait nor leave (the lock of seed 3113); its own cell first, both plan out
+    blocked = np.zeros((5, 5), dtype=bool)
+    conflicts = {(1, 2): ((2, 2),), (2, 2): ((1, 2),)}
+    starts, held = [(2, 2), (1, 2)], [[(2, 2), (1, 2)], [(1, 2), (2, 2)]]
+    goals = [(4, 2), (0, 0)]
+
+    old = ReservationTable(1, conflicts)
+    for cells in ([[s] for s in starts], held):  # the order before reserve_starts
+        for i, group in enumerate(cells):
+            for cell in group:
+                for t in range(2):
+                    old.reserve_cell(cell, t, i)
+    assert space_time_astar(blocked, starts[1], goals[1], old, 1, 6) is None
+
+    for order in ([0, 1], [1, 0]):
+        table = ReservationTable(1, conflicts)
+        reserve_starts(table, starts, held, 2)
+        assert table.owner((1, 2), 0) == 1 and table.owner((2, 2), 0) == 0
+        for i in order:
+            found = space_time_astar(blocked, starts[i], goals[i], table, i, 6)
+            assert found is not None, (order, i)
+            path = found[0]
+            assert path[-1] != starts[i]  # it leaves
+            table.reserve_path(path, i)
 
 
 def test_space_time_planner_equals_brute_force_on_random_grids():
@@ -456,8 +487,6 @@ def test_shields_see_a_turning_robot_as_the_circle_its_corners_sweep():
 
 
 def test_make_controller_refuses_bad_names():
-    from bulletnav.errors import ConfigError
-
     env = fleet_v0.parallel_env(num_robots=1, duration_s=1.0)
     try:
         with pytest.raises(ConfigError, match="one of"):
@@ -615,6 +644,32 @@ def test_cell_points_keep_a_passage_off_the_cell_centres_open():
                         assert fine.segment_free(ctl.cell_points[x, y], ctl.cell_points[u, v])
     finally:
         env.close()
+
+
+def test_drive_cone_turns_a_robot_toward_a_point_behind_it_instead_of_driving_on():
+    with _coordinated(3, num_robots=2, duration_s=10.0) as (_, ctl, _, _):
+        ctl.config = CoordinatedConfig(drive_cone=90.0)
+        clear = np.full(ctl.n_rays, ctl.max_range)
+        pose, behind_left = (0.0, 0.0, 0.0), (-1.0, 0.2)  # the point lies 169 degrees to its left
+        ahead, away = [(0.0, 0.0), (0.5, 0.1)], [(0.0, 0.0), (-0.5, 0.6)]
+        # the tracker's blends would drive it on at 0.3 m/s, away from its point and into robot 1
+        v, w = ctl.cone(0, pose, behind_left, clear, 0.3, -0.1, ahead)
+        assert v == 0.0 and w >= 0.8
+        # the side holds while the point stays behind it, even as it crosses to the right
+        v, w = ctl.cone(0, pose, (-1.0, -0.2), clear, 0.3, -0.1, ahead)
+        assert v == 0.0 and w >= 0.8
+        assert ctl.cone(0, pose, (1.0, 0.5), clear, 0.3, 0.2, ahead) == (0.3, 0.2)  # inside the cone: the tracker's
+        assert ctl.cone(0, pose, (-1.0, -0.5), clear, 0.3, -0.1, ahead)[1] <= -0.8  # a new turn takes the short side
+        # no robot ahead to drive into (robot 1 behind it): the tracker's command stands
+        assert ctl.cone(0, pose, behind_left, clear, 0.3, -0.1, away) == (0.3, -0.1)
+        # no room to turn in place (something 0.15 m to its side): the tracker's command stands
+        beside = clear.copy()
+        beside[np.argmin(np.abs(ctl._cos))] = 0.15
+        assert ctl.cone(0, pose, behind_left, beside, 0.3, -0.1, ahead) == (0.3, -0.1)
+        ctl.config = CoordinatedConfig(drive_cone=0.0)  # off
+        assert ctl.cone(0, pose, behind_left, clear, 0.3, -0.1, ahead) == (0.3, -0.1)
+    with pytest.raises(ConfigError, match="drive_cone"):
+        CoordinatedConfig(drive_cone=120.0)
 
 
 def test_unknot_commits_a_swapping_turn_to_one_side():

@@ -77,10 +77,12 @@ class ReservationTable:
                     return False
         return True
 
-    def reserve_cell(self, cell: Cell, t: int, agent: int) -> None:
-        """Hold ``cell`` (and the cells it conflicts with) at step ``t`` for ``agent`` (first
-        come first served: an existing reservation by another robot is kept)."""
+    def reserve_cell(self, cell: Cell, t: int, agent: int, conflicts: bool = True) -> None:
+        """Hold ``cell`` (and, with ``conflicts``, the cells it conflicts with) at step ``t`` for
+        ``agent`` (first come first served: an existing reservation by another robot is kept)."""
         self._vertex.setdefault((cell, t), agent)
+        if not conflicts:
+            return
         for other in self.conflicts.get(cell, ()):
             self._vertex.setdefault((other, t), agent)
 
@@ -96,6 +98,25 @@ class ReservationTable:
 
     def __len__(self) -> int:
         return len(self._vertex)
+
+
+def reserve_starts(table: ReservationTable, starts: list[Cell], held: list[list[Cell]], steps: int) -> None:
+    """Reserve, for steps ``0 .. steps - 1``, where the robots stand at a replan: first every
+    robot's own cell (``starts[i]``, without the cells it conflicts with), then every start
+    cell with its conflicts, then the cells each robot also holds (``held[i]``: cells it is too
+    close to for another robot), first come first served. A robot's own cell stays its own
+    even where another robot stands close enough to hold it too (two robots pressed together):
+    were the other's hold reserved first, the robot could neither wait in its cell nor leave
+    it (leaving checks that nobody else holds the cell it leaves), and two such robots would
+    plan waits for good."""
+    for i, cell in enumerate(starts):
+        for t in range(steps):
+            table.reserve_cell(cell, t, i, conflicts=False)
+    for cells in ([[s] for s in starts], held):
+        for i, group in enumerate(cells):
+            for cell in group:
+                for t in range(steps):
+                    table.reserve_cell(cell, t, i)
 
 
 def distance_map(blocked: np.ndarray, goal: Cell, closed: np.ndarray | None = None) -> np.ndarray:
@@ -287,4 +308,4 @@ def nearest_free(blocked: np.ndarray, cell: Cell) -> Cell:
 
 
 __all__ = ["MOVES", "ReservationTable", "distance_map", "largest_component", "nearest_free", "path_cost",
-           "plan_dependencies", "space_time_astar"]
+           "plan_dependencies", "reserve_starts", "space_time_astar"]
