@@ -284,9 +284,9 @@ class CoordinatedConfig:
     The tracker's lidar blends steer a robot boxed in by its neighbours toward the side with
     more room, and without the cone it drove on that way, off its reserved cells and into the
     robot beside it (seed 3113, static world, N = 8, 61-63 s: 0.15-0.47 m/s with its point
-    95-153 degrees behind it). On 40 dynamic development episodes (N = 8, seeds 3100-3119 and
-    3200-3219) it cut robot-robot collisions from 36 to 10 and mover collisions from 8 to 0
-    (docs/fleet.md)."""
+    95-153 degrees behind it). With it (and :func:`~bulletnav.fleet.spacetime.reserve_starts`),
+    40 dynamic development episodes (N = 8, seeds 3100-3119 and 3200-3219) had 10 robot-robot
+    and no mover collisions, against 36 and 8 without either (docs/fleet.md)."""
     cone_reach: float = 0.75
     """``drive_cone`` acts only while another robot's centre lies within this distance (m) and
     100 degrees of the robot's heading; elsewhere the blends may steer it round a mover (with
