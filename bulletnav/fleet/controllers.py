@@ -347,7 +347,9 @@ class CoordinatedController:
     ``arrive_tolerance`` (``turn_tolerance`` where the path turns) and driving on without
     stopping while the cells after it are free; it slows down toward, and stops at the
     centre of, the last cell it may enter; a robot whose turn on the spot keeps swapping sides
-    commits to one where it has room (:meth:`unknot`). The fleet replans from where the robots
+    commits to one where it has room (:meth:`unknot`), and one near another robot whose next
+    point lies behind it turns toward it rather than drive on where the tracker's lidar blend
+    steers (:meth:`cone`). The fleet replans from where the robots
     stand at every goal change, when a robot nears the end of its plan (``replan_margin``) and
     every ``replan_period_s``.
 
