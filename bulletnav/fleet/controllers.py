@@ -63,6 +63,12 @@ DEFAULT_MODEL = "models/ppo_dynamic.zip"
 """The single-robot model the ``policy`` controller drives with unless told otherwise."""
 
 
+def _off_heading(pose: tuple[float, float, float], point: tuple[float, float]) -> float:
+    """The angle (rad, -pi to pi) from the heading of a robot at ``pose`` to ``point``."""
+    bearing = math.atan2(point[1] - pose[1], point[0] - pose[0]) - pose[2]
+    return math.atan2(math.sin(bearing), math.cos(bearing))
+
+
 class FleetController(Protocol):
     """One action per agent: ``reset(infos)`` at each episode start, ``act(observations, infos)`` every step."""
 
@@ -762,8 +768,7 @@ class CoordinatedController:
         place toward ``target`` at 0.8 rad/s, one way, until it faces it within 0.3 rad or 4 s
         have passed, and only while its scan ``ranges`` (m, None: not checked) shows nothing
         within the circle its outline sweeps turning in place, grown by ``unknot_margin``."""
-        bearing = math.atan2(target[1] - pose[1], target[0] - pose[0]) - pose[2]
-        error = math.atan2(math.sin(bearing), math.cos(bearing))
+        error = _off_heading(pose, target)
         clear = ranges is None or self._turn_clear(ranges)
         sign, until = self._knot[i]
         if sign:
@@ -795,19 +800,15 @@ class CoordinatedController:
         cone = self.config.drive_cone
         if cone <= 0:
             return v, w
-        bearing = math.atan2(target[1] - pose[1], target[0] - pose[0]) - pose[2]
-        error = math.atan2(math.sin(bearing), math.cos(bearing))
+        error = _off_heading(pose, target)
         off = abs(math.degrees(error))
         if off <= cone:
             self._cone_side[i] = 0.0
             return v, w
-        x, y, yaw = pose
-        ahead = False
-        for j, (px, py) in enumerate(positions):
-            if j != i and math.hypot(px - x, py - y) < self.config.cone_reach:
-                rel = math.atan2(py - y, px - x) - yaw
-                ahead = ahead or abs(math.atan2(math.sin(rel), math.cos(rel))) < math.radians(100)
-        if not ahead:
+        x, y, _ = pose
+        reach, front = self.config.cone_reach, math.radians(100)
+        if not any(j != i and math.hypot(p[0] - x, p[1] - y) < reach and abs(_off_heading(pose, p)) < front
+                   for j, p in enumerate(positions)):
             return v, w  # no robot ahead to drive into: the blends may steer it round a mover
         if not self._turn_clear(ranges):
             return v, w
