@@ -251,7 +251,7 @@ def test_largest_component_drops_pockets_and_closed_moves():
 def test_priorities_rotate_round_robin():
     env = fleet_v0.parallel_env(num_robots=3, duration_s=10.0)
     try:
-        ctl = CoordinatedController(env)  # rotate_s=0: at every replan
+        ctl = CoordinatedController(env, CoordinatedConfig(rotate_s=0.0))  # at every replan
         _, infos = env.reset(seed=1)
         ctl.reset(infos)
         orders = [ctl.order]
@@ -339,7 +339,7 @@ def test_restarts_plan_the_boxed_in_robots_first():
         ctls, orders = [], []
 
         def factory(env):
-            ctls.append(CoordinatedController(env, CoordinatedConfig(restarts=restarts)))
+            ctls.append(CoordinatedController(env, CoordinatedConfig(restarts=restarts, rotate_s=0.0)))  # rotating at every replan boxes robots in here
             return ctls[0]
 
         def check(env, infos):
