@@ -339,7 +339,8 @@ def test_restarts_plan_the_boxed_in_robots_first():
         ctls, orders = [], []
 
         def factory(env):
-            ctls.append(CoordinatedController(env, CoordinatedConfig(restarts=restarts, rotate_s=0.0)))  # rotating at every replan boxes robots in here
+            # rotating at every replan boxes robots in on this episode
+            ctls.append(CoordinatedController(env, CoordinatedConfig(restarts=restarts, rotate_s=0.0)))
             return ctls[0]
 
         def check(env, infos):
