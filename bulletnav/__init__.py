@@ -4,7 +4,17 @@ Importing the package registers ``bulletnav/Warehouse-v0``, ``bulletnav/Warehous
 ``bulletnav/WarehouseDynamic-v0`` with Gymnasium.
 """
 
-import gymnasium as gym
+import os
+
+# MKL, torch's BLAS on x86-64, picks its kernels by CPU (AVX-512 on recent Intel chips, AVX on AMD
+# ones), and their float sums differ in the last bits: the shipped policies' episodes, recorded on
+# one, drifted apart on the other within a few hundred steps. Every machine takes the AVX kernels
+# (on every x86-64 CPU since 2011), so results reproduce to the bit across them; a user who sets
+# MKL_ENABLE_INSTRUCTIONS keeps their choice. MKL reads it at its first call: importing torch
+# before bulletnav is fine, a matrix product on the CPU before it is not (set the variable then).
+os.environ.setdefault("MKL_ENABLE_INSTRUCTIONS", "AVX")
+
+import gymnasium as gym  # noqa: E402
 
 __version__ = "0.1.0"
 

@@ -38,3 +38,16 @@ def test_pid_astar_reproduces_its_episodes_bit_for_bit():
     expected = REFERENCE["astar_navigate_seed_0"]
     got = _per_episode(["navigate", "--planner", "astar", "--episodes", str(len(expected))])
     assert [{k: e[k] for k in expected[0]} for e in got] == expected
+
+
+def test_importing_bulletnav_pins_mkl_to_its_avx_kernels_unless_the_user_chose():
+    """MKL's AVX-512 kernels (recent Intel) sum in another order than its AVX ones (AMD): the
+    shipped policy's episodes above reproduce on both only with one set pinned."""
+    import os
+
+    code = "import os, bulletnav; print(os.environ['MKL_ENABLE_INSTRUCTIONS'])"
+    env = {k: v for k, v in os.environ.items() if k != "MKL_ENABLE_INSTRUCTIONS"}
+    run = lambda e: subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True,  # noqa: E731
+                                   env=e, cwd=ROOT).stdout.strip()
+    assert run(env) == "AVX"
+    assert run({**env, "MKL_ENABLE_INSTRUCTIONS": "SSE4_2"}) == "SSE4_2"
