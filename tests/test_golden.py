@@ -41,8 +41,8 @@ def test_pid_astar_reproduces_its_episodes_bit_for_bit():
 
 
 def test_importing_bulletnav_pins_mkl_to_its_avx_kernels_unless_the_user_chose():
-    """MKL's AVX-512 kernels (recent Intel) sum in another order than its AVX ones (AMD): the
-    shipped policy's episodes above reproduce on both only with one set pinned."""
+    """MKL's kernels differ by CPU in the last bits of their sums: the shipped policy's episodes
+    above reproduce on an AVX-512 machine only with its AVX kernels, the ones they were recorded with."""
     import os
 
     code = "import os, bulletnav; print(os.environ['MKL_ENABLE_INSTRUCTIONS'])"
