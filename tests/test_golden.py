@@ -4,6 +4,7 @@ references recorded before the restructure of issue 14 (``tests/golden_record.py
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -43,11 +44,12 @@ def test_pid_astar_reproduces_its_episodes_bit_for_bit():
 def test_importing_bulletnav_pins_mkl_to_its_avx_kernels_unless_the_user_chose():
     """MKL's kernels differ by CPU in the last bits of their sums: the shipped policy's episodes
     above reproduce on an AVX-512 machine only with its AVX kernels, the ones they were recorded with."""
-    import os
-
     code = "import os, bulletnav; print(os.environ['MKL_ENABLE_INSTRUCTIONS'])"
     env = {k: v for k, v in os.environ.items() if k != "MKL_ENABLE_INSTRUCTIONS"}
-    run = lambda e: subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True,  # noqa: E731
-                                   env=e, cwd=ROOT).stdout.strip()
+
+    def run(e: dict[str, str]) -> str:
+        return subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True,
+                              env=e, cwd=ROOT).stdout.strip()
+
     assert run(env) == "AVX"
     assert run({**env, "MKL_ENABLE_INSTRUCTIONS": "SSE4_2"}) == "SSE4_2"
