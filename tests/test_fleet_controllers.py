@@ -695,3 +695,18 @@ def test_unknot_commits_a_swapping_turn_to_one_side():
             assert ctl.unknot(0, 30 + 0.1 * k, pose, target, 0.0, (-1.0) ** k, beside) == (0.0, (-1.0) ** k)
         assert ctl.unknot(0, 30.8, pose, target, 0.0, 1.0, clear) == (0.0, 0.8)  # room again: it turns
         assert ctl.unknot(0, 30.9, pose, target, 0.0, -1.0, beside) == (0.0, -1.0)  # and stops when it has none
+
+
+def test_a_holding_robot_boxed_in_stands_rather_than_turn_in_place():
+    with _coordinated(3, num_robots=2, duration_s=10.0) as (_, ctl, _, _):
+        clear = np.full(ctl.n_rays, ctl.max_range)
+        beside = clear.copy()
+        beside[np.argmin(np.abs(ctl._cos))] = 0.15  # 0.15 m to its side: no room to turn in place
+        assert ctl.holds_boxed(0.25, 0.0, beside)  # near its hold point, a turn in place, no room: it stands
+        assert not ctl.holds_boxed(0.25, 0.0, clear)  # room to turn: the tracker's turn stands
+        assert not ctl.holds_boxed(0.25, 0.2, beside)  # driving on toward its point, not turning in place
+        assert not ctl.holds_boxed(0.5, 0.0, beside)  # farther than hold_no_turn from its point
+        ctl.config = CoordinatedConfig(hold_no_turn=0.0)  # off
+        assert not ctl.holds_boxed(0.25, 0.0, beside)
+    with pytest.raises(ConfigError, match="hold_no_turn"):
+        CoordinatedConfig(hold_no_turn=-0.1)

@@ -65,8 +65,7 @@ DEFAULT_MODEL = "models/ppo_dynamic.zip"
 
 def _off_heading(pose: tuple[float, float, float], point: tuple[float, float]) -> float:
     """The angle (rad, -pi to pi) from the heading of a robot at ``pose`` to ``point``."""
-    bearing = math.atan2(point[1] - pose[1], point[0] - pose[0]) - pose[2]
-    return math.atan2(math.sin(bearing), math.cos(bearing))
+    return math.remainder(math.atan2(point[1] - pose[1], point[0] - pose[0]) - pose[2], 2 * math.pi)
 
 
 class FleetController(Protocol):
@@ -287,6 +286,16 @@ class CoordinatedConfig:
     (unchecked, it did: four mover collisions at N = 8, seed 1000)."""
     stuck_distance: float = 0.25
     """How far (m) a robot must move to count as moving for ``stuck_s``."""
+    hold_no_turn: float = 0.35
+    """A robot that may enter no further cell does not turn in place (a command under 5 cm/s)
+    while it is within this distance (m) of its hold point and its scan shows no room to turn
+    (the knot turn's check, ``unknot_margin``): it stands still instead; 0: off. Without it a
+    robot holding on the line between two cells, two forklifts standing for it 0.67 m away,
+    turned toward the point of one cell and then the other, +1.2 and -1.2 rad/s on alternate
+    steps, and touched a forklift every 6 s for the last minute of the episode (seed 6017,
+    N = 8: 11 mover collisions, none with it). Standing still whenever boxed in near the hold
+    point, not only instead of a turn, gave 10 deadlock events against 6 on development seeds
+    3100-3119 (docs/fleet.md)."""
     drive_cone: float = 90.0
     """Near another robot (``cone_reach``), a robot whose next point lies more than this angle
     (degrees, at most 90) off its heading slows (to 0 at 90 degrees) and turns toward the
@@ -311,10 +320,10 @@ class CoordinatedConfig:
                 and 0 <= self.replan_min_s <= self.replan_period_s
                 and 0 < self.turn_tolerance <= self.arrive_tolerance and self.hold_radius > 0
                 and self.leave_distance > 0 and self.obstacle_range >= 0 and self.obstacle_radius >= 0
-                and self.obstacle_memory_s >= 0):
+                and self.obstacle_memory_s >= 0 and self.hold_no_turn >= 0):
             raise ConfigError(f"coordinated planner needs resolution > 0, clearance >= 0, replan_period_s > 0, "
                               f"0 < turn_tolerance <= arrive_tolerance, hold_radius > 0, leave_distance > 0 and "
-                              f"non-negative obstacle settings; got {self}")
+                              f"non-negative obstacle settings and hold_no_turn; got {self}")
         if not 0 <= self.drive_cone <= 90:
             raise ConfigError(f"coordinated planner needs drive_cone from 0 to 90 degrees, got {self.drive_cone!r}")
         if not (0 <= self.replan_margin < self.window and self.robustness >= 0 and self.restarts >= 0):
@@ -794,6 +803,12 @@ class CoordinatedController:
             return 0.0, 0.8 * self._knot[i][0]
         return v, w
 
+    def holds_boxed(self, ahead: float, v: float, ranges: np.ndarray) -> bool:
+        """True when a robot that may enter no further cell, ``ahead`` m from its hold point and
+        commanded ``v`` m/s, with the scan ``ranges`` (m), stands still rather than turn in place
+        (``hold_no_turn``): a turn in place (``v`` under 5 cm/s) near the point with no room for it."""
+        return v < 0.05 and 0 < ahead < self.config.hold_no_turn and not self._turn_clear(ranges)
+
     def cone(self, i: int, pose: tuple[float, float, float], target: tuple[float, float], ranges: np.ndarray,
               v: float, w: float, positions: list[tuple[float, float]]) -> tuple[float, float]:
         """Robot ``i``'s command ``(v, w)`` under ``drive_cone``: with ``target`` farther off its
@@ -873,6 +888,8 @@ class CoordinatedController:
                 v, w = self.cone(i, pose, target, ranges, v, w, positions)
                 if cfg.unknot_flips > 0:
                     v, w = self.unknot(i, view.time_s, pose, target, v, w, ranges)
+                if nxt is None and self.holds_boxed(ahead, v, ranges):
+                    v, w = 0.0, 0.0
             actions[agent] = self._action(v, w)
         return actions
 
