@@ -368,7 +368,8 @@ class CoordinatedController:
     centre of, the last cell it may enter; a robot whose turn on the spot keeps swapping sides
     commits to one where it has room (:meth:`unknot`), and one near another robot whose next
     point lies behind it turns toward it rather than drive on where the tracker's lidar blend
-    steers (:meth:`cone`). The fleet replans from where the robots
+    steers (:meth:`cone`); one holding near its hold point with no room to turn in place stands
+    rather than turn (:meth:`holds_boxed`). The fleet replans from where the robots
     stand at every goal change, when a robot nears the end of its plan (``replan_margin``) and
     every ``replan_period_s``.
 
