@@ -6,11 +6,13 @@ import json
 import math
 import os
 import re
+import shutil
 import subprocess
 import sys
 import time
 import warnings
 from dataclasses import replace
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -127,6 +129,36 @@ def test_human_mode_without_display_raises_clearly(monkeypatch):
     monkeypatch.setenv("DISPLAY", ":987")  # nothing listens there
     with pytest.raises(DisplayError, match="does not answer"):
         gym.make(ENV_ID, render_mode="human")
+
+
+@pytest.mark.skipif(shutil.which("Xvfb") is None or shutil.which("xauth") is None, reason="needs Xvfb and xauth")
+def test_human_mode_on_a_display_that_refuses_the_connection_raises_clearly(tmp_path, monkeypatch):
+    """An X server whose socket answers but which refuses this process (a wrong authority, as
+    when two servers or cookies get mixed up) is a DisplayError naming it, not PyBullet's GUI
+    thread calling exit() and the process hanging on it."""
+    from bulletnav.sim.client import display_accepts, display_available
+
+    number = next(n for n in range(170, 400) if not Path(f"/tmp/.X{n}-lock").exists())
+    server_auth, other_auth = tmp_path / "server", tmp_path / "other"
+    for path, cookie in ((server_auth, "0123456789abcdef0123456789abcdef"), (other_auth, "fedcba9876543210fedcba9876543210")):
+        path.touch()
+        subprocess.run(["xauth", "-f", str(path), "add", f":{number}", ".", cookie], check=True, capture_output=True)
+    server = subprocess.Popen(["Xvfb", f":{number}", "-auth", str(server_auth), "-nolisten", "tcp"],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 20
+        while not display_available(f":{number}") and time.monotonic() < deadline:
+            time.sleep(0.05)
+        monkeypatch.setenv("DISPLAY", f":{number}")
+        monkeypatch.setenv("XAUTHORITY", str(server_auth))
+        assert display_accepts()  # the right cookie: Xlib opens it
+        monkeypatch.setenv("XAUTHORITY", str(other_auth))
+        assert display_available() and not display_accepts(tries=2, pause_s=0.05)
+        with pytest.raises(DisplayError, match=f"DISPLAY=':{number}' answers but refused the connection"):
+            gym.make(ENV_ID, render_mode="human")
+    finally:
+        server.terminate()
+        server.wait(timeout=10)
 
 
 def _rollout(seed: int, steps: int = 300):

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import logging
 import os
 import socket
+import time
 from dataclasses import dataclass
 
 import pybullet as p
@@ -43,18 +46,68 @@ def display_available(display: str | None = None) -> bool:
         return False
 
 
+def _xlib() -> ctypes.CDLL | None:
+    """Xlib (``libX11``), the library PyBullet's GUI opens its window with, or None where it is absent."""
+    name = ctypes.util.find_library("X11")
+    if name is None:
+        return None
+    try:
+        lib = ctypes.CDLL(name)
+    except OSError:
+        return None
+    lib.XOpenDisplay.restype = ctypes.c_void_p
+    lib.XOpenDisplay.argtypes = [ctypes.c_char_p]
+    lib.XCloseDisplay.argtypes = [ctypes.c_void_p]
+    return lib
+
+
+def display_accepts(display: str | None = None, tries: int = 10, pause_s: float = 0.2) -> bool:
+    """True when Xlib can open ``display`` (default ``$DISPLAY``) as PyBullet's GUI thread will:
+    the X connection itself, with the authority in ``$XAUTHORITY``, not only its socket.
+
+    PyBullet's GUI thread calls ``exit()`` when its ``XOpenDisplay`` fails, which either ends
+    the process or deadlocks it with the main thread waiting for the GUI for ever. So the GUI is
+    only opened after this process has opened and closed the display itself, up to ``tries``
+    times ``pause_s`` apart (a server that has just started may refuse a first client). Where
+    Xlib cannot be loaded the socket check :func:`display_available` stands in.
+    """
+    if not display_available(display):
+        return False
+    lib = _xlib()
+    if lib is None:
+        return True
+    name = None if display is None else display.encode()
+    for attempt in range(tries):
+        handle = lib.XOpenDisplay(name)
+        if handle:
+            lib.XCloseDisplay(handle)
+            if attempt:
+                log.info("X display opened on try %d of %d", attempt + 1, tries)
+            return True
+        time.sleep(pause_s)
+    return False
+
+
 def connect(gui: bool = False, options: str = "") -> int:
     """Open a new physics client and return its id.
 
     Raises:
-        DisplayError: ``gui`` is True and no X display is reachable.
+        DisplayError: ``gui`` is True and no X display is reachable, or it refuses this
+            process's connection (:func:`display_accepts`).
     """
     if gui:
+        shown = os.environ.get("DISPLAY")
         if not display_available():
             raise DisplayError(
                 "render_mode='human' / --gui needs an X display, but "
-                + (f"DISPLAY={os.environ['DISPLAY']!r} does not answer" if os.environ.get("DISPLAY") else "DISPLAY is not set")
+                + (f"DISPLAY={shown!r} does not answer" if shown else "DISPLAY is not set")
                 + "; run under `xvfb-run -a` or use headless mode"
+            )
+        if not display_accepts():
+            raise DisplayError(
+                f"render_mode='human' / --gui: the X display DISPLAY={shown!r} answers but refused the connection "
+                f"(XAUTHORITY={os.environ.get('XAUTHORITY', '')!r}; 10 tries over 2 s); check its authority, "
+                "or run under `xvfb-run -a` or use headless mode"
             )
         cid = p.connect(p.GUI, options=options)
     else:
