@@ -25,6 +25,7 @@ from bulletnav.bench.env_bench import bench_env
 from bulletnav.cli import main
 from bulletnav.config import EnvConfig, ImuConfig, LidarConfig, OdometryConfig, SensorsConfig, asset_path
 from bulletnav.errors import DisplayError
+from bulletnav.sim.client import _xlib
 from bulletnav.sim.generators import WORLDS
 from bulletnav.tasks import TASKS, NavigationTask
 from conftest import bit_equal
@@ -131,7 +132,8 @@ def test_human_mode_without_display_raises_clearly(monkeypatch):
         gym.make(ENV_ID, render_mode="human")
 
 
-@pytest.mark.skipif(shutil.which("Xvfb") is None or shutil.which("xauth") is None, reason="needs Xvfb and xauth")
+@pytest.mark.skipif(shutil.which("Xvfb") is None or shutil.which("xauth") is None or _xlib() is None,
+                    reason="needs Xvfb, xauth and libX11")
 def test_human_mode_on_a_display_that_refuses_the_connection_raises_clearly(tmp_path, monkeypatch):
     """An X server whose socket answers but which refuses this process (a wrong authority, as
     when two servers or cookies get mixed up) is a DisplayError naming it, not PyBullet's GUI
