@@ -26,23 +26,25 @@ display refuses its own check first. Seen about once in ten fresh servers here (
 thread printed the first and the process then hung rather than exiting."""
 
 
+def _x_start_failed(stderr: str | bytes | None) -> bool:
+    """True when ``stderr`` says the X connection itself failed at start-up."""
+    text = stderr.decode(errors="replace") if isinstance(stderr, bytes) else stderr or ""
+    return any(words in text for words in X_START_FAILURES)
+
+
 def _cli(*args: str, timeout: int = 150) -> subprocess.CompletedProcess:
     """The command as a user runs it, under `xvfb-run -a`; started once more, on a new
     server, only when the X connection itself failed at start-up (whether the process then
     exited or hung: a hang is killed after ``timeout`` s)."""
     cmd = ["xvfb-run", "-a", sys.executable, "-m", "bulletnav.cli", *args]
-    for attempt in (1, 2):
-        try:
-            done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=timeout)
-        except subprocess.TimeoutExpired as exc:
-            stderr = exc.stderr.decode(errors="replace") if isinstance(exc.stderr, bytes) else exc.stderr or ""
-            if attempt == 1 and any(words in stderr for words in X_START_FAILURES):
-                continue
+    try:
+        done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=timeout)
+        if done.returncode == 0 or not _x_start_failed(done.stderr):
+            return done
+    except subprocess.TimeoutExpired as exc:
+        if not _x_start_failed(exc.stderr):
             raise
-        if attempt == 1 and done.returncode != 0 and any(words in done.stderr for words in X_START_FAILURES):
-            continue
-        return done
-    return done
+    return subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=timeout)
 
 
 @pytest.mark.slow

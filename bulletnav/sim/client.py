@@ -46,6 +46,12 @@ def display_available(display: str | None = None) -> bool:
         return False
 
 
+X_OPEN_TRIES = 10
+"""Times :func:`display_accepts` tries to open the display before a GUI connect gives up."""
+X_OPEN_PAUSE_S = 0.2
+"""Seconds between those tries."""
+
+
 def _xlib() -> ctypes.CDLL | None:
     """Xlib (``libX11``), the library PyBullet's GUI opens its window with, or None where it is absent."""
     name = ctypes.util.find_library("X11")
@@ -61,7 +67,7 @@ def _xlib() -> ctypes.CDLL | None:
     return lib
 
 
-def display_accepts(display: str | None = None, tries: int = 10, pause_s: float = 0.2) -> bool:
+def display_accepts(display: str | None = None, tries: int = X_OPEN_TRIES, pause_s: float = X_OPEN_PAUSE_S) -> bool:
     """True when Xlib can open ``display`` (default ``$DISPLAY``) as PyBullet's GUI thread will:
     the X connection itself, with the authority in ``$XAUTHORITY``, not only its socket.
 
@@ -106,7 +112,8 @@ def connect(gui: bool = False, options: str = "") -> int:
         if not display_accepts():
             raise DisplayError(
                 f"render_mode='human' / --gui: the X display DISPLAY={shown!r} answers but refused the connection "
-                f"(XAUTHORITY={os.environ.get('XAUTHORITY', '')!r}; 10 tries over 2 s); check its authority, "
+                f"(XAUTHORITY={os.environ.get('XAUTHORITY', '')!r}; {X_OPEN_TRIES} tries over "
+                f"{X_OPEN_TRIES * X_OPEN_PAUSE_S:g} s); check its authority, "
                 "or run under `xvfb-run -a` or use headless mode"
             )
         cid = p.connect(p.GUI, options=options)
