@@ -103,7 +103,7 @@ def pytest_runtest_logreport(report):
 
 _GUI_CHILD = "BULLETNAV_GUI_TEST_CHILD"
 """Set in the child process that runs one GUI test (see :func:`pytest_pyfunc_call`); its value
-is the file the child writes its measurements to."""
+is the file the child writes its verdict and measurements to when its session finishes."""
 
 
 @pytest.hookimpl(tryfirst=True)
@@ -113,10 +113,17 @@ def pytest_pyfunc_call(pyfuncitem):
     disconnections in one process a connection has been seen to hang for ever (the GUI thread
     gone, the main thread polling for it) once torch is imported; one GUI session per process,
     as every user command has, does not. The child's failure fails the test with its output.
-    A child that hangs (PyBullet's GUI connection has, rarely, hung in a fresh process under
-    Xvfb too: once in a clean-clone `make test` of 2026-11-24, the test passing in 13 s on each
-    of four reruns) is killed and the test run once more in a new child: the same 600 s in
-    all, split in two; a hang both times fails the test, and a verdict is never retried."""
+
+    The child runs with ``--capture=sys``: what C code writes (PyBullet's GUI thread, Xlib) goes
+    straight to the parent, so a child that dies in C still shows why. A child that never
+    reaches a verdict is run once more in a new child: one that hangs (PyBullet's GUI connection
+    has, rarely, hung in a fresh process under Xvfb: once in a clean-clone `make test` of
+    2026-11-24) is killed after half of the 600 s, and one that ends without its session
+    finishing (PyBullet's GUI thread calls exit(1) when the X server fails it, and Xlib does on
+    a broken connection: once in CI on 2026-11-27, exit 1 and no output, as the old fd capture
+    swallowed it; both were PyBullet's GUI thread refused by an Xvfb resetting after its last
+    client left, which :func:`bulletnav.sim.client.connect` now prevents) is rerun at once.
+    Neither both times fails the test; a verdict, passed or failed, is never retried."""
     import json
     import os
     import subprocess
@@ -126,33 +133,50 @@ def pytest_pyfunc_call(pyfuncitem):
     if "display" not in pyfuncitem.fixturenames or os.environ.get(_GUI_CHILD):
         return None
     with tempfile.TemporaryDirectory() as tmp:
-        measurements = Path(tmp) / "measurements.json"
-        env = {**os.environ, _GUI_CHILD: str(measurements)}
-        cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--no-header", pyfuncitem.nodeid]
+        verdict = Path(tmp) / "verdict.json"
+        env = {**os.environ, _GUI_CHILD: str(verdict)}
+        cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--no-header", "--capture=sys",
+               pyfuncitem.nodeid]
         for attempt in (1, 2):
+            verdict.unlink(missing_ok=True)
             try:
                 out = subprocess.run(cmd, env=env, cwd=pyfuncitem.config.rootpath, capture_output=True, text=True,
                                      timeout=300)
-                break
             except subprocess.TimeoutExpired as exc:
+                hung = f"its GUI child hung for {exc.timeout} s; its output:\n{_text(exc.stdout)[-4000:]}\n{_text(exc.stderr)[-2000:]}"
                 if attempt == 2:
-                    pytest.fail(f"GUI test {pyfuncitem.nodeid} hung in two child processes ({exc.timeout} s each)")
-                pyfuncitem.warn(pytest.PytestWarning(f"its GUI child hung for {exc.timeout} s; run once more in a new one"))
-        if measurements.exists():
-            pyfuncitem.user_properties.extend((_MEASUREMENT, tuple(m)) for m in json.loads(measurements.read_text()))
-    if out.returncode != 0:
+                    pytest.fail(f"GUI test {pyfuncitem.nodeid}: {hung} (and the same the first time)", pytrace=False)
+                pyfuncitem.warn(pytest.PytestWarning(f"{hung}\nrun once more in a new one"))
+                continue
+            if verdict.exists():
+                break
+            died = (f"its GUI child ended (exit {out.returncode}) before its session finished, DISPLAY="
+                    f"{os.environ.get('DISPLAY')!r}; its output:\n{out.stdout[-4000:]}\n{out.stderr[-2000:]}")
+            if attempt == 2:
+                pytest.fail(f"GUI test {pyfuncitem.nodeid}: {died} (and the same the first time)", pytrace=False)
+            pyfuncitem.warn(pytest.PytestWarning(f"{died}\nrun once more in a new one"))
+        result = json.loads(verdict.read_text())
+        pyfuncitem.user_properties.extend((_MEASUREMENT, tuple(m)) for m in result["measurements"])
+    if result["exitstatus"] != 0:
         pytest.fail(f"GUI test failed in its child process (exit {out.returncode}):\n{out.stdout[-6000:]}\n{out.stderr[-2000:]}",
                     pytrace=False)
     return True
 
 
-def pytest_sessionfinish(session):
+def _text(output: str | bytes | None) -> str:
+    """A killed child's output as text (``TimeoutExpired`` may carry bytes, or nothing)."""
+    if isinstance(output, bytes):
+        return output.decode(errors="replace")
+    return output or ""
+
+
+def pytest_sessionfinish(session, exitstatus):
     import json
     import os
 
     path = os.environ.get(_GUI_CHILD)
-    if path:  # a GUI test's child: hand the measurements to the parent
-        Path(path).write_text(json.dumps(_MEASUREMENTS))
+    if path:  # a GUI test's child: hand its verdict and measurements to the parent
+        Path(path).write_text(json.dumps({"exitstatus": int(exitstatus), "measurements": _MEASUREMENTS}))
 
 
 def pytest_terminal_summary(terminalreporter, config):

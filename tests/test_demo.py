@@ -22,8 +22,11 @@ needs_xvfb = pytest.mark.skipif(shutil.which("xvfb-run") is None, reason="xvfb-r
 X_START_FAILURES = ("cannot connect to X server", "answers but refused the connection")
 """PyBullet's words when its GUI thread cannot open the display, and the library's when the
 display refuses its own check first. Seen about once in ten fresh servers here (with `xvfb-run
--a` and with a plain Xvfb alike), never twice in a row; once (CI of 2026-11-27) PyBullet's GUI
-thread printed the first and the process then hung rather than exiting."""
+-a` and with a plain Xvfb alike); once (CI of 2026-11-27) the process then hung rather than
+exiting. The cause, found later: an X server resets when its last client leaves and refuses
+clients while it does, and the library's check of the display was such a client, just before
+PyBullet's; now the library holds its connection until PyBullet has its own
+(:func:`bulletnav.sim.client.connect`), and the one retry stays for a server that fails anyway."""
 
 
 def _x_start_failed(stderr: str | bytes | None) -> bool:

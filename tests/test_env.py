@@ -163,6 +163,103 @@ def test_human_mode_on_a_display_that_refuses_the_connection_raises_clearly(tmp_
         server.wait(timeout=10)
 
 
+class _FakeXlib:
+    """Stands in for libX11: records the calls, in order, in ``calls``."""
+
+    def __init__(self, calls: list[str], refuse: int = 0) -> None:
+        self.calls, self.refuse = calls, refuse
+
+    def XOpenDisplay(self, name):  # noqa: N802 (Xlib's name)
+        self.calls.append("XOpenDisplay")
+        if self.refuse:
+            self.refuse -= 1
+            return None
+        return 1234
+
+    def XCloseDisplay(self, handle):  # noqa: N802
+        assert handle == 1234
+        self.calls.append("XCloseDisplay")
+
+
+@pytest.mark.parametrize("gui_connects", [True, False])
+def test_gui_connect_holds_its_own_x_connection_until_pybullet_has_opened_one(monkeypatch, gui_connects):
+    """An X server resets when its last client leaves and refuses clients meanwhile, and
+    PyBullet's GUI thread calls exit() when it is refused: so the library's own connection to
+    the display, tried again while refused, stays open until PyBullet's connect has returned
+    (and is closed however that ends)."""
+    import pybullet
+
+    from bulletnav.sim import client
+
+    calls: list[str] = []
+    fake = _FakeXlib(calls, refuse=2)  # a server still resetting refuses the first two tries
+
+    def gui_connect(mode, options=""):
+        assert mode == pybullet.GUI
+        calls.append("pybullet.connect")
+        if not gui_connects:
+            raise RuntimeError("the GUI failed")
+        return 7
+
+    monkeypatch.setattr(client, "_xlib", lambda: fake)
+    monkeypatch.setattr(client, "display_available", lambda display=None: True)
+    monkeypatch.setattr(client, "X_OPEN_PAUSE_S", 0.0)
+    monkeypatch.setattr(client.p, "connect", gui_connect)
+    if gui_connects:
+        assert client.connect(gui=True) == 7
+    else:
+        with pytest.raises(RuntimeError, match="the GUI failed"):
+            client.connect(gui=True)
+    assert calls == ["XOpenDisplay"] * 3 + ["pybullet.connect", "XCloseDisplay"]
+
+
+@pytest.mark.skipif(shutil.which("Xvfb") is None or _xlib() is None, reason="needs Xvfb and libX11")
+def test_a_held_x_connection_keeps_a_resetting_server_from_refusing_clients(report):
+    """The premise of the hold above, on a real Xvfb started as `xvfb-run` starts it (it resets
+    when its last client leaves): a client that connects right after another left is refused
+    now and then, and never while a connection is held open."""
+    import socket
+
+    from bulletnav.sim.client import _open_display, display_available
+
+    lib = _xlib()
+    number = next(n for n in range(400, 600) if not Path(f"/tmp/.X{n}-lock").exists())
+    server = subprocess.Popen(["Xvfb", f":{number}", "-nolisten", "tcp"], stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL)
+    name = f":{number}".encode()
+
+    def refused_after_a_probe(cycles: int) -> int:
+        refused = 0
+        for _ in range(cycles):
+            with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as probe:  # display_available's check
+                probe.connect(f"/tmp/.X11-unix/X{number}")
+            for _ in range(2):  # a client that comes and goes, then one right after it
+                handle = lib.XOpenDisplay(name)
+                if not handle:
+                    refused += 1
+                    time.sleep(0.2)  # let the reset end
+                    break
+                lib.XCloseDisplay(handle)
+        return refused
+
+    try:
+        deadline = time.monotonic() + 20
+        while not display_available(f":{number}") and time.monotonic() < deadline:
+            time.sleep(0.05)
+        held = _open_display(f":{number}", tries=100, pause_s=0.05)
+        assert held is not None, "the fresh Xvfb never accepted a client"
+        try:
+            assert refused_after_a_probe(60) == 0
+        finally:
+            held.close()
+        time.sleep(0.5)
+        report("clients refused in 60 probe cycles, a connection held / none held",
+               f"0 / {refused_after_a_probe(60)}")
+    finally:
+        server.terminate()
+        server.wait(timeout=10)
+
+
 def _rollout(seed: int, steps: int = 300):
     env = gym.make(ENV_ID, lidar_noise=0.02)
     env.action_space.seed(seed)

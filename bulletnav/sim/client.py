@@ -67,39 +67,66 @@ def _xlib() -> ctypes.CDLL | None:
     return lib
 
 
-def display_accepts(display: str | None = None, tries: int = X_OPEN_TRIES, pause_s: float = X_OPEN_PAUSE_S) -> bool:
-    """True when Xlib can open ``display`` (default ``$DISPLAY``) as PyBullet's GUI thread will:
-    the X connection itself, with the authority in ``$XAUTHORITY``, not only its socket.
+class _HeldDisplay:
+    """An open Xlib connection (or, where libX11 is absent, a stand-in), closed by :meth:`close`."""
 
-    PyBullet's GUI thread calls ``exit()`` when its ``XOpenDisplay`` fails, which either ends
-    the process or deadlocks it with the main thread waiting for the GUI for ever. So the GUI is
-    only opened after this process has opened and closed the display itself, up to ``tries``
-    times ``pause_s`` apart (a server that has just started may refuse a first client). Where
-    Xlib cannot be loaded the socket check :func:`display_available` stands in.
-    """
+    def __init__(self, lib: ctypes.CDLL | None = None, handle: int | None = None) -> None:
+        self._lib, self._handle = lib, handle
+
+    def close(self) -> None:
+        if self._lib is not None and self._handle:
+            self._lib.XCloseDisplay(self._handle)
+        self._handle = None
+
+
+def _open_display(display: str | None, tries: int, pause_s: float) -> _HeldDisplay | None:
+    """Open ``display`` with Xlib, up to ``tries`` times ``pause_s`` apart; None when refused."""
     if not display_available(display):
-        return False
+        return None
     lib = _xlib()
     if lib is None:
-        return True
+        return _HeldDisplay()
     name = None if display is None else display.encode()
     for attempt in range(tries):
         handle = lib.XOpenDisplay(name)
         if handle:
-            lib.XCloseDisplay(handle)
             if attempt:
                 log.info("X display opened on try %d of %d", attempt + 1, tries)
-            return True
+            return _HeldDisplay(lib, handle)
         time.sleep(pause_s)
-    return False
+    return None
+
+
+def display_accepts(display: str | None = None, tries: int = X_OPEN_TRIES, pause_s: float = X_OPEN_PAUSE_S) -> bool:
+    """True when Xlib can open ``display`` (default ``$DISPLAY``) as PyBullet's GUI thread will:
+    the X connection itself, with the authority in ``$XAUTHORITY``, not only its socket. It
+    tries up to ``tries`` times ``pause_s`` apart (a server that has just started, or is
+    resetting, refuses a client); where Xlib cannot be loaded the socket check
+    :func:`display_available` stands in.
+    """
+    held = _open_display(display, tries, pause_s)
+    if held is None:
+        return False
+    held.close()
+    return True
 
 
 def connect(gui: bool = False, options: str = "") -> int:
     """Open a new physics client and return its id.
 
+    For the GUI this process first opens the X display itself (:func:`display_accepts`'s
+    tries) and holds that connection until PyBullet's GUI thread has opened its own. PyBullet's
+    GUI thread calls ``exit()`` when its ``XOpenDisplay`` fails, which ends the process with
+    status 1, or deadlocks it (torch's exit handlers wait for the interpreter lock, which the
+    main thread holds while it waits for the GUI). An X server without ``-noreset`` (Xvfb's and
+    ``xvfb-run``'s default) resets when its last client disconnects and refuses clients while
+    it does; a connection opened and closed just before PyBullet's would leave PyBullet to
+    meet that reset (measured: 82 of 600 opens right after a close refused on Xvfb 21.1.7,
+    none with ``-noreset``). Held open, it keeps the server from resetting.
+
     Raises:
         DisplayError: ``gui`` is True and no X display is reachable, or it refuses this
-            process's connection (:func:`display_accepts`).
+            process's connection.
     """
     if gui:
         shown = os.environ.get("DISPLAY")
@@ -109,14 +136,18 @@ def connect(gui: bool = False, options: str = "") -> int:
                 + (f"DISPLAY={shown!r} does not answer" if shown else "DISPLAY is not set")
                 + "; run under `xvfb-run -a` or use headless mode"
             )
-        if not display_accepts():
+        held = _open_display(None, X_OPEN_TRIES, X_OPEN_PAUSE_S)
+        if held is None:
             raise DisplayError(
                 f"render_mode='human' / --gui: the X display DISPLAY={shown!r} answers but refused the connection "
                 f"(XAUTHORITY={os.environ.get('XAUTHORITY', '')!r}; {X_OPEN_TRIES} tries over "
                 f"{X_OPEN_TRIES * X_OPEN_PAUSE_S:g} s); check its authority, "
                 "or run under `xvfb-run -a` or use headless mode"
             )
-        cid = p.connect(p.GUI, options=options)
+        try:
+            cid = p.connect(p.GUI, options=options)
+        finally:
+            held.close()
     else:
         cid = p.connect(p.DIRECT)
     if cid < 0:
