@@ -188,13 +188,14 @@ def pytest_terminal_summary(terminalreporter, config):
             terminalreporter.write_line(f"{what} = {value}")
 
 
-_GUI_PROBE = "import pybullet as p; p.disconnect(p.connect(p.GUI)); print('gui ok')"
+_GUI_PROBE = ("import pybullet as p; from bulletnav.sim.client import connect; "
+              "p.disconnect(connect(gui=True)); print('gui ok')")
 
 
 def _gui_opens(display: str) -> bool:
-    """PyBullet's GUI opens on ``display`` (tried in a child process: when it cannot open the
-    display, PyBullet calls exit() in its GUI thread, which ends the process with status 0, or
-    deadlocks it once torch is imported)."""
+    """PyBullet's GUI opens on ``display``, connected as the library connects it (tried in a
+    child process: when it cannot open the display, PyBullet calls exit() in its GUI thread,
+    which ends the process with status 1, or deadlocks it once torch is imported)."""
     import os
     import subprocess
     import sys
