@@ -123,7 +123,8 @@ def pytest_pyfunc_call(pyfuncitem):
     a broken connection: once in CI on 2026-11-27, exit 1 and no output, as the old fd capture
     swallowed it; both were PyBullet's GUI thread refused by an Xvfb resetting after its last
     client left, which :func:`bulletnav.sim.client.connect` now prevents) is rerun at once.
-    Neither both times fails the test; a verdict, passed or failed, is never retried."""
+    A second child without a verdict fails the test; a verdict, passed or failed, is never
+    retried."""
     import json
     import os
     import subprocess
@@ -137,24 +138,26 @@ def pytest_pyfunc_call(pyfuncitem):
         env = {**os.environ, _GUI_CHILD: str(verdict)}
         cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--no-header", "--capture=sys",
                pyfuncitem.nodeid]
+        first = ""
         for attempt in (1, 2):
             verdict.unlink(missing_ok=True)
             try:
                 out = subprocess.run(cmd, env=env, cwd=pyfuncitem.config.rootpath, capture_output=True, text=True,
                                      timeout=300)
             except subprocess.TimeoutExpired as exc:
-                hung = f"its GUI child hung for {exc.timeout} s; its output:\n{_text(exc.stdout)[-4000:]}\n{_text(exc.stderr)[-2000:]}"
-                if attempt == 2:
-                    pytest.fail(f"GUI test {pyfuncitem.nodeid}: {hung} (and the same the first time)", pytrace=False)
-                pyfuncitem.warn(pytest.PytestWarning(f"{hung}\nrun once more in a new one"))
-                continue
-            if verdict.exists():
-                break
-            died = (f"its GUI child ended (exit {out.returncode}) before its session finished, DISPLAY="
-                    f"{os.environ.get('DISPLAY')!r}; its output:\n{out.stdout[-4000:]}\n{out.stderr[-2000:]}")
+                what = f"its GUI child hung for {exc.timeout} s"
+                output = f"{_text(exc.stdout)[-4000:]}\n{_text(exc.stderr)[-2000:]}"
+            else:
+                if verdict.exists():
+                    break
+                what = (f"its GUI child ended (exit {out.returncode}) before its session finished, "
+                        f"DISPLAY={os.environ.get('DISPLAY')!r}")
+                output = f"{out.stdout[-4000:]}\n{out.stderr[-2000:]}"
             if attempt == 2:
-                pytest.fail(f"GUI test {pyfuncitem.nodeid}: {died} (and the same the first time)", pytrace=False)
-            pyfuncitem.warn(pytest.PytestWarning(f"{died}\nrun once more in a new one"))
+                pytest.fail(f"GUI test {pyfuncitem.nodeid}: {what}, and the first time {first}; its output:\n{output}",
+                            pytrace=False)
+            first = what
+            pyfuncitem.warn(pytest.PytestWarning(f"{what}; its output:\n{output}\nrun once more in a new one"))
         result = json.loads(verdict.read_text())
         pyfuncitem.user_properties.extend((_MEASUREMENT, tuple(m)) for m in result["measurements"])
     if result["exitstatus"] != 0:
