@@ -167,7 +167,7 @@ def pytest_pyfunc_call(pyfuncitem):
 
 
 def _text(output: str | bytes | None) -> str:
-    """A killed child's output as text (``TimeoutExpired`` may carry bytes, or nothing)."""
+    """A child's output as text (``TimeoutExpired`` may carry bytes, or nothing)."""
     if isinstance(output, bytes):
         return output.decode(errors="replace")
     return output or ""

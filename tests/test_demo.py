@@ -12,6 +12,7 @@ import imageio.v3 as iio
 import pytest
 
 from bulletnav.cli import DEFAULT_MODEL, main
+from conftest import _text
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL = ROOT / DEFAULT_MODEL
@@ -31,8 +32,7 @@ PyBullet's; now the library holds its connection until PyBullet has its own
 
 def _x_start_failed(stderr: str | bytes | None) -> bool:
     """True when ``stderr`` says the X connection itself failed at start-up."""
-    text = stderr.decode(errors="replace") if isinstance(stderr, bytes) else stderr or ""
-    return any(words in text for words in X_START_FAILURES)
+    return any(words in _text(stderr) for words in X_START_FAILURES)
 
 
 def _cli(*args: str, timeout: int = 150) -> subprocess.CompletedProcess:

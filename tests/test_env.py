@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -132,6 +133,28 @@ def test_human_mode_without_display_raises_clearly(monkeypatch):
         gym.make(ENV_ID, render_mode="human")
 
 
+def _free_display(first: int, last: int) -> int:
+    """A display number in [first, last) that no X server holds (no lock file)."""
+    return next(n for n in range(first, last) if not Path(f"/tmp/.X{n}-lock").exists())
+
+
+@contextlib.contextmanager
+def _xvfb(number: int, *args: str):
+    """An Xvfb on ``:number`` (extra server ``args``), its socket answering, terminated after."""
+    from bulletnav.sim.client import display_available
+
+    server = subprocess.Popen(["Xvfb", f":{number}", *args, "-nolisten", "tcp"], stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 20
+        while not display_available(f":{number}") and time.monotonic() < deadline:
+            time.sleep(0.05)
+        yield
+    finally:
+        server.terminate()
+        server.wait(timeout=10)
+
+
 @pytest.mark.skipif(shutil.which("Xvfb") is None or shutil.which("xauth") is None or _xlib() is None,
                     reason="needs Xvfb, xauth and libX11")
 def test_human_mode_on_a_display_that_refuses_the_connection_raises_clearly(tmp_path, monkeypatch):
@@ -140,17 +163,12 @@ def test_human_mode_on_a_display_that_refuses_the_connection_raises_clearly(tmp_
     thread calling exit() and the process hanging on it."""
     from bulletnav.sim.client import display_accepts, display_available
 
-    number = next(n for n in range(170, 400) if not Path(f"/tmp/.X{n}-lock").exists())
+    number = _free_display(170, 400)
     server_auth, other_auth = tmp_path / "server", tmp_path / "other"
     for path, cookie in ((server_auth, "0123456789abcdef0123456789abcdef"), (other_auth, "fedcba9876543210fedcba9876543210")):
         path.touch()
         subprocess.run(["xauth", "-f", str(path), "add", f":{number}", ".", cookie], check=True, capture_output=True)
-    server = subprocess.Popen(["Xvfb", f":{number}", "-auth", str(server_auth), "-nolisten", "tcp"],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        deadline = time.monotonic() + 20
-        while not display_available(f":{number}") and time.monotonic() < deadline:
-            time.sleep(0.05)
+    with _xvfb(number, "-auth", str(server_auth)):
         monkeypatch.setenv("DISPLAY", f":{number}")
         monkeypatch.setenv("XAUTHORITY", str(server_auth))
         assert display_accepts()  # the right cookie: Xlib opens it
@@ -158,9 +176,6 @@ def test_human_mode_on_a_display_that_refuses_the_connection_raises_clearly(tmp_
         assert display_available() and not display_accepts(tries=2, pause_s=0.05)
         with pytest.raises(DisplayError, match=f"DISPLAY=':{number}' answers but refused the connection"):
             gym.make(ENV_ID, render_mode="human")
-    finally:
-        server.terminate()
-        server.wait(timeout=10)
 
 
 class _FakeXlib:
@@ -220,12 +235,10 @@ def test_a_held_x_connection_keeps_a_resetting_server_from_refusing_clients(repo
     now and then, and never while a connection is held open."""
     import socket
 
-    from bulletnav.sim.client import _open_display, display_available
+    from bulletnav.sim.client import _open_display
 
     lib = _xlib()
-    number = next(n for n in range(400, 600) if not Path(f"/tmp/.X{n}-lock").exists())
-    server = subprocess.Popen(["Xvfb", f":{number}", "-nolisten", "tcp"], stdout=subprocess.DEVNULL,
-                              stderr=subprocess.DEVNULL)
+    number = _free_display(400, 600)
     name = f":{number}".encode()
 
     def refused_after_a_probe(cycles: int) -> int:
@@ -242,10 +255,7 @@ def test_a_held_x_connection_keeps_a_resetting_server_from_refusing_clients(repo
                 lib.XCloseDisplay(handle)
         return refused
 
-    try:
-        deadline = time.monotonic() + 20
-        while not display_available(f":{number}") and time.monotonic() < deadline:
-            time.sleep(0.05)
+    with _xvfb(number):
         held = _open_display(f":{number}", tries=100, pause_s=0.05)
         assert held is not None, "the fresh Xvfb never accepted a client"
         try:
@@ -255,9 +265,6 @@ def test_a_held_x_connection_keeps_a_resetting_server_from_refusing_clients(repo
         time.sleep(0.5)
         report("clients refused in 60 probe cycles, a connection held / none held",
                f"0 / {refused_after_a_probe(60)}")
-    finally:
-        server.terminate()
-        server.wait(timeout=10)
 
 
 def _rollout(seed: int, steps: int = 300):

@@ -47,7 +47,7 @@ def display_available(display: str | None = None) -> bool:
 
 
 X_OPEN_TRIES = 10
-"""Times :func:`display_accepts` tries to open the display before a GUI connect gives up."""
+"""Times a GUI connect (and :func:`display_accepts`) tries to open the display before it gives up."""
 X_OPEN_PAUSE_S = 0.2
 """Seconds between those tries."""
 
@@ -80,9 +80,8 @@ class _HeldDisplay:
 
 
 def _open_display(display: str | None, tries: int, pause_s: float) -> _HeldDisplay | None:
-    """Open ``display`` with Xlib, up to ``tries`` times ``pause_s`` apart; None when refused."""
-    if not display_available(display):
-        return None
+    """Open ``display`` with Xlib, up to ``tries`` times ``pause_s`` apart; None when refused
+    (the caller has checked that its socket answers, :func:`display_available`)."""
     lib = _xlib()
     if lib is None:
         return _HeldDisplay()
@@ -104,7 +103,7 @@ def display_accepts(display: str | None = None, tries: int = X_OPEN_TRIES, pause
     resetting, refuses a client); where Xlib cannot be loaded the socket check
     :func:`display_available` stands in.
     """
-    held = _open_display(display, tries, pause_s)
+    held = _open_display(display, tries, pause_s) if display_available(display) else None
     if held is None:
         return False
     held.close()
