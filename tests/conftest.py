@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 import numpy as np
@@ -211,6 +212,27 @@ def _gui_opens(display: str) -> bool:
     return out.returncode == 0 and "gui ok" in out.stdout
 
 
+@contextlib.contextmanager
+def _xvfb(number: int, *args: str, wait_s: float = 20.0):
+    """An Xvfb on ``:number`` (extra server ``args``), waited on until its socket answers (at
+    most ``wait_s``), terminated on leaving."""
+    import subprocess
+    import time
+
+    from bulletnav.sim.client import display_available
+
+    server = subprocess.Popen(["Xvfb", f":{number}", *args, "-nolisten", "tcp"], stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + wait_s
+        while not display_available(f":{number}") and time.monotonic() < deadline:
+            time.sleep(0.05)
+        yield
+    finally:
+        server.terminate()
+        server.wait(timeout=10)
+
+
 @pytest.fixture(scope="session")
 def display():
     """An X display for GUI tests: the current one if it answers, else a private Xvfb on which
@@ -218,8 +240,6 @@ def display():
     connection; a new one is started then, up to three times)."""
     import os
     import shutil
-    import subprocess
-    import time
 
     from bulletnav.sim.client import display_available
 
@@ -229,26 +249,18 @@ def display():
     if shutil.which("Xvfb") is None:
         pytest.skip("no X display and Xvfb is not installed (apt-get install xvfb)")
     old = os.environ.get("DISPLAY")
-    proc = None
+    server = contextlib.ExitStack()
     for attempt in range(3):
         number = 90 + (os.getpid() + 7 * attempt) % 500
-        proc = subprocess.Popen(["Xvfb", f":{number}", "-screen", "0", "1024x768x24", "-nolisten", "tcp"],
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        for _ in range(100):
-            if display_available(f":{number}"):
-                break
-            time.sleep(0.05)
+        server.enter_context(_xvfb(number, "-screen", "0", "1024x768x24", wait_s=5.0))
         if display_available(f":{number}") and _gui_opens(f":{number}"):
             break
-        proc.kill()
-        proc.wait(timeout=10)
-        proc = None
-    if proc is None:
+        server.close()
+    else:
         pytest.skip("PyBullet's GUI could not open a private Xvfb (3 tries)")
     os.environ["DISPLAY"] = f":{number}"
     yield os.environ["DISPLAY"]
-    proc.terminate()
-    proc.wait(timeout=10)
+    server.close()
     if old is None:
         os.environ.pop("DISPLAY", None)
     else:

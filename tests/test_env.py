@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import os
@@ -29,7 +28,7 @@ from bulletnav.errors import DisplayError
 from bulletnav.sim.client import _xlib
 from bulletnav.sim.generators import WORLDS
 from bulletnav.tasks import TASKS, NavigationTask
-from conftest import bit_equal
+from conftest import _xvfb, bit_equal
 
 ENV_ID = "bulletnav/Warehouse-v0"
 ACTION_SPACE_ADVICE = ("symmetric and normalized", "symmetric and normalized Box action space")
@@ -136,23 +135,6 @@ def test_human_mode_without_display_raises_clearly(monkeypatch):
 def _free_display(first: int, last: int) -> int:
     """A display number in [first, last) that no X server holds (no lock file)."""
     return next(n for n in range(first, last) if not Path(f"/tmp/.X{n}-lock").exists())
-
-
-@contextlib.contextmanager
-def _xvfb(number: int, *args: str):
-    """An Xvfb on ``:number`` (extra server ``args``), its socket answering, terminated after."""
-    from bulletnav.sim.client import display_available
-
-    server = subprocess.Popen(["Xvfb", f":{number}", *args, "-nolisten", "tcp"], stdout=subprocess.DEVNULL,
-                              stderr=subprocess.DEVNULL)
-    try:
-        deadline = time.monotonic() + 20
-        while not display_available(f":{number}") and time.monotonic() < deadline:
-            time.sleep(0.05)
-        yield
-    finally:
-        server.terminate()
-        server.wait(timeout=10)
 
 
 @pytest.mark.skipif(shutil.which("Xvfb") is None or shutil.which("xauth") is None or _xlib() is None,
