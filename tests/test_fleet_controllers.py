@@ -710,3 +710,56 @@ def test_a_holding_robot_boxed_in_stands_rather_than_turn_in_place():
         assert not ctl.holds_boxed(0.25, 0.0, beside)
     with pytest.raises(ConfigError, match="hold_no_turn"):
         CoordinatedConfig(hold_no_turn=-0.1)
+
+
+def _first_move(path):
+    """The first cell of ``path`` other than its start (None: all waits)."""
+    return next((c for c in path[1:] if c != path[0]), None)
+
+
+def test_a_replan_keeps_the_next_move_of_a_robot_already_heading_into_it():
+    """``commit_cone``: a robot whose plan lets it into the cell ahead of it keeps that cell as its
+    next move at a replan, even where the new shortest route starts the other way (its goal now
+    lies behind it); a robot facing away from its next cell, or with the rule off, plans afresh;
+    and the plan after the kept move still leads to the goal."""
+    env = fleet_v0.parallel_env(num_robots=1, duration_s=5.0, world=EMPTY, **ROOM_STATIONS)
+    try:
+        def setup(cone):
+            ctl = CoordinatedController(env, CoordinatedConfig(commit_cone=cone))
+            _, infos = env.reset(seed=2)
+            ctl.reset(infos)
+            view = FleetView(env)
+            x, y, yaw = view.pose(0)
+            start = ctl._cell((x, y))
+            # the neighbour whose point lies nearest the robot's heading, and the one opposite
+            ahead = max(((start[0] + dx, start[1] + dy) for dx, dy in MOVES[1:]),
+                        key=lambda c: math.cos(math.atan2(ctl._centre(c)[1] - y, ctl._centre(c)[0] - x) - yaw))
+            behind = (2 * start[0] - ahead[0], 2 * start[1] - ahead[1])
+            assert not ctl.static_blocked[ahead] and not ctl.static_blocked[behind]
+            ctl.paths = [[start, ahead, ahead]]  # a plan that sends it on ahead
+            ctl.progress = [0]
+            ctl.dependencies = plan_dependencies(ctl.paths, [[start]], ctl.conflicts)
+            far = (start[0] + 3 * (start[0] - ahead[0]), start[1] + 3 * (start[1] - ahead[1]))
+            assert not ctl.static_blocked[far]
+            ctl.goals = [ctl._centre(far)]  # its goal now lies 3 cells behind it
+            return ctl, view, start, ahead, behind, far
+
+        ctl, view, start, ahead, behind, far = setup(60.0)
+        positions = [view.pose(0)[:2]]
+        assert ctl.kept_moves(positions) == {0: ahead}
+        ctl.replan()
+        path = ctl.paths[0]
+        assert _first_move(path) == ahead  # kept, though the goal lies the other way
+        assert far in path  # and it turns back to its goal within the window
+        ctl, view, start, ahead, behind, far = setup(0.0)  # the rule off: straight back
+        assert ctl.kept_moves([view.pose(0)[:2]]) == {}
+        ctl.replan()
+        assert _first_move(ctl.paths[0]) == behind
+        ctl, view, start, ahead, behind, far = setup(60.0)  # facing away from its next cell
+        ctl.paths = [[start, behind, behind]]
+        ctl.dependencies = plan_dependencies(ctl.paths, [[start]], ctl.conflicts)
+        assert ctl.kept_moves([view.pose(0)[:2]]) == {}
+    finally:
+        env.close()
+    with pytest.raises(ConfigError, match="commit_cone"):
+        CoordinatedConfig(commit_cone=-1.0)
