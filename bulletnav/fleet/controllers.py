@@ -314,7 +314,8 @@ class CoordinatedConfig:
     commit_cone: float = 60.0
     """At a replan, a robot that its plan lets into its next cell and whose heading lies within
     this angle (degrees) of that cell's point keeps the cell as its next move: the space-time
-    search closes the other neighbours of its cell to it for the window, and plans without the
+    search closes the other neighbours of its cell to it for the window (its goal too, where
+    that is one of them: the robot drives on a cell and comes back), and plans without the
     commitment where that finds no path (0: off; :meth:`CoordinatedController.kept_moves`).
     Without it a replan, every 2 s or sooner, could hand a robot that had turned toward one cell
     another, and robots passing in a corridor turned back and forth: three robots for 20 s at
@@ -363,7 +364,9 @@ class CoordinatedController:
     and reserves it. A robot with no such path waits in its cell. A robot standing in a cell
     seen blocked plans out of it; one whose plans have kept it in place for ``stuck_s`` takes
     any detour around seen obstacles and, near a mover standing to yield to it, ends its
-    window ``yield_field`` away from it (they would otherwise wait for each other).
+    window ``yield_field`` away from it (they would otherwise wait for each other). A robot that
+    its plan lets into its next cell and that already heads into it keeps that move
+    (``commit_cone``, :meth:`kept_moves`), so that a replan does not turn it back and forth.
 
     **Priorities** rotate round-robin: the r-th rotation (at most one every ``rotate_s``) starts
     the order at robot ``r mod N`` (:attr:`order`), so every robot plans first once every N
