@@ -315,7 +315,7 @@ class CoordinatedConfig:
     """At a replan, a robot that its plan lets into its next cell and whose heading lies within
     this angle (degrees) of that cell's point keeps the cell as its next move: the space-time
     search closes the other neighbours of its cell to it for the window (its goal too, where
-    that is one of them: the robot drives on a cell and comes back), and plans without the
+    that is one of them: the robot reaches it a replan later), and plans without the
     commitment where that finds no path (0: off; :meth:`CoordinatedController.kept_moves`).
     Without it a replan, every 2 s or sooner, could hand a robot that had turned toward one cell
     another, and robots passing in a corridor turned back and forth: three robots for 20 s at
