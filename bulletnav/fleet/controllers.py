@@ -68,6 +68,12 @@ def _off_heading(pose: tuple[float, float, float], point: tuple[float, float]) -
     return math.remainder(math.atan2(point[1] - pose[1], point[0] - pose[0]) - pose[2], 2 * math.pi)
 
 
+def _next_move(path: list[Cell], k: int, end: int) -> int | None:
+    """The first step after ``k``, up to ``end``, at which ``path`` leaves the cell of step
+    ``k`` (None: it only waits there)."""
+    return next((u for u in range(k + 1, end + 1) if path[u] != path[k]), None)
+
+
 class FleetController(Protocol):
     """One action per agent: ``reset(infos)`` at each episode start, ``act(observations, infos)`` every step."""
 
@@ -719,7 +725,7 @@ class CoordinatedController:
             return out
         for i, path in enumerate(self.paths):
             k = self.progress[i]
-            nxt = next((u for u in range(k + 1, len(path)) if path[u] != path[k]), None)
+            nxt = _next_move(path, k, len(path) - 1)
             if nxt is None or not self.may_enter(i, nxt, positions):
                 continue
             if abs(math.degrees(_off_heading(self.view.pose(i), self._point(i, path[nxt])))) <= cone:
@@ -921,7 +927,7 @@ class CoordinatedController:
             end = k
             while end + 1 < len(path) and (path[end + 1] == path[end] or self.may_enter(i, end + 1, positions)):
                 end += 1
-            nxt = next((u for u in range(k + 1, end + 1) if path[u] != path[k]), None)
+            nxt = _next_move(path, k, end)
             pose = poses[i]
             if nxt is None:
                 target = self._point(i, path[k])
