@@ -165,10 +165,10 @@ def test_a_checkpoint_interrupted_after_its_commit_is_completed_whole(tmp_path, 
             done.append(src)
         real(src, dst)
 
-    monkeypatch.setattr(callbacks.os, "replace", replace)
+    monkeypatch.setattr(os, "replace", replace)
     with pytest.raises(_Killed):
         callbacks.save_checkpoint(model, tmp_path, venv)
-    monkeypatch.setattr(callbacks.os, "replace", real)
+    monkeypatch.setattr(os, "replace", real)
     assert callbacks.finish_checkpoint(tmp_path) is True
     assert _checkpoint_set(tmp_path) == (512, 512, 2.5)
     assert not (tmp_path / "checkpoints" / ".pending").exists()
@@ -182,14 +182,14 @@ def test_a_checkpoint_interrupted_before_its_commit_leaves_the_previous_set(tmp_
     venv.obs_rms.mean[0] = 1.5
     callbacks.save_checkpoint(model, tmp_path, venv)
     model.num_timesteps, venv.obs_rms.mean[0] = 512, 2.5
-    real = callbacks.atomic_write_json
+    real = callbacks.write_json
 
     def write_json(path, data):
         if Path(path).name == "COMMIT":
             raise _Killed
         real(path, data)
 
-    monkeypatch.setattr(callbacks, "atomic_write_json", write_json)
+    monkeypatch.setattr(callbacks, "write_json", write_json)
     with pytest.raises(_Killed):
         callbacks.save_checkpoint(model, tmp_path, venv)
     assert (tmp_path / "checkpoints" / ".pending" / "last.zip").is_file()  # the new set was written, not committed

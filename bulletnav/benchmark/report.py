@@ -7,6 +7,10 @@ maps, side by side for every controller, and a gallery of each controller's firs
 with the command that replays the episode), the raw ``results.json`` one click away.
 Colours are the Okabe-Ito palette (distinguishable with the common colour-vision
 deficiencies) on a light background; the layout reflows to a phone's width.
+
+The maps under the paths are drawn by the caller's ``draw_layout`` (the CLI passes
+:func:`bulletnav.viz.plots.draw_layout`): the benchmark sits below :mod:`bulletnav.viz` and
+does not import it.
 """
 
 from __future__ import annotations
@@ -14,10 +18,16 @@ from __future__ import annotations
 import base64
 import html
 import io
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from bulletnav.benchmark.metrics import RATE_METRICS
+from bulletnav.files import write_bytes
+
+DrawLayout = Callable[[Any, Any], None]
+"""``draw_layout(ax, layout)``: draws a :class:`~bulletnav.sim.layout.Layout` on Matplotlib axes
+(:func:`bulletnav.viz.plots.draw_layout`)."""
 
 OUTCOME = {"success": "#0072B2", "collision": "#D55E00", "timeout": "#E69F00"}
 """Okabe-Ito colours of a path by the episode's outcome."""
@@ -119,12 +129,12 @@ def _episode_scene(world: dict[str, Any], seed: int) -> tuple[Any, tuple, tuple]
         env.close()
 
 
-def _draw_panel(ax: Any, layout: Any, start: tuple, goals: tuple, row: dict[str, Any] | None, title: str) -> None:
+def _draw_panel(ax: Any, layout: Any, start: tuple, goals: tuple, row: dict[str, Any] | None, title: str,
+                draw_layout: DrawLayout | None) -> None:
     from matplotlib.patches import Circle
 
-    from bulletnav.viz.plots import draw_layout
-
-    draw_layout(ax, layout)
+    if draw_layout is not None:
+        draw_layout(ax, layout)
     for g in goals:
         ax.add_patch(Circle(g, 0.5, facecolor="#009E73", alpha=0.3, edgecolor="#009E73", zorder=2))
     ax.plot(start[0], start[1], marker="o", ms=5, mfc="white", mec="black", zorder=5)
@@ -138,7 +148,7 @@ def _draw_panel(ax: Any, layout: Any, start: tuple, goals: tuple, row: dict[str,
 
 
 def _paths_figure(world: dict[str, Any], controllers: list[str], rows: dict[tuple[str, int], dict], seed: int,
-                  episodes: int) -> str:
+                  episodes: int, draw_layout: DrawLayout | None) -> str:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -149,12 +159,13 @@ def _paths_figure(world: dict[str, Any], controllers: list[str], rows: dict[tupl
     for k in range(cols):
         layout, start, goals = _episode_scene(world, seed + k)
         for i, name in enumerate(controllers):
-            _draw_panel(axes[i][k], layout, start, goals, rows.get((name, k)), f"{name} - episode {k} (seed {seed + k})")
+            _draw_panel(axes[i][k], layout, start, goals, rows.get((name, k)), f"{name} - episode {k} (seed {seed + k})",
+                        draw_layout)
     fig.tight_layout()
     return _png(fig)
 
 
-def _failure_thumb(world: dict[str, Any], row: dict[str, Any]) -> str:
+def _failure_thumb(world: dict[str, Any], row: dict[str, Any], draw_layout: DrawLayout | None) -> str:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -163,12 +174,14 @@ def _failure_thumb(world: dict[str, Any], row: dict[str, Any]) -> str:
     layout, start, goals = _episode_scene(world, row["seed"])
     fig, ax = plt.subplots(figsize=(3.0, 2.6))
     outcome = "collision" if row["collision"] else "timeout"
-    _draw_panel(ax, layout, start, goals, row, f"{row['controller']}: {outcome}, seed {row['seed']}")
+    _draw_panel(ax, layout, start, goals, row, f"{row['controller']}: {outcome}, seed {row['seed']}", draw_layout)
     return _png(fig)
 
 
-def render_report(results: dict[str, Any], results_name: str = "results.json") -> str:
-    """The HTML page of ``results`` (a ``results.json`` record)."""
+def render_report(results: dict[str, Any], results_name: str = "results.json",
+                  draw_layout: DrawLayout | None = None) -> str:
+    """The HTML page of ``results`` (a ``results.json`` record); ``draw_layout`` draws the maps
+    under the pictured paths (None: paths on blank axes)."""
     suite = results["suite"]
     worlds = suite["worlds"]
     controllers = [c["name"] for c in suite["controllers"]]
@@ -233,7 +246,8 @@ def render_report(results: dict[str, Any], results_name: str = "results.json") -
                    "<span><i class=swatch style='background:#E69F00'></i>timeout</span> green disc: goal, "
                    "white dot: start.</p>")
         out.append(f"<h3>The first episodes, every controller</h3><img alt='paths of the first episodes of "
-                   f"{esc(w['name'], quote=True)}' src='{_paths_figure(w, controllers, rows, suite['seed'], w['episodes'])}'>")
+                   f"{esc(w['name'], quote=True)}' src='"
+                   f"{_paths_figure(w, controllers, rows, suite['seed'], w['episodes'], draw_layout)}'>")
         out.append("<h3>Failure gallery</h3>")
         failures = [r for r in sorted(rows.values(), key=lambda r: (controllers.index(r["controller"]), r["episode"]))
                     if not r["success"]]
@@ -247,7 +261,7 @@ def render_report(results: dict[str, Any], results_name: str = "results.json") -
             for r in shown:
                 outcome = "collision" if r["collision"] else "timeout"
                 out.append(f"<figure><img alt='{esc(r['controller'], quote=True)} {outcome} seed {r['seed']}' "
-                           f"src='{_failure_thumb(w, r)}'><figcaption>{esc(r['controller'])}: {outcome} after "
+                           f"src='{_failure_thumb(w, r, draw_layout)}'><figcaption>{esc(r['controller'])}: {outcome} after "
                            f"{r['time_s']:.1f} s (episode {r['episode']}). Replay: <code>{esc(r.get('replay', ''))}"
                            f"</code></figcaption></figure>")
             out.append("</div>")
@@ -258,11 +272,9 @@ def render_report(results: dict[str, Any], results_name: str = "results.json") -
     return "\n".join(out)
 
 
-def write_report(results: dict[str, Any], path: Path) -> Path:
-    """Write :func:`render_report` to ``path`` atomically (:func:`bulletnav.rl.io.atomic_write_bytes`)."""
-    from bulletnav.rl.io import atomic_write_bytes
-
-    atomic_write_bytes(path, render_report(results).encode())
+def write_report(results: dict[str, Any], path: Path, draw_layout: DrawLayout | None = None) -> Path:
+    """Write :func:`render_report` to ``path`` atomically (:func:`bulletnav.files.write_bytes`)."""
+    write_bytes(path, render_report(results, draw_layout=draw_layout).encode())
     return path
 
 
@@ -276,7 +288,6 @@ def screenshots(report: Path, out: Path, tab: int = 0, width: int = 1280) -> lis
     import shutil
 
     from bulletnav.errors import BulletnavError
-    from bulletnav.rl.io import atomic_write_bytes
 
     try:
         from playwright.sync_api import sync_playwright
@@ -294,9 +305,9 @@ def screenshots(report: Path, out: Path, tab: int = 0, width: int = 1280) -> lis
         try:
             page = browser.new_page(viewport={"width": width, "height": 900})
             page.goto(report.resolve().as_uri())
-            atomic_write_bytes(paths[0], page.screenshot(full_page=True))  # whole PNGs under the names, or none
+            write_bytes(paths[0], page.screenshot(full_page=True))  # whole PNGs under the names, or none
             page.click(f"#tab-w{tab}")
-            atomic_write_bytes(paths[1], page.screenshot(full_page=True))
+            write_bytes(paths[1], page.screenshot(full_page=True))
         finally:
             browser.close()
     return paths

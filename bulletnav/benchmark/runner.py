@@ -375,10 +375,10 @@ def run_provenance(wall: float, workers: int, address: str | None) -> dict[str, 
 
 
 def write_strict_json(path: Path, data: Any) -> None:
-    """Strict JSON (NaN as null), written atomically (:func:`bulletnav.rl.io.atomic_write_bytes`)."""
-    from bulletnav.rl.io import atomic_write_bytes
+    """Strict JSON (NaN as null), written atomically (:func:`bulletnav.files.write_bytes`)."""
+    from bulletnav.files import write_bytes
 
-    atomic_write_bytes(path, (json.dumps(strict_json(data), indent=1) + "\n").encode())
+    write_bytes(path, (json.dumps(strict_json(data), indent=1) + "\n").encode())
 
 
 def strict_json(value: Any) -> Any:

@@ -269,9 +269,9 @@ def run_comparison(out: Path, entries: list[Entry], robots: Sequence[int] = (4, 
     results = build_comparison(settings, [r for r in rows if r["episode"] in common[r["robots"]]])
     results["provenance"] = run_provenance(time.perf_counter() - t0, workers, None)
     write_strict_json(out / "comparison.json", results)
-    from bulletnav.rl.io import atomic_write_bytes
+    from bulletnav.files import write_bytes
 
-    atomic_write_bytes(out / "comparison.md", comparison_markdown(results).encode())
+    write_bytes(out / "comparison.md", comparison_markdown(results).encode())
     return results
 
 

@@ -129,7 +129,7 @@ class FleetEpisodeCallback(BaseCallback):
         self.returns = np.zeros(len(slots))
 
     def _on_step(self) -> bool:
-        from bulletnav.rl.io import atomic_write_json
+        from bulletnav.files import write_json
 
         self.returns += np.asarray(self.locals["rewards"], dtype=np.float64)
         dones, infos = self.locals["dones"], self.locals["infos"]
@@ -145,7 +145,7 @@ class FleetEpisodeCallback(BaseCallback):
             self.history.append(row)
             log.info("fleet %d episode at %d steps: %d errands, %d robot-robot collisions", k, row["timesteps"],
                      row["errands_completed"], row["collisions_robot"])
-        atomic_write_json(self.out / "episodes.json", self.history)
+        write_json(self.out / "episodes.json", self.history)
         return True
 
 
@@ -162,17 +162,12 @@ def train_fleet(cfg: FleetTrainConfig) -> dict[str, Any]:
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
+    from bulletnav.files import write_json
     from bulletnav.rl.callbacks import CheckpointCallback, ThroughputCallback, TimedVecEnv, finish_checkpoint, save_checkpoint
     from bulletnav.rl.hyperparams import load_hyperparams, model_kwargs, policy_class, upgrade_hyperparams
-    from bulletnav.rl.io import (
-        atomic_save_model,
-        atomic_save_vecnormalize,
-        atomic_write_json,
-        load_model,
-        sidecar_path,
-        vecnormalize_path,
-    )
+    from bulletnav.rl.io import atomic_save_model, atomic_save_vecnormalize, load_model
     from bulletnav.rl.safe import apply_stats, load_stats, load_zip, save_safe
+    from bulletnav.rl.sidecar import sidecar_path, vecnormalize_path
 
     torch.set_num_threads(1)  # 2 cores: more threads slow PPO down
     out = Path(cfg.out)
@@ -243,7 +238,7 @@ def train_fleet(cfg: FleetTrainConfig) -> dict[str, Any]:
         "init_from": str(init_from), "git_commit": git_commit(), "machine": machine(),
         "torch_threads": torch.get_num_threads(), "resumed_from": start_steps or None, "versions": versions(),
     }
-    atomic_write_json(recorded, record)
+    write_json(recorded, record)
     throughput = ThroughputCallback(timer)
     callbacks = [CheckpointCallback(out, cfg.checkpoint_freq, state), throughput,
                  FleetEpisodeCallback(out, slots, episodes)]
@@ -266,11 +261,11 @@ def train_fleet(cfg: FleetTrainConfig) -> dict[str, Any]:
             "env_kwargs": single, "fleet": fleet_block, "trained_in": FLEET_ENV_ID, "init_from": str(init_from),
             "shield": False, "seed": seed, "timesteps": int(model.num_timesteps), "git_commit": record["git_commit"],
             "command": cfg.command}
-    atomic_write_json(sidecar_path(final), save_safe(model, final, vecnorm, meta))
+    write_json(sidecar_path(final), save_safe(model, final, vecnorm, meta))
     record.update(throughput=throughput.summary() if remaining else None, wall_time_s=round(wall, 1),
                   wall_time_total_s=round(prior + wall, 1), total_timesteps=int(model.num_timesteps),
                   episodes=len(episodes), last_episodes=episodes[-fleets * 3:])
-    atomic_write_json(out / "run.json", record)
+    write_json(out / "run.json", record)
     return record
 
 

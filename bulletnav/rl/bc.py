@@ -87,10 +87,12 @@ def train_bc(cfg: BCConfig) -> dict[str, Any]:
     from stable_baselines3 import PPO
 
     import bulletnav  # noqa: F401  (registers the envs the dataset's spec names)
+    from bulletnav.files import write_json
     from bulletnav.provenance import git_commit, machine
     from bulletnav.rl.hyperparams import load_hyperparams, model_kwargs, policy_class
-    from bulletnav.rl.io import atomic_save_model, atomic_write_json, sidecar_path
+    from bulletnav.rl.io import atomic_save_model
     from bulletnav.rl.safe import save_safe
+    from bulletnav.rl.sidecar import sidecar_path
 
     if cfg.epochs < 1 or cfg.batch_size < 1 or not cfg.learning_rate > 0 or not 0 <= cfg.validation < 1:
         raise BulletnavError(f"behaviour cloning needs epochs >= 1, batch_size >= 1, learning_rate > 0 and "
@@ -165,7 +167,7 @@ def train_bc(cfg: BCConfig) -> dict[str, Any]:
     atomic_save_model(model, final)
     meta = {"algo": "ppo", "trained_by": "bc", "env_id": spec.id, "env_kwargs": env_kwargs, "shield": False,
             "seed": cfg.seed, "timesteps": 0, "dataset": cfg.dataset, "git_commit": commit, "command": cfg.command}
-    atomic_write_json(sidecar_path(final), save_safe(model, final, None, meta))
+    write_json(sidecar_path(final), save_safe(model, final, None, meta))
     record = {"command": cfg.command, "algo": "bc", "dataset": cfg.dataset, "env_id": spec.id,
               "env_kwargs": env_kwargs, "episodes": int(len(episodes)), "validation_episodes": int(len(held)),
               "samples": int(len(x_tr)), "epochs": cfg.epochs, "batch_size": cfg.batch_size,
@@ -173,8 +175,8 @@ def train_bc(cfg: BCConfig) -> dict[str, Any]:
               "log_std": [round(float(v), 4) for v in policy.log_std.detach()] if hasattr(policy, "log_std") else None,
               "final": history[-1], "git_commit": commit, "machine": machine(),
               "network": {"policy": str(hp.get("policy", "MlpPolicy")), "policy_kwargs": str(hp.get("policy_kwargs", {}))}}
-    atomic_write_json(cfg.out / "history.json", history)
-    atomic_write_json(cfg.out / "run.json", json.loads(json.dumps(record, default=str)))
+    write_json(cfg.out / "history.json", history)
+    write_json(cfg.out / "run.json", json.loads(json.dumps(record, default=str)))
     return record
 
 

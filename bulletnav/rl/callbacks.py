@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import shutil
 import time
 from collections.abc import Callable
@@ -18,9 +17,11 @@ from stable_baselines3.common.vec_env import VecEnvWrapper
 from bulletnav import ENV_ID
 from bulletnav.errors import ModelError
 from bulletnav.evaluation import run_episodes, summarize
+from bulletnav.files import move, write_json
 from bulletnav.rl.envs import EVAL_SEED_BASE, evaluation_env_kwargs, make_env
-from bulletnav.rl.io import atomic_save_model, atomic_save_vecnormalize, atomic_write_json, vecnormalize_path
+from bulletnav.rl.io import atomic_save_model, atomic_save_vecnormalize
 from bulletnav.rl.policy import SB3Policy
+from bulletnav.rl.sidecar import vecnormalize_path
 
 log = logging.getLogger(__name__)
 
@@ -56,8 +57,8 @@ def save_checkpoint(model: Any, out: Path, vecnorm: Any, extra: dict[str, Any] |
         stats = vecnormalize_path(pending / "last.zip")
         atomic_save_vecnormalize(vecnorm, stats)
         names.insert(0, stats.name)
-    atomic_write_json(pending / "last.json", {"timesteps": int(model.num_timesteps), **(extra or {})})
-    atomic_write_json(pending / _COMMIT, {"files": names, "timesteps": int(model.num_timesteps)})
+    write_json(pending / "last.json", {"timesteps": int(model.num_timesteps), **(extra or {})})
+    write_json(pending / _COMMIT, {"files": names, "timesteps": int(model.num_timesteps)})
     finish_checkpoint(out)
 
 
@@ -80,7 +81,7 @@ def finish_checkpoint(out: Path) -> bool:
             raise ModelError(f"{commit}: not a checkpoint commit record ({exc})") from None
         for name in names:
             if (pending / name).is_file():
-                os.replace(pending / name, folder / name)
+                move(pending / name, folder / name)
         for name in set(CHECKPOINT_NAMES) - set(names):
             (folder / name).unlink(missing_ok=True)
         commit.unlink()
@@ -206,7 +207,7 @@ class EvaluationCallback(BaseCallback):
             for k in ("success_rate", "collision_rate", "mean_reward", "mean_length", "spl"):
                 logger.record(f"eval/{k}", row[k])
             logger.dump(model.num_timesteps)
-        atomic_write_json(self.out / "eval_history.json", self.history)
+        write_json(self.out / "eval_history.json", self.history)
         log.info("eval at %d: success %.2f collisions %.2f reward %.1f", row["timesteps"],
                  row["success_rate"], row["collision_rate"], row["mean_reward"])
         if self.on_row is not None:

@@ -512,15 +512,15 @@ def save_safe(model: Any, model_path: Path, vecnorm: Any, meta: dict[str, Any]) 
     ``normalization`` blocks added (the caller writes it as the sidecar, atomically)."""
     from safetensors.torch import save
 
+    from bulletnav.files import write_bytes
     from bulletnav.rl.algos import ALGOS
-    from bulletnav.rl.io import atomic_write_bytes
 
     algo = type(model).__name__.lower()
     if algo not in ALGOS:
         raise ModelError(f"the safe format stores {', '.join(ALGOS)} models, not {type(model).__name__}")
     state = {k: v.detach().cpu().clone().contiguous() for k, v in model.policy.state_dict().items()}
     blob = save(state)
-    atomic_write_bytes(weights_path(model_path), blob)
+    write_bytes(weights_path(model_path), blob)
     hyper = {}
     for name in inspect.signature(type(model).__init__).parameters:
         if name in ("self", "policy", "env", "policy_kwargs", "device", "_init_setup_model", "tensorboard_log", "verbose",
@@ -633,7 +633,8 @@ def convert_model(path: Path, trust_pickle: bool = False) -> dict[str, Any]:
     Raises:
         UnsafeModelError: the zip or the statistics can only be read by unpickling, untrusted.
     """
-    from bulletnav.rl.io import atomic_write_json, guess_algo, read_sidecar, sidecar_path
+    from bulletnav.files import write_json
+    from bulletnav.rl.sidecar import guess_algo, read_sidecar, sidecar_path
 
     path = Path(path)
     if not zipfile.is_zipfile(path):
@@ -657,6 +658,6 @@ def convert_model(path: Path, trust_pickle: bool = False) -> dict[str, Any]:
     new = save_safe(model, path, None, meta)
     new["normalization"] = stats
     if stats is not None:
-        atomic_write_json(stats_path(path), stats)
-    atomic_write_json(sidecar_path(path), new)
+        write_json(stats_path(path), stats)
+    write_json(sidecar_path(path), new)
     return new

@@ -1,5 +1,7 @@
 """``bulletnav train``: Stable-Baselines3 on a bulletnav env with periodic evaluation, atomic
-checkpoints, resume and a run record (the learning-curve plot comes from :mod:`bulletnav.viz.compare`)."""
+checkpoints, resume and a run record. The learning-curve plot is drawn by the caller's
+``plot_curve`` (the CLI and sweeps pass :func:`bulletnav.viz.compare.plot_learning_curve`):
+training sits below :mod:`bulletnav.viz` and does not import it."""
 
 from __future__ import annotations
 
@@ -17,6 +19,7 @@ import numpy as np
 
 from bulletnav import ENV_ID
 from bulletnav.errors import ModelError
+from bulletnav.files import write_json
 from bulletnav.provenance import git_commit, machine
 from bulletnav.rl.algos import algo_class
 from bulletnav.rl.callbacks import (
@@ -29,15 +32,9 @@ from bulletnav.rl.callbacks import (
 )
 from bulletnav.rl.envs import EVAL_SEED_BASE, make_env_fn
 from bulletnav.rl.hyperparams import apply_overrides, load_hyperparams, model_kwargs, policy_class, upgrade_hyperparams
-from bulletnav.rl.io import (
-    atomic_save_model,
-    atomic_save_vecnormalize,
-    atomic_write_json,
-    read_sidecar,
-    sidecar_path,
-    vecnormalize_path,
-)
+from bulletnav.rl.io import atomic_save_model, atomic_save_vecnormalize
 from bulletnav.rl.safe import apply_stats, load_stats, load_zip, save_safe, stats_to_json, zip_spaces
+from bulletnav.rl.sidecar import read_sidecar, sidecar_path, vecnormalize_path
 
 log = logging.getLogger(__name__)
 
@@ -122,13 +119,18 @@ def _timer(venv: Any) -> TimedVecEnv:
     return venv
 
 
-def train(cfg: TrainConfig) -> dict[str, Any]:
-    """Train, evaluate and save; returns the run record (also written to ``out/run.json``)."""
+PlotCurve = Callable[[list[dict[str, Any]], Path, str], None]
+"""``plot_curve(history, path, title)``: draws the evaluation history to a PNG
+(:func:`bulletnav.viz.compare.plot_learning_curve`)."""
+
+
+def train(cfg: TrainConfig, plot_curve: PlotCurve | None = None) -> dict[str, Any]:
+    """Train, evaluate and save; returns the run record (also written to ``out/run.json``).
+    ``plot_curve`` draws ``out/learning_curve.png`` from the evaluations (None: no plot)."""
     import torch
     from stable_baselines3.common.vec_env import VecNormalize
 
     from bulletnav.rl.curriculum import Curriculum, CurriculumCallback
-    from bulletnav.viz.compare import plot_learning_curve
 
     torch.set_num_threads(1)  # 2 cores: more threads slow PPO down and starve the env workers
     hp = apply_overrides(load_hyperparams(cfg.algo, env_id=cfg.env_id, path=cfg.hyperparams), cfg.overrides)
@@ -214,7 +216,7 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
         "init_from": str(cfg.init_from) if cfg.init_from is not None else None,
         "versions": _versions(),
     }
-    atomic_write_json(cfg.out / "config.json", record)
+    write_json(cfg.out / "config.json", record)
     t0 = time.time()
     remaining = max(timesteps - start_steps, 0)
     if remaining:
@@ -244,10 +246,10 @@ def train(cfg: TrainConfig) -> dict[str, Any]:
                   stop_at_success=cfg.stop_at_success, reached_success=evaluation.reached)
     meta = {"algo": cfg.algo, "env_id": cfg.env_id, "env_kwargs": env_kwargs, "shield": shield, "seed": cfg.seed,
             "timesteps": int(model.num_timesteps), "git_commit": record["git_commit"], "command": cfg.command}
-    atomic_write_json(sidecar_path(final_path), save_safe(model, final_path, vecnorm, meta))
-    atomic_write_json(cfg.out / "run.json", record)
-    if history:
-        plot_learning_curve(history, cfg.out / "learning_curve.png", title=f"{cfg.algo.upper()} seed {cfg.seed}")
+    write_json(sidecar_path(final_path), save_safe(model, final_path, vecnorm, meta))
+    write_json(cfg.out / "run.json", record)
+    if history and plot_curve is not None:
+        plot_curve(history, cfg.out / "learning_curve.png", f"{cfg.algo.upper()} seed {cfg.seed}")
     return record
 
 

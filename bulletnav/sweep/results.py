@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from bulletnav.rl.io import atomic_write_bytes, atomic_write_json
+from bulletnav.files import write_bytes, write_json
 
 TRIAL_COLUMNS = ("trial", "config", "seed", "status", "timesteps", "wall_time_s", "success_rate", "collision_rate",
                  "timeout_rate", "spl", "mean_reward", "mean_length", "node", "model", "error")
@@ -70,15 +70,15 @@ def write_results(out: Path, rows: list[dict[str, Any]], summary: list[dict[str,
     writer.writeheader()
     for row in rows:
         writer.writerow({**row, "config": json.dumps(row["config"], sort_keys=True)})
-    atomic_write_bytes(out / "trials.csv", buf.getvalue().encode())
+    write_bytes(out / "trials.csv", buf.getvalue().encode())
     buf = io.StringIO()
     writer = csv.writer(buf)
     writer.writerow(["config", "metric", "seeds", "mean", "ci95_low", "ci95_high", "min", "max", "failed"])
     for s in summary:
         ci = s["ci95"] or [None, None]
         writer.writerow([s["label"], s["metric"], s["n"], s["mean"], ci[0], ci[1], s["min"], s["max"], s["failed"]])
-    atomic_write_bytes(out / "summary.csv", buf.getvalue().encode())
-    atomic_write_json(out / "results.json", {**record, "summary": summary, "trials": rows})
+    write_bytes(out / "summary.csv", buf.getvalue().encode())
+    write_json(out / "results.json", {**record, "summary": summary, "trials": rows})
     plot = out / "results.png"
     plot_summary(summary, plot, title=record.get("name", "sweep"))
     return {"trials": out / "trials.csv", "summary": out / "summary.csv", "json": out / "results.json", "plot": plot}
@@ -107,4 +107,4 @@ def plot_summary(summary: list[dict[str, Any]], path: Path, title: str = "sweep"
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)
-    atomic_write_bytes(path, buf.getvalue())
+    write_bytes(path, buf.getvalue())

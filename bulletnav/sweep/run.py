@@ -26,8 +26,8 @@ import yaml
 from ray import tune
 
 from bulletnav.errors import ConfigError, RunError
+from bulletnav.files import write_bytes
 from bulletnav.provenance import git_commit, machine
-from bulletnav.rl.io import atomic_write_bytes
 from bulletnav.sweep.results import config_label, summarize_configs, write_results
 from bulletnav.sweep.spec import SweepSpec
 
@@ -206,6 +206,7 @@ def _trial(config: dict[str, Any], spec: dict[str, Any], base: dict[str, Any]) -
 
     from bulletnav.rl.evaluate import evaluate_model
     from bulletnav.rl.train import TrainConfig, train
+    from bulletnav.viz.compare import plot_learning_curve
 
     sweep = SweepSpec.from_record(spec)
     overrides = dict(config.get("hp") or {})
@@ -222,7 +223,7 @@ def _trial(config: dict[str, Any], spec: dict[str, Any], base: dict[str, Any]) -
         finish_checkpoint(out)
         resume = (out / "checkpoints" / "last.zip").is_file()
     hp_file = out / "hyperparams.yml"  # the base hyperparameters, so no node needs the driver's files
-    atomic_write_bytes(hp_file, yaml.safe_dump({sweep.env_id: base}, sort_keys=False).encode())
+    write_bytes(hp_file, yaml.safe_dump({sweep.env_id: base}, sort_keys=False).encode())
 
     def report(row: dict[str, Any]) -> None:
         if row["timesteps"] >= sweep.timesteps:
@@ -242,11 +243,11 @@ def _trial(config: dict[str, Any], spec: dict[str, Any], base: dict[str, Any]) -
         eval_freq=sweep.eval_freq, eval_episodes=sweep.eval_episodes, checkpoint_freq=sweep.checkpoint_freq,
         progress_bar=False, vec_env=sweep.vec_env, env_overrides=sweep.env_kwargs or None, hyperparams=hp_file,
         command=f"bulletnav sweep ({sweep.name}: {config_label(overrides)}, seed {seed})", env_id=sweep.env_id,
-        overrides=overrides or None, on_evaluation=report))
+        overrides=overrides or None, on_evaluation=report), plot_curve=plot_learning_curve)
     held_out = evaluate_model(out / "model.zip", sweep.env_id, sweep.evaluation_episodes, sweep.evaluation_seed)
     keep = {k: v for k, v in held_out.items() if k != "per_episode"}
-    atomic_write_bytes(out / "heldout.json", json.dumps({"episodes": sweep.evaluation_episodes,
-                                                         "seed": sweep.evaluation_seed, **keep}, indent=2, default=float).encode())
+    write_bytes(out / "heldout.json", json.dumps({"episodes": sweep.evaluation_episodes,
+                                                  "seed": sweep.evaluation_seed, **keep}, indent=2, default=float).encode())
     metrics = {k: float(held_out[k]) for k in ("success_rate", "collision_rate", "timeout_rate", "spl", "mean_reward",
                                                "mean_length") if k in held_out}
     with tempfile.TemporaryDirectory() as tmp:
@@ -308,4 +309,4 @@ def write_best_hyperparams(path: Path, spec: SweepSpec, base: dict[str, Any], be
     head = (f"# Best of sweep {spec.name!r} ({spec.metric} {best[spec.metric]:.3f} on {spec.evaluation_episodes} held-out "
             f"episodes from seed {spec.evaluation_seed}; trial {best['trial']}, seed {best['seed']}).\n"
             f"# Train with: bulletnav train --algo {spec.algo} --env {spec.env_id} --hyperparams {path}\n")
-    atomic_write_bytes(path, (head + yaml.safe_dump({spec.env_id: hp}, sort_keys=False)).encode())
+    write_bytes(path, (head + yaml.safe_dump({spec.env_id: hp}, sort_keys=False)).encode())
