@@ -17,11 +17,24 @@ Three measurements per registered id, each printed by ``bulletnav bench env --js
 
 :func:`bench_vec` measures vectorised throughput: Gymnasium's ``make_vec`` (sync and async)
 and Stable-Baselines3's ``DummyVecEnv`` / ``SubprocVecEnv`` at 1, 2 and 4 envs.
+
+:func:`bench_against` (``bulletnav bench env --against COMMIT``) measures reset times and
+steps/s with resets of an older commit and of this checkout, interleaved in fresh processes,
+with a self-contained script (``against_probe.py``) that any commit's tree can run: it needs
+only ``import bulletnav`` and the public Gymnasium API (no raw rebuild there: that needs the
+scene's internals).
 """
 
 from __future__ import annotations
 
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
 import time
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -29,6 +42,7 @@ import numpy as np
 import pybullet as p
 
 from bulletnav.bench.env_bench import step_with_resets
+from bulletnav.errors import BulletnavError
 from bulletnav.sim.client import configure_physics
 
 REGISTERED = ("bulletnav/Warehouse-v0", "bulletnav/WarehouseAisles-v0", "bulletnav/WarehouseDynamic-v0",
@@ -198,60 +212,129 @@ def bench_vec(env_id: str = "bulletnav/Warehouse-v0", counts: tuple[int, ...] = 
             "reference_single_env_steps_per_s": single}
 
 
-def bench_against(commit: str, env_ids: tuple[str, ...] = REGISTERED, rounds: int = 3, resets: int = 200,
-                  steps: int = 6000, seed: int = 0, repo: str | None = None) -> dict[str, Any]:
-    """:func:`bench_ids` of this checkout and of ``commit``, interleaved in one run.
+PROBE = Path(__file__).with_name("against_probe.py")
+"""The self-contained measuring script both sides of :func:`bench_against` run."""
 
-    ``commit``'s tree is exported (``git archive``) to a temporary directory and given this
-    checkout's copy of this module, so both sides are measured by the same code; each round
-    runs both sides in fresh processes, in alternating order, so machine drift hits both alike.
-    Per id, ``before`` and ``after`` hold the medians over rounds, ``speedup`` the median of the
-    per-round ratios (after over before for steps/s, before over after for reset times).
+AGAINST_KEYS = ("reset_ms", "reset_ms_p90", "steps_per_s_with_resets", "steps_per_s_between_resets", "reset_share",
+                "episodes")
+"""The probe's figures that :func:`bench_against` reports per side (medians over rounds)."""
+
+
+def _git(root: Path, *args: str) -> subprocess.CompletedProcess:
+    """``git -C root args``; a missing git is a :class:`BulletnavError`."""
+    try:
+        return subprocess.run(["git", "-C", str(root), *args], capture_output=True)
+    except OSError as exc:
+        raise BulletnavError(f"cannot run git: {exc}") from None
+
+
+def _export(commit: str, root: Path, dest: Path) -> str:
+    """Export ``commit`` of the repository at ``root`` into ``dest``; returns its full hash.
 
     Raises:
-        RuntimeError: ``commit`` cannot be exported (not a commit of ``repo``, no git).
+        BulletnavError: not a commit of ``root`` (or no git), or the export fails.
     """
-    import json
-    import os
-    import shutil
-    import subprocess
-    import sys
-    import tempfile
-    from pathlib import Path
+    if not commit or commit.startswith("-"):
+        raise BulletnavError(f"--against {commit!r}: not a commit")
+    resolved = _git(root, "rev-parse", "--verify", "--quiet", f"{commit}^{{commit}}")
+    if resolved.returncode != 0:
+        raise BulletnavError(f"--against {commit!r}: not a commit of {root}")
+    full = resolved.stdout.decode().strip()
+    archive = _git(root, "archive", full)
+    if archive.returncode != 0:
+        last = (archive.stderr.decode().strip().splitlines() or ["git archive failed"])[-1]
+        raise BulletnavError(f"--against {commit!r}: cannot export it ({last})")
+    untar = subprocess.run(["tar", "-x", "-C", str(dest)], input=archive.stdout, capture_output=True)
+    if untar.returncode != 0:
+        raise BulletnavError(f"--against {commit!r}: cannot unpack its tree ({untar.stderr.decode().strip()})")
+    return full
 
-    here = Path(__file__).resolve()
-    root = Path(repo) if repo else here.parents[2]
+
+def _probe(python: str, tree: Path, spec: dict[str, Any], label: str) -> dict[str, Any]:
+    """Run :data:`PROBE` in a fresh ``python`` process on ``tree`` (its working directory and
+    ``PYTHONPATH``); its JSON answer.
+
+    Raises:
+        BulletnavError: the probe refuses the tree (import, unregistered id) or fails.
+    """
+    env = {**os.environ, "PYTHONPATH": str(tree)}
+    argument = json.dumps({**spec, "tree": str(tree)})
+    out = subprocess.run([python, "-c", PROBE.read_text(), argument], cwd=tree, env=env, capture_output=True,
+                         text=True)
+    lines = out.stdout.strip().splitlines()
+    try:
+        answer = json.loads(lines[-1]) if lines else None
+    except ValueError:
+        answer = None
+    if not isinstance(answer, dict):
+        last = (out.stderr.strip().splitlines() or [f"exit code {out.returncode}, no answer"])[-1]
+        raise BulletnavError(f"{label}: cannot be measured ({last})")
+    if "error" in answer:
+        raise BulletnavError(f"{label}: cannot be measured ({answer['error']})")
+    return answer
+
+
+def _median(values: list[float]) -> float:
+    return float(np.median(values)) if values else float("nan")
+
+
+def _against_row(before: list[dict], after: list[dict]) -> dict[str, Any]:
+    """One id's figures over rounds: each side's medians, the per-round ratios (after over
+    before for steps/s, before over after for reset times: above 1 is faster), their median
+    (``speedup``) and spread."""
+    row: dict[str, Any] = {side: {key: round(_median([r[key] for r in runs]), 3) for key in AGAINST_KEYS}
+                           for side, runs in (("before", before), ("after", after))}
+    ratios = {
+        "steps_per_s_with_resets": [a["steps_per_s_with_resets"] / b["steps_per_s_with_resets"]
+                                    for a, b in zip(after, before)],
+        "steps_per_s_between_resets": [a["steps_per_s_between_resets"] / b["steps_per_s_between_resets"]
+                                       for a, b in zip(after, before)],
+        "reset": [b["reset_ms"] / a["reset_ms"] for a, b in zip(after, before)],
+    }
+    row["speedup"] = {key: round(_median(values), 3) for key, values in ratios.items()}
+    row["ratios"] = {key: [round(v, 3) for v in values] for key, values in ratios.items()}
+    return row
+
+
+def bench_against(commit: str, env_ids: tuple[str, ...] = REGISTERED, rounds: int = 3, resets: int = 200,
+                  steps: int = 6000, seed: int = 0, repo: str | None = None,
+                  python: str | None = None) -> dict[str, Any]:
+    """Reset times and steps/s with resets of ``commit``'s code and of this checkout, interleaved.
+
+    ``commit``'s tree is exported (``git archive``) to a temporary directory. Both sides are
+    measured by :data:`PROBE` (``bulletnav/bench/against_probe.py``), a self-contained script
+    that needs nothing of either tree but ``import bulletnav`` and the public Gymnasium API,
+    run by ``python`` (default: this interpreter) with the side's tree as working directory and
+    ``PYTHONPATH``. The old tree is checked first (it imports, every id is registered); each
+    round then runs both sides in fresh processes, in alternating order, so machine drift hits
+    both alike. Per id, ``before`` and ``after`` hold the medians over rounds, ``speedup`` the
+    median of the per-round ratios and ``ratios`` every round's (after over before for steps/s,
+    before over after for reset times).
+
+    Raises:
+        BulletnavError: ``commit`` cannot be measured: not a commit of ``repo`` (default: the
+            checkout holding this module), no git, its bulletnav does not import with this
+            environment, or one of ``env_ids`` is not registered there.
+    """
+    root = Path(repo).resolve() if repo else Path(__file__).resolve().parents[2]
+    python = python or sys.executable
+    spec = {"ids": list(env_ids), "resets": resets, "steps": steps, "seed": seed}
     tmp = Path(tempfile.mkdtemp(prefix="bulletnav-before-"))
     try:
-        archive = subprocess.run(["git", "-C", str(root), "archive", commit], capture_output=True)
-        if archive.returncode != 0:
-            raise RuntimeError(f"cannot export commit {commit!r} of {root}: {archive.stderr.decode().strip()}")
-        subprocess.run(["tar", "-x", "-C", str(tmp)], input=archive.stdout, check=True)
-        shutil.copy(here, tmp / "bulletnav" / "bench" / "reset_bench.py")
-        code = ("import json, sys; from bulletnav.bench.reset_bench import bench_ids; "
-                f"print(json.dumps(bench_ids({tuple(env_ids)!r}, {resets}, {steps}, {seed})))")
+        full = _export(commit, root, tmp)
         sides = {"before": tmp, "after": root}
+        labels = {"before": f"commit {commit}", "after": f"this checkout ({root})"}
+        for side in ("before", "after"):
+            _probe(python, sides[side], {**spec, "check": True}, labels[side])
         runs: dict[str, list[dict]] = {"before": [], "after": []}
         for r in range(rounds):
             for side in (("before", "after") if r % 2 == 0 else ("after", "before")):
-                env = {**os.environ, "PYTHONPATH": str(sides[side])}
-                out = subprocess.run([sys.executable, "-c", code], cwd=sides[side], env=env, capture_output=True,
-                                     text=True, check=True)
-                runs[side].append(json.loads(out.stdout.strip().splitlines()[-1]))
+                runs[side].append(_probe(python, sides[side], spec, labels[side])["ids"])
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    result: dict[str, Any] = {"benchmark": "env_against", "before_commit": commit, "rounds": rounds, "resets": resets,
-                              "steps": steps, "ids": {}}
-    for env_id in env_ids:
-        per = {side: [run[env_id] for run in runs[side]] for side in runs}
-        row: dict[str, Any] = {}
-        for side in ("before", "after"):
-            row[side] = {key: round(float(np.median([r[key] for r in per[side]])), 2)
-                         for key in ("reset_ms", "raw_reset_ms", "steps_per_s_with_resets", "reset_share")}
-        row["speedup"] = {
-            "steps_per_s_with_resets": round(float(np.median(
-                [a["steps_per_s_with_resets"] / b["steps_per_s_with_resets"] for a, b in zip(per["after"], per["before"])])), 3),
-            "reset": round(float(np.median([b["reset_ms"] / a["reset_ms"] for a, b in zip(per["after"], per["before"])])), 3),
-        }
-        result["ids"][env_id] = row
-    return result
+    head = _git(root, "rev-parse", "--short", "HEAD").stdout.decode().strip()
+    dirty = bool(_git(root, "status", "--porcelain", "--untracked-files=no").stdout.strip())
+    return {"benchmark": "env_against", "before_commit": full[:7], "after_commit": head + ("+changes" if dirty else ""),
+            "rounds": rounds, "resets": resets, "steps": steps, "seed": seed, "measured_by": "bulletnav/bench/against_probe.py",
+            "ids": {env_id: _against_row([run[env_id] for run in runs["before"]], [run[env_id] for run in runs["after"]])
+                    for env_id in env_ids}}
