@@ -1,0 +1,631 @@
+"""Which kind of reference each test function checks against (issue 52).
+
+Every test function in ``tests/`` (a parametrized test counts once; a method as
+``module::Class::name``) has one kind: the strongest among its assertions that can fail.
+
+- ``hand``: an expected value worked out by hand or taken from a spec, paper or article and
+  written in the test (a distance, a path, a count, an exact byte string).
+- ``formula``: a physics or closed-form formula, or an independent second algorithm (brute
+  force, a reference implementation written in the test), computed in the test.
+- ``library``: another library's implementation as the reference (SciPy, Shapely, PettingZoo's
+  and Gymnasium's/SB3's checkers, Minari's readers, rosbags, mcap readers, a real browser).
+- ``golden``: compared with data recorded before a change (tests/golden/, committed result rows,
+  snapshot files).
+- ``contract``: a stated rule with no numeric reference: an error raised with a message naming
+  file/field, an exit code, a file left whole, an API shape.
+- ``self``: self-consistency only: two runs of the same code agree, a round trip through the
+  code's own writer and reader, the code under test against another call of the same code.
+- ``smoke``: runs with no reference value (no exception, output exists, keys present).
+
+``hand``, ``formula``, ``library`` and ``golden`` are the independent references. The table is
+kept true by tests/test_reference_kinds.py, which collects every test function by its source and
+fails on one missing here, one named here that no longer exists, or an unknown kind.
+
+``python tests/reference_kinds.py`` prints the counts by kind, overall and per module, as the
+Markdown tables of docs/testing.md.
+"""
+
+from __future__ import annotations
+
+import ast
+import sys
+from collections import Counter
+from pathlib import Path
+
+TESTS = Path(__file__).resolve().parent
+
+ORDER = ("hand", "formula", "library", "golden", "contract", "self", "smoke")
+"""The kinds, strongest first."""
+
+INDEPENDENT = frozenset(("hand", "formula", "library", "golden"))
+"""The kinds that compare against a reference that is not the code under test."""
+
+KINDS: dict[str, str] = {
+    # ---- test_aisles.py
+    "test_aisles.py::test_layout_meets_the_geometric_spec": "formula",  # spec ranges measured with raster geometry written in the test
+    "test_aisles.py::test_clutter_narrows_aisles_without_closing_them": "formula",
+    "test_aisles.py::test_generator_is_seeded_and_registered": "contract",
+    "test_aisles.py::test_sampler_defaults_draw_exactly_as_before": "contract",
+    "test_aisles.py::test_episodes_need_planning": "formula",  # segment-rectangle test written in the test
+    "test_aisles.py::test_segment_box_test_is_right": "hand",
+    "test_aisles.py::test_env_is_registered_with_its_settings": "contract",
+    "test_aisles.py::test_check_env_passes": "library",
+    "test_aisles.py::test_env_is_deterministic_for_a_seed": "self",
+    "test_aisles.py::test_aisle_env_on_a_world_without_racks_draws_plain_episodes": "contract",
+    # ---- test_architecture.py
+    "test_architecture.py::test_private_access_checker_flags_what_it_should": "hand",
+    "test_architecture.py::test_consumers_use_only_obs_info_and_the_scene_view": "contract",
+    "test_architecture.py::test_import_checker_resolves_relative_and_nested_imports": "hand",
+    "test_architecture.py::test_sim_does_not_import_sensors": "contract",
+    "test_architecture.py::test_planning_is_pure_algorithms": "contract",
+    "test_architecture.py::test_robot_geometry_is_what_pybullet_loads": "library",  # PyBullet's loaded collision shapes
+    "test_architecture.py::test_literal_checker_reads_code_not_comments_or_strings": "hand",
+    "test_architecture.py::test_geometry_users_carry_no_outline_numbers": "contract",
+    # ---- test_bench_against.py
+    "test_bench_against.py::test_a_bogus_commit_is_refused_in_one_line": "contract",
+    "test_bench_against.py::test_an_option_is_not_taken_for_a_commit": "contract",
+    "test_bench_against.py::test_a_commit_whose_bulletnav_does_not_import_is_refused": "contract",
+    "test_bench_against.py::test_a_commit_without_the_id_is_refused": "contract",
+    "test_bench_against.py::test_the_probe_imports_nothing_of_the_tree_but_the_package": "contract",
+    "test_bench_against.py::test_against_head_measures_both_sides": "smoke",  # every figure positive, none compared
+    # ---- test_benchmark.py
+    "test_benchmark.py::test_bad_suites_name_file_and_field": "contract",
+    "test_benchmark.py::test_suite_names_and_counts": "hand",
+    "test_benchmark.py::test_optimal_time_is_the_trapezoid_or_the_triangle": "hand",
+    "test_benchmark.py::test_straight_drive_metrics_against_hand_values": "hand",
+    "test_benchmark.py::test_turning_and_a_slow_drive": "hand",
+    "test_benchmark.py::test_person_zones_are_counted_both_ways_and_collisions_by_kind": "hand",
+    # the cell mean 0.75 and a constant sample; the interval itself only reproducibility and brackets
+    "test_benchmark.py::test_bootstrap_interval_is_reproducible_and_brackets_the_mean": "hand",
+    "test_benchmark.py::test_tiny_results_are_the_committed_ones_at_1_and_2_workers": "golden",
+    "test_benchmark.py::test_an_interrupted_run_resumes_without_rerunning": "contract",
+    "test_benchmark.py::test_cli_prints_the_headline_and_writes_the_report": "contract",
+    "test_benchmark.py::test_build_results_orders_rows_and_keeps_one_per_episode": "hand",
+    "test_benchmark.py::test_tiny_suite_through_a_ray_cluster_gives_the_committed_rows": "golden",
+    "test_benchmark.py::test_an_address_with_no_cluster_is_one_clear_error": "contract",
+    "test_benchmark.py::test_pool_raises_a_jobs_error_without_starting_the_queued_jobs": "contract",
+    # ---- test_cli_env.py
+    "test_cli_env.py::test_every_env_subcommand_defaults_to_warehouse_v0_and_takes_env": "contract",
+    "test_cli_env.py::test_env_option_reaches_the_env": "contract",
+    "test_cli_env.py::test_navigate_json_on_the_aisles_env": "contract",
+    "test_cli_env.py::test_navigate_default_env_report_is_unchanged_but_for_the_safety_line": "contract",
+    "test_cli_env.py::test_world_file_with_the_aisles_env": "contract",
+    "test_cli_env.py::test_unknown_env_id_is_a_clear_error": "contract",
+    "test_cli_env.py::test_tracker_in_a_static_world": "hand",
+    "test_cli_env.py::test_tracker_with_movers": "hand",
+    "test_cli_env.py::test_summarize_safety_metrics_known_answers": "hand",
+    "test_cli_env.py::test_summarize_safety_metrics_without_movers_or_episodes": "hand",
+    "test_cli_env.py::test_train_reads_the_env_ids_own_hyperparameters_and_records_it": "contract",
+    # ---- test_cli_help.py
+    "test_cli_help.py::test_every_command_has_a_snapshot_and_every_snapshot_a_command": "contract",
+    "test_cli_help.py::test_help_is_the_snapshot_byte_for_byte": "golden",  # snapshots taken before cli.py was split
+    "test_cli_help.py::test_the_console_script_prints_the_snapshot": "golden",
+    # ---- test_cli_inputs.py
+    "test_cli_inputs.py::test_counts_and_numbers_out_of_range_are_one_line": "contract",
+    "test_cli_inputs.py::test_output_suffixes_are_checked_when_parsing": "contract",
+    "test_cli_inputs.py::test_zero_timesteps_stay_allowed_and_defaults_parse": "contract",
+    "test_cli_inputs.py::test_rollout_note_says_how_many_steps_will_be_trained": "hand",
+    "test_cli_inputs.py::test_train_prints_the_note_and_refuses_a_folder_holding_a_run": "contract",
+    "test_cli_inputs.py::test_evaluate_without_env_uses_the_models_own_env": "contract",
+    "test_cli_inputs.py::test_a_model_that_does_not_fit_the_env_is_one_line_before_any_episode": "contract",
+    "test_cli_inputs.py::test_demo_refuses_a_model_of_another_env_before_making_its_folder": "contract",
+    "test_cli_inputs.py::test_check_model_fits_names_shapes_and_bounds": "contract",
+    "test_cli_inputs.py::test_demo_folders_are_per_run_by_default": "contract",
+    "test_cli_inputs.py::test_demo_refuses_an_explicit_folder_holding_a_run": "contract",
+    "test_cli_inputs.py::test_a_second_demo_writes_its_own_folder": "contract",
+    "test_cli_inputs.py::test_navigate_refuses_to_replace_a_video_or_plot_without_overwrite": "contract",
+    "test_cli_inputs.py::test_recorder_writes_beside_the_target_and_renames": "contract",
+    "test_cli_inputs.py::test_learning_curve_is_written_whole": "contract",
+    # ---- test_control.py
+    "test_control.py::test_pid_drives_a_first_order_plant_to_the_setpoint": "formula",  # the plant dx/dt = u integrated in the test
+    "test_control.py::test_pid_output_is_clamped_and_integral_does_not_wind_up": "hand",
+    "test_control.py::test_pid_integral_limit_derivative_and_reset": "hand",
+    "test_control.py::test_lidar_map_matches_the_layout": "formula",  # truth: the layout's footprints rasterised, not the mapper
+    # ---- test_curriculum.py
+    "test_curriculum.py::test_promotion_waits_for_min_episodes_and_the_window_rate": "hand",
+    "test_curriculum.py::test_demotion_below_the_threshold_and_no_move_past_the_ends": "hand",
+    "test_curriculum.py::test_state_round_trips": "self",
+    "test_curriculum.py::test_bad_curricula_are_refused_by_field": "contract",
+    "test_curriculum.py::test_set_episode_config_changes_the_next_episodes_and_restores": "contract",
+    "test_curriculum.py::test_stages_reach_subprocess_envs_during_training": "contract",
+    "test_curriculum.py::test_training_checkpoints_the_stage_and_resumes_in_it": "contract",
+    # ---- test_datasets.py
+    "test_datasets.py::test_navigate_dataset_round_trip": "library",  # minari.load_dataset, recover_environment, both check_envs
+    "test_datasets.py::test_names_are_checked_before_running": "contract",
+    "test_datasets.py::test_behaviour_cloning_from_a_dataset": "contract",
+    "test_datasets.py::test_image_observations_are_refused": "contract",
+    "test_datasets.py::test_shielded_episodes_store_the_executed_actions": "formula",  # the action-box mapping written in the test
+    # ---- test_demo.py
+    "test_demo.py::test_view_runs_under_xvfb": "smoke",
+    "test_demo.py::test_demo_with_gui_runs_under_xvfb": "smoke",
+    "test_demo.py::test_demo_prints_the_report_and_leaves_video_and_plot": "contract",
+    "test_demo.py::test_demo_without_a_model_says_so": "contract",
+    # the committed model card's first episode
+    "test_demo.py::test_demo_runs_the_shipped_dynamic_policy_and_reproduces_its_card": "golden",
+    # ---- test_env.py
+    "test_env.py::test_spaces_match_the_article": "hand",
+    "test_env.py::test_checkers_pass_without_warnings_with_normalized_actions": "library",
+    "test_env.py::test_checkers_pass_in_human_mode": "library",
+    "test_env.py::test_physical_action_space_draws_only_the_normalisation_advice": "library",
+    "test_env.py::test_rgb_array_render": "contract",
+    "test_env.py::test_human_mode_without_display_raises_clearly": "contract",
+    "test_env.py::test_human_mode_on_a_display_that_refuses_the_connection_raises_clearly": "contract",
+    "test_env.py::test_gui_connect_holds_its_own_x_connection_until_pybullet_has_opened_one": "contract",
+    "test_env.py::test_a_held_x_connection_keeps_a_resetting_server_from_refusing_clients": "library",  # a real Xvfb server
+    "test_env.py::test_same_seed_is_bit_identical_across_resets": "self",
+    "test_env.py::test_seeded_reset_is_independent_of_history": "self",
+    "test_env.py::test_reward_terms_sum_to_the_reward": "self",
+    "test_env.py::test_every_observation_lies_in_the_observation_space": "contract",
+    "test_env.py::test_same_seed_gives_the_same_trajectory_in_two_processes": "self",
+    "test_env.py::test_scripted_drive_to_a_nearby_goal_terminates_with_the_goal_term": "hand",
+    "test_env.py::test_driving_into_a_wall_truncates_with_the_collision_term": "hand",
+    "test_env.py::test_driving_into_a_wall_terminates_with_collision_terminates": "contract",
+    "test_env.py::test_top_speed_into_a_wall_never_passes_through": "hand",
+    "test_env.py::test_bad_actions_and_options": "hand",  # the clipped commands; the rest are errors
+    "test_env.py::test_normalized_actions_map_onto_the_physical_range": "hand",
+    "test_env.py::test_options_place_start_and_goal_exactly": "contract",
+    "test_env.py::test_kwargs_reach_the_configs": "hand",
+    "test_env.py::test_camera_observations": "library",
+    "test_env.py::test_disabled_camera_changes_no_observation": "self",
+    "test_env.py::test_lidar_rate_holds_each_scan_for_its_period": "hand",  # the every-second-step pattern
+    "test_env.py::test_navigation_task_refuses_a_missing_sensor": "contract",
+    "test_env.py::test_unknown_task_and_world_style_list_the_registered_ones": "contract",
+    "test_env.py::test_yaml_world_uses_its_start_and_goal": "hand",
+    "test_env.py::test_bench_env_cli_prints_the_ratio_with_its_provenance": "contract",
+    # ---- test_episode_rules.py
+    "test_episode_rules.py::test_the_hand_table_covers_every_registered_id": "hand",
+    "test_episode_rules.py::test_the_evaluation_env_has_the_ids_own_rules_and_reward": "hand",
+    "test_episode_rules.py::test_evaluate_model_builds_the_env_with_the_ids_rules": "hand",
+    # the end flag from the hand table; the episode against gym.make(id)
+    "test_episode_rules.py::test_driving_into_a_wall_ends_by_the_ids_rule": "hand",
+    "test_episode_rules.py::test_the_published_metrics_do_not_depend_on_the_collision_flag": "self",
+    # ---- test_features.py
+    "test_features.py::test_footprint_matches_the_robots_collision_outline": "library",  # PyBullet ray casts against the robot body
+    "test_features.py::test_closeness_is_one_at_contact_and_fades_with_clearance": "hand",
+    "test_features.py::test_extractor_rejects_an_observation_shorter_than_the_scan": "contract",
+    "test_features.py::test_point_clearance_matches_pybullet_closest_distance": "library",
+    "test_features.py::test_point_metric_sees_an_edge_between_rays": "hand",
+    # ---- test_fleet.py
+    "test_fleet.py::test_parallel_api": "library",  # PettingZoo's parallel_api_test
+    "test_fleet.py::test_aec_api": "library",  # PettingZoo's api_test
+    "test_fleet.py::test_agents_and_truncation_together": "hand",
+    "test_fleet.py::test_spaces_equal_single_robot": "self",  # against the single-robot env of the same package
+    "test_fleet.py::test_each_robot_maps_actions_as_the_single_robot_env_does": "self",
+    "test_fleet.py::test_same_seed_same_episode_here_and_in_a_fresh_process": "self",
+    "test_fleet.py::test_lidar_sees_other_robot_not_itself": "formula",  # range = robot face from its geometry
+    "test_fleet.py::test_robot_robot_collision_stops_both_and_episode_goes_on": "hand",
+    "test_fleet.py::test_errand_completes_pick_then_drop_and_next_is_assigned": "hand",
+    "test_fleet.py::test_stations_derived_from_an_aisle_warehouse": "contract",
+    "test_fleet.py::test_dock_moves_in_where_racks_line_every_wall": "hand",
+    "test_fleet.py::test_procedural_floor_with_racks_on_every_wall_gets_a_dock": "contract",
+    "test_fleet.py::test_num_robots_out_of_range": "contract",
+    "test_fleet.py::test_more_robots_than_fit": "contract",
+    "test_fleet.py::test_world_without_stations": "contract",
+    "test_fleet.py::test_shipped_dynamic_policy_runs_on_every_robot": "contract",
+    # the planner's A* as a second algorithm
+    "test_fleet.py::test_route_distance_follows_the_floor_plan_like_an_independent_a_star": "formula",
+    # ---- test_fleet_bench.py
+    # the row order; the sums and ratios are the benchmark's own arithmetic
+    "test_fleet_bench.py::test_bench_fleet_rows_and_ratios": "contract",
+    # ---- test_fleet_compare.py
+    "test_fleet_compare.py::test_parse_entries_names_and_errors": "hand",
+    "test_fleet_compare.py::test_every_entry_meets_the_same_episodes_and_workers_do_not_change_rows": "self",
+    "test_fleet_compare.py::test_an_interrupted_run_resumes_to_the_same_rows": "self",
+    "test_fleet_compare.py::test_rows_of_different_episodes_are_refused": "contract",
+    "test_fleet_compare.py::test_bad_settings_name_the_argument": "contract",
+    "test_fleet_compare.py::test_chunks_cover_every_entry_block_by_block": "hand",
+    # the per-cell counts; the rows against the full run
+    "test_fleet_compare.py::test_tables_of_a_stopped_run_cover_the_episodes_every_entry_has": "hand",
+    # ---- test_fleet_controllers.py
+    "test_fleet_controllers.py::test_reservation_table_refuses_vertex_and_swap_conflicts": "hand",
+    "test_fleet_controllers.py::test_robust_reservations_keep_a_cell_after_it_is_left": "hand",
+    # dynamic-programming brute force in the test
+    "test_fleet_controllers.py::test_space_time_planner_passes_in_a_corridor_and_matches_brute_force": "formula",
+    "test_fleet_controllers.py::test_two_robots_pressed_together_can_both_plan_out": "hand",
+    "test_fleet_controllers.py::test_space_time_planner_equals_brute_force_on_random_grids": "formula",
+    "test_fleet_controllers.py::test_free_grid_cost_is_the_static_distance": "hand",
+    "test_fleet_controllers.py::test_plan_dependencies_order_each_cell_as_planned": "hand",
+    # an executor at random speeds written in the test
+    "test_fleet_controllers.py::test_dependency_execution_keeps_the_plans_collision_free_at_any_speed": "formula",
+    "test_fleet_controllers.py::test_largest_component_drops_pockets_and_closed_moves": "hand",
+    "test_fleet_controllers.py::test_priorities_rotate_round_robin": "hand",
+    "test_fleet_controllers.py::test_coordinated_two_robots_no_robot_collision": "contract",
+    "test_fleet_controllers.py::test_coordinated_crowded_dynamic_episode_keeps_the_plan_order": "contract",
+    "test_fleet_controllers.py::test_restarts_plan_the_boxed_in_robots_first": "contract",
+    "test_fleet_controllers.py::test_errand_navigator_replans_for_a_new_goal": "hand",
+    "test_fleet_controllers.py::test_shield_sees_other_robots_as_movers_and_stops_short": "hand",
+    "test_fleet_controllers.py::test_shields_of_two_robots_at_rest_do_not_both_take_the_gap": "contract",
+    "test_fleet_controllers.py::test_shields_see_a_turning_robot_as_the_circle_its_corners_sweep": "contract",
+    "test_fleet_controllers.py::test_make_controller_refuses_bad_names": "contract",
+    "test_fleet_controllers.py::test_deadlock_detector": "hand",
+    "test_fleet_controllers.py::test_throughput_arithmetic_and_errand_times": "hand",
+    "test_fleet_controllers.py::test_near_miss_entries": "hand",
+    "test_fleet_controllers.py::test_cli_fleet_json": "contract",
+    "test_fleet_controllers.py::test_cli_fleet_bad_arguments": "contract",
+    # SciPy ndimage components of the fine grid
+    "test_fleet_controllers.py::test_cell_points_keep_a_passage_off_the_cell_centres_open": "library",
+    "test_fleet_controllers.py::test_drive_cone_turns_a_robot_toward_a_point_behind_it_instead_of_driving_on": "hand",
+    "test_fleet_controllers.py::test_unknot_commits_a_swapping_turn_to_one_side": "hand",
+    "test_fleet_controllers.py::test_a_holding_robot_boxed_in_stands_rather_than_turn_in_place": "hand",
+    "test_fleet_controllers.py::test_a_replan_keeps_the_next_move_of_a_robot_already_heading_into_it": "hand",
+    # ---- test_fleet_golden.py
+    "test_fleet_golden.py::test_fleet_rollout_is_bit_identical_to_the_reference": "golden",
+    "test_fleet_golden.py::test_the_references_exercise_what_they_claim": "contract",  # a check on the golden file itself
+    # ---- test_fleet_learning.py
+    "test_fleet_learning.py::test_adapter_follows_the_vecenv_api": "contract",
+    # the autoreset written out in the test on a plain fleet
+    "test_fleet_learning.py::test_autoreset_matches_a_fleet_stepped_by_hand": "formula",
+    "test_fleet_learning.py::test_seeded_runs_are_equal_step_for_step": "self",
+    "test_fleet_learning.py::test_batched_actions_match_per_robot_predict": "library",  # SB3's own predict per robot
+    "test_fleet_learning.py::test_fleet_train_writes_a_safe_model_and_resumes": "hand",
+    # ---- test_fleet_viz.py
+    "test_fleet_viz.py::test_pictures_leave_the_episodes_unchanged": "self",
+    "test_fleet_viz.py::test_video_of_episode_0_decodes_with_one_frame_per_step": "library",  # decoded by imageio/ffmpeg
+    "test_fleet_viz.py::test_each_robot_is_drawn_in_its_colour_where_it_is": "contract",
+    "test_fleet_viz.py::test_still_frame_and_plot": "contract",
+    "test_fleet_viz.py::test_plot_draws_every_robot_path_in_its_colour": "contract",
+    "test_fleet_viz.py::test_cli_pictures_do_not_change_the_json": "contract",
+    "test_fleet_viz.py::test_fleet_takes_the_world_arguments": "contract",
+    "test_fleet_viz.py::test_view_robots_opens_the_gui_and_tints_every_robot": "contract",
+    # ---- test_fuzz.py
+    "test_fuzz.py::test_layout_files": "contract",
+    "test_fuzz.py::test_sweep_files": "contract",
+    "test_fuzz.py::test_hyperparameter_files": "contract",
+    "test_fuzz.py::test_benchmark_suite_files": "contract",
+    "test_fuzz.py::test_env_kwargs_config": "contract",
+    "test_fuzz.py::test_env_kwargs_make_reset_step": "contract",
+    "test_fuzz.py::test_actions": "contract",
+    "test_fuzz.py::test_reset_options": "contract",
+    "test_fuzz.py::test_cli_arguments": "contract",
+    "test_fuzz.py::test_hostile_documents_are_refused_by_every_loader": "contract",
+    # ---- test_fuzz_models.py
+    "test_fuzz_models.py::test_mutated_sidecars_load_or_give_a_model_error": "contract",
+    "test_fuzz_models.py::test_mutated_sb3_data_loads_or_gives_a_model_error_and_never_runs_a_payload": "contract",
+    "test_fuzz_models.py::test_random_bytes_as_statistics_or_weights_give_a_model_error": "contract",
+    # ---- test_golden.py
+    "test_golden.py::test_seeded_traces_are_bit_identical_to_the_references": "golden",
+    "test_golden.py::test_shipped_policy_reproduces_its_episodes_bit_for_bit": "golden",
+    "test_golden.py::test_pid_astar_reproduces_its_episodes_bit_for_bit": "golden",
+    "test_golden.py::test_importing_bulletnav_pins_mkl_to_its_avx_kernels_unless_the_user_chose": "contract",
+    # ---- test_golden_ids.py
+    "test_golden_ids.py::test_rollouts_are_bit_identical": "golden",
+    "test_golden_ids.py::test_reset_traces_are_bit_identical": "golden",
+    # ---- test_guidance.py
+    "test_guidance.py::test_in_open_floor_the_path_cost_is_the_straight_distance": "formula",
+    "test_guidance.py::test_behind_a_rack_the_path_goes_around_it": "formula",  # a geometric lower bound and an unweighted Dijkstra
+    "test_guidance.py::test_progress_term_telescopes_to_the_drop_in_path_cost": "self",
+    "test_guidance.py::test_a_blind_guide_follower_completes_aisle_missions": "contract",
+    "test_guidance.py::test_guided_free_missions_follow_the_exact_tour_on_the_path_costs": "formula",  # brute force over every order
+    "test_guidance.py::test_guidance_off_keeps_the_observation_and_checkers_pass_with_it_on": "library",
+    "test_guidance.py::test_an_unknown_guidance_is_refused_by_name": "contract",
+    # ---- test_layout.py
+    "test_layout.py::test_sample_layouts_load_and_admit_start_goal_pairs": "contract",
+    "test_layout.py::test_bad_layout_files_name_file_and_field": "contract",
+    "test_layout.py::test_unreadable_and_non_yaml_files": "contract",
+    "test_layout.py::test_layout_round_trips_through_dict": "self",
+    "test_layout.py::test_same_seed_same_layout_and_different_seed_different_layout": "hand",  # the article's 31 obstacles
+    "test_layout.py::test_obstacle_count_is_configurable_and_gaps_hold": "formula",
+    "test_layout.py::test_too_many_obstacles_raise_a_clear_error": "contract",
+    "test_layout.py::test_sampler_respects_distance_clearance_and_reachability": "library",  # SciPy connected components
+    "test_layout.py::test_layout_without_valid_pair_raises": "contract",
+    "test_layout.py::test_disconnected_halves_are_not_reachable": "hand",
+    # ---- test_limits.py
+    "test_limits.py::test_every_limit_has_a_case_and_a_documented_row": "contract",
+    "test_limits.py::test_accepted_at_the_limit": "contract",
+    "test_limits.py::test_refused_just_above_with_field_value_limit_and_variable": "contract",
+    "test_limits.py::test_raised_by_its_environment_variable": "contract",
+    "test_limits.py::test_lowered_by_its_environment_variable": "contract",
+    "test_limits.py::test_a_bad_variable_is_named": "contract",
+    "test_limits.py::test_env_kwargs_are_checked_before_a_world_is_built": "contract",
+    "test_limits.py::test_max_episode_steps_through_make_env": "contract",
+    "test_limits.py::test_layout_files_name_file_field_and_limit": "contract",
+    "test_limits.py::test_layout_at_the_limits_loads": "contract",
+    "test_limits.py::test_benchmark_suite_world_kwargs": "contract",
+    "test_limits.py::test_sweep_grid_is_refused_before_it_is_expanded": "contract",
+    "test_limits.py::test_mission_goals_option": "contract",
+    "test_limits.py::test_tour_follows_the_goals_limit": "hand",
+    # ---- test_mission.py
+    "test_mission.py::test_a_drive_through_three_goals_earns_two_subgoals_then_the_goal": "hand",
+    "test_mission.py::test_free_order_heads_for_the_nearest_goal_and_fixed_for_the_first": "hand",
+    "test_mission.py::test_the_navigator_visits_free_goals_in_the_optimal_order": "hand",
+    "test_mission.py::test_observation_mission_block_matches_geometry": "formula",
+    "test_mission.py::test_mission_step_limit_scales_with_the_goals": "hand",
+    "test_mission.py::test_sampled_missions_are_connected_and_apart": "contract",
+    "test_mission.py::test_bad_mission_input_is_refused_with_the_value": "contract",
+    "test_mission.py::test_mission_env_passes_the_checkers": "library",
+    "test_mission.py::test_yaml_goals_are_the_missions_goals_and_bad_ones_are_refused": "hand",
+    # ---- test_mission_policy.py
+    "test_mission_policy.py::test_the_shipped_mission_policy_completes_unseen_missions": "contract",
+    "test_mission_policy.py::test_every_shipped_model_is_in_the_checkout": "contract",
+    # ---- test_movers.py
+    "test_movers.py::test_forklift_body_follows_constant_speed_kinematics_back_and_forth": "formula",
+    "test_movers.py::test_forward_lidar_ray_sees_a_crossing_forklift_at_the_analytic_range_and_window": "formula",
+    "test_movers.py::test_forklift_stops_while_the_robot_is_in_its_safety_field": "hand",
+    "test_movers.py::test_worker_stops_near_the_robot_and_yield_off_walks_on": "hand",
+    "test_movers.py::test_collisions_are_classified_static_or_dynamic": "hand",
+    "test_movers.py::test_nearest_mover_distance_is_the_outline_gap": "formula",
+    "test_movers.py::test_mover_gap_matches_an_independent_polygon_distance": "self",  # polygon_gap comes from the module under test
+    "test_movers.py::test_pallet_events_never_disconnect_the_robot_from_its_goal": "formula",  # BFS written in the test
+    "test_movers.py::test_same_seed_same_mover_trajectories_in_two_processes": "self",
+    "test_movers.py::test_resets_on_one_layout_create_no_bodies": "contract",
+    "test_movers.py::test_memory_stays_flat_over_300_resets": "contract",  # ru_maxrss: a process peak
+    "test_movers.py::test_yaml_dynamic_errors_name_file_entry_and_field": "contract",
+    "test_movers.py::test_scripted_events_add_and_remove_on_time_and_are_reported": "hand",
+    "test_movers.py::test_lidar_map_forgets_cells_a_mover_left": "hand",
+    "test_movers.py::test_dynamic_env_api_and_hash_of_its_first_steps_differs_by_seed": "library",
+    "test_movers.py::test_dynamic_and_events_round_trip_through_yaml": "self",
+    "test_movers.py::test_lidar_history_stacks_the_earlier_scans_newest_first": "self",
+    "test_movers.py::test_a_forklift_reversing_beside_the_robot_does_not_sweep_it": "hand",
+    "test_movers.py::test_mover_proximity_term_prices_the_outline_gap_and_is_off_by_default": "formula",
+    # ---- test_navigation.py
+    "test_navigation.py::test_shortest_path_matches_geometry": "formula",
+    "test_navigation.py::test_pid_astar_navigates_procedural_warehouses": "contract",
+    "test_navigation.py::test_other_planners_run_episodes": "contract",
+    "test_navigation.py::test_odometry_pose_source_navigates_an_empty_room": "contract",
+    "test_navigation.py::test_navigate_cli_json": "contract",
+    "test_navigation.py::test_navigate_cli_bad_world": "contract",
+    "test_navigation.py::test_navigator_drives_an_env_with_normalized_actions_the_same_way": "self",
+    # ---- test_nothing_lost.py
+    "test_nothing_lost.py::test_a_killed_training_leaves_whole_files_and_resumes": "contract",
+    # the tiny suite's committed rows
+    "test_nothing_lost.py::test_a_killed_benchmark_leaves_whole_files_and_resumes_to_the_same_rows": "golden",
+    "test_nothing_lost.py::test_a_checkpoint_interrupted_after_its_commit_is_completed_whole": "contract",
+    "test_nothing_lost.py::test_a_checkpoint_interrupted_before_its_commit_leaves_the_previous_set": "contract",
+    "test_nothing_lost.py::test_a_checkpoint_without_statistics_removes_the_older_sets": "contract",
+    "test_nothing_lost.py::test_a_checkpoint_commit_naming_other_files_is_refused": "contract",
+    # ---- test_physics_profile.py
+    "test_physics_profile.py::test_rate_table_structure": "contract",
+    "test_physics_profile.py::test_reference_against_itself_is_exact": "self",
+    "test_physics_profile.py::test_driving_is_physical": "formula",  # distance = v t, heading = w t, less the start-up
+    "test_physics_profile.py::test_plate_collision_registers": "hand",
+    "test_physics_profile.py::test_rates_are_checked": "contract",
+    "test_physics_profile.py::test_fast_profile_keyword": "contract",
+    "test_physics_profile.py::test_unknown_profile_is_named": "contract",
+    "test_physics_profile.py::test_cli_physics_flag": "contract",
+    # ---- test_planning.py
+    "test_planning.py::test_grid_rejects_bad_input": "contract",
+    "test_planning.py::test_grid_coordinates_and_immutability": "hand",
+    "test_planning.py::test_segment_free_matches_dense_sampling": "formula",
+    "test_planning.py::test_inflate_matches_brute_force": "formula",
+    "test_planning.py::test_astar_cost_matches_dijkstra": "library",  # SciPy's Dijkstra on an explicit graph
+    "test_planning.py::test_astar_none_cases": "hand",
+    "test_planning.py::test_astar_on_inflated_grid_avoids_inflated_cells": "library",
+    "test_planning.py::test_rrt_paths_are_valid": "formula",  # dense sampling of every segment
+    "test_planning.py::test_rrt_shortcut_never_lengthens": "contract",
+    "test_planning.py::test_rrt_deterministic_per_seed": "self",
+    "test_planning.py::test_rrt_budget_only_truncates": "self",  # `path is None or path == full`: passes if every budget fails
+    "test_planning.py::test_rrt_none_cases": "hand",
+    "test_planning.py::test_rrt_none_when_iterations_run_out": "hand",
+    "test_planning.py::test_connected_matches_astar": "formula",
+    "test_planning.py::test_narrow_cells_match_brute_force": "formula",
+    "test_planning.py::test_narrow_problems_are_narrow": "contract",
+    "test_planning.py::test_bench_planners_reports": "smoke",  # keys and finiteness only
+    # ---- test_randomization.py
+    "test_randomization.py::test_draws_stay_inside_the_declared_ranges_and_cover_them": "hand",
+    "test_randomization.py::test_draws_are_reproducible_under_the_seed_and_keep_the_episode": "self",
+    "test_randomization.py::test_a_drawn_value_drives_the_same_physics_as_the_shift_itself": "self",
+    "test_randomization.py::test_world_parameters_reach_the_layout_and_mover_speeds_the_movers": "hand",
+    "test_randomization.py::test_bad_specifications_are_refused_by_name": "contract",
+    "test_randomization.py::test_every_shift_field_and_world_parameter_is_randomizable": "contract",
+    "test_randomization.py::test_a_hyperparameter_file_with_a_bad_randomize_block_names_file_and_key": "contract",
+    "test_randomization.py::test_the_ablation_files_differ_from_the_shipped_settings_only_in_their_arm": "contract",
+    # ---- test_reference_kinds.py
+    "test_reference_kinds.py::test_every_test_function_has_a_kind_and_every_kind_a_test_function": "contract",
+    "test_reference_kinds.py::test_every_kind_is_one_of_the_documented_ones": "contract",
+    "test_reference_kinds.py::test_the_collector_and_the_tables_on_a_made_up_folder": "hand",
+    # ---- test_report_browser.py
+    "test_report_browser.py::test_report_in_chromium": "library",  # a real Chromium through Playwright
+    # ---- test_reset_kernels.py
+    # the array code the kernels replaced
+    "test_reset_kernels.py::test_compiled_footprint_distance_is_the_array_codes_to_the_bit": "formula",
+    "test_reset_kernels.py::test_occupancy_and_levels_equal_the_full_clearance_grid": "formula",
+    "test_reset_kernels.py::test_compiled_line_of_sight_is_the_array_codes": "formula",
+    # ---- test_rl.py
+    "test_rl.py::test_short_training_of_each_algorithm_then_evaluate": "contract",
+    "test_rl.py::test_ppo_final_evaluation_is_the_saved_models": "self",
+    "test_rl.py::test_ppo_run_and_evaluate_report": "contract",
+    "test_rl.py::test_save_load_predict_gives_identical_actions": "self",
+    "test_rl.py::test_two_seeded_ppo_runs_give_identical_parameters": "self",
+    "test_rl.py::test_resume_continues_from_the_checkpoint": "contract",
+    "test_rl.py::test_init_from_starts_a_new_run_from_a_models_weights": "contract",
+    "test_rl.py::test_stop_at_success_stops_when_an_evaluation_reaches_the_rate": "hand",
+    "test_rl.py::test_bad_model_files_give_clear_errors": "contract",
+    "test_rl.py::test_interrupted_checkpoint_write_leaves_the_old_model_intact": "contract",
+    "test_rl.py::test_compare_plots_runs_and_tabulates": "contract",
+    "test_rl.py::test_hyperparams_file_replaces_the_packaged_one": "hand",
+    "test_rl.py::test_sb3_policy_and_navigator_run_the_same_episodes": "formula",  # initial distance against the straight line
+    "test_rl.py::test_collision_terminates_reaches_the_training_envs_and_evaluation_drops_it": "hand",
+    "test_rl.py::test_old_collision_terminal_key_is_upgraded": "contract",
+    "test_rl.py::test_compare_groups_runs_by_hyperparameter_file": "hand",
+    "test_rl.py::test_run_record_says_where_the_time_went": "self",
+    "test_rl.py::test_vec_env_choice": "contract",
+    # ---- test_rl_zoo.py
+    # SB3's MlpPolicy with the extractor
+    "test_rl_zoo.py::test_the_rl_zoo_form_builds_the_network_of_the_old_form_to_the_bit": "library",
+    "test_rl_zoo.py::test_rl_zoo_trains_ppo_with_the_projects_hyperparameter_file": "library",  # rl_zoo3 and PPO.load
+    # ---- test_robot.py
+    "test_robot.py::test_geometry_is_read_from_the_urdf": "hand",
+    "test_robot.py::test_straight_line_covers_the_commanded_distance_without_drift": "formula",
+    "test_robot.py::test_turn_in_place_reaches_the_commanded_yaw_rate": "formula",
+    "test_robot.py::test_arc_matches_kinematics": "formula",
+    "test_robot.py::test_non_finite_command_is_refused": "contract",
+    "test_robot.py::test_obstacles_meet_the_wheels_true_width": "hand",
+    "test_robot.py::test_a_stopped_robot_stands_still_with_the_park_brake": "hand",
+    "test_robot.py::test_the_park_brake_waits_for_the_wheels_to_slow_and_lets_go_on_the_next_command": "formula",
+    "test_robot.py::test_park_brake_rate_must_not_be_negative": "contract",
+    # ---- test_ros_bagmap.py
+    "test_ros_bagmap.py::test_independent_bag_maps_the_known_room": "library",  # bag written by rosbags; walls by exact ray casts
+    "test_ros_bagmap.py::test_bulletnav_bag_maps_onto_the_true_map": "formula",
+    "test_ros_bagmap.py::test_bad_bags_are_refused": "contract",
+    # ---- test_ros_record.py
+    "test_ros_record.py::test_types_counts_and_stamps": "library",  # read back with mcap_ros2
+    "test_ros_record.py::test_scan_equals_the_env_lidar": "library",
+    "test_ros_record.py::test_tf_chain_reaches_the_true_pose": "library",
+    "test_ros_record.py::test_maps_movers_and_metadata": "library",
+    "test_ros_record.py::test_message_definitions_parse_as_ros2_types": "library",
+    "test_ros_record.py::test_refusals_and_abort_leave_nothing": "contract",
+    "test_ros_record.py::test_cli_navigate_records": "library",
+    "test_ros_record.py::test_camera_topics": "library",
+    "test_ros_record.py::test_fleet_recording_one_namespace_per_robot": "library",
+    "test_ros_record.py::test_cli_fleet_and_evaluate_record": "library",
+    # ---- test_ros_replay.py
+    "test_ros_replay.py::test_replay_draws_the_live_frames": "hand",  # the frame count; the pictures against the live video
+    "test_ros_replay.py::test_recording_holds_what_replay_needs": "contract",
+    "test_ros_replay.py::test_replay_refuses_what_is_no_recording": "contract",
+    "test_ros_replay.py::test_foxglove_layout_and_panel": "contract",
+    # ---- test_rrt_fresh_process.py
+    "test_rrt_fresh_process.py::test_first_call_in_fresh_process_solves_narrow_passage": "contract",
+    "test_rrt_fresh_process.py::test_same_paths_in_this_process": "self",
+    "test_rrt_fresh_process.py::test_compiling_inside_the_first_call_changes_nothing": "self",
+    # ---- test_safe_models.py
+    "test_safe_models.py::test_a_crafted_zip_entry_is_refused_and_never_runs": "contract",
+    "test_safe_models.py::test_a_payload_in_any_entry_never_runs": "contract",
+    "test_safe_models.py::test_a_crafted_vecnormalize_pickle_is_refused_and_never_runs": "contract",
+    "test_safe_models.py::test_a_pickle_beside_safe_files_is_never_opened": "contract",
+    "test_safe_models.py::test_a_crafted_tensor_file_is_refused": "contract",
+    "test_safe_models.py::test_safe_files_that_were_tampered_with_are_refused": "contract",
+    "test_safe_models.py::test_pickle_globals_reads_names_without_importing": "hand",
+    "test_safe_models.py::test_shipped_models_load_from_the_safe_format_and_act_as_the_zip": "library",  # SB3's own zip loader
+    "test_safe_models.py::test_normalizer_matches_vecnormalize_arithmetic": "library",  # SB3's VecNormalize
+    # the shipped files' bytes
+    "test_safe_models.py::test_convert_model_needs_trust_for_a_pickle_and_reproduces_the_shipped_files": "golden",
+    "test_safe_models.py::test_broken_statistics_and_sidecars_are_clear_errors": "contract",
+    "test_safe_models.py::test_hyperparameter_files_name_only_allowed_classes": "contract",
+    "test_safe_models.py::test_a_pickled_schedule_function_is_not_run_and_the_model_still_acts": "contract",
+    # ---- test_sensors.py
+    "test_sensors.py::test_lidar_reads_a_wall_at_a_known_distance": "formula",
+    "test_sensors.py::test_lidar_never_sees_the_robot_and_reads_max_range_in_the_open": "hand",
+    "test_sensors.py::test_lidar_noise_has_the_configured_std": "formula",
+    "test_sensors.py::test_sensor_reads_are_idempotent_within_a_step": "contract",
+    "test_sensors.py::test_every_sensor_reading_lies_in_its_space": "contract",
+    "test_sensors.py::test_depth_camera_centre_pixel_reads_the_wall_distance": "formula",
+    "test_sensors.py::test_imu_noise_statistics_and_gravity_at_rest": "formula",
+    "test_sensors.py::test_imu_bias_and_rotation_rate": "formula",
+    "test_sensors.py::test_odometry_tracks_ground_truth": "formula",  # against PyBullet's true pose
+    # ---- test_shield.py
+    # reach = v dt + v^2 / 2a past the front face
+    "test_shield.py::test_a_wall_inside_the_stopping_sweep_stops_a_forward_command_and_one_just_beyond_does_not": "formula",
+    "test_shield.py::test_the_same_command_passes_unchanged_with_the_wall_3_m_away": "hand",
+    # scan of the box ray-cast in the test
+    "test_shield.py::test_a_turn_that_sweeps_a_box_corner_is_vetoed_and_one_that_clears_it_is_not": "formula",
+    "test_shield.py::test_the_wrapper_reports_its_decision_and_passes_actions_bit_for_bit_when_clear": "self",
+    "test_shield.py::test_the_sweep_ends_where_the_closed_form_stop_does": "formula",
+    "test_shield.py::test_turning_in_place_inside_the_margin_may_turn_away_from_a_wall_but_never_into_it": "formula",
+    "test_shield.py::test_fuzz_random_and_ramming_drivers_never_touch_anything_behind_the_shield": "contract",
+    # the unshielded ram's collision rate 1.0; the rest: one wrapper against the other
+    "test_shield.py::test_the_policy_wrapper_and_the_env_wrapper_run_the_same_episodes_and_evaluation_counts_them": "hand",
+    "test_shield.py::test_navigate_and_evaluate_take_shield_and_report_it": "contract",
+    "test_shield.py::test_train_with_the_shield_in_the_loop_records_it": "contract",  # the recorded flag only
+    "test_shield.py::test_video_tints_the_robot_on_shielded_steps": "contract",
+    "test_shield.py::test_bench_shield_prints_json_with_the_decision_time": "contract",  # plausibility only
+    "test_shield.py::test_bench_shield_drives_with_a_trained_model_and_times_its_creeps_apart": "contract",
+    "test_shield.py::test_dashboard_shows_the_shields_share_of_steps_in_a_static_world": "contract",
+    "test_shield.py::test_a_stop_always_passes_and_a_blocked_command_held_for_long_gets_turns_not_a_deadlock": "hand",
+    "test_shield.py::test_stuck_beside_a_waiting_worker_it_creeps_through_the_gap_without_coming_closer": "formula",
+    "test_shield.py::test_it_never_creeps_toward_a_waiting_worker_dead_ahead": "hand",
+    "test_shield.py::test_the_veto_becomes_stuck_after_patience_steps_and_forgets_at_reset": "contract",
+    "test_shield.py::test_a_box_corner_between_two_rays_is_rebuilt": "formula",
+    "test_shield.py::test_a_shielded_episode_among_movers_reproduces_the_committed_result_to_the_bit": "golden",
+    "test_shield.py::test_with_a_creep_floor_it_does_not_creep_along_a_gap_narrower_than_the_floor": "formula",
+    "test_shield.py::test_nearer_than_the_floor_it_still_creeps_away_from_what_it_is_near": "formula",
+    # ---- test_shifts.py
+    "test_shifts.py::test_a_slippery_floor_brakes_no_harder_than_coulomb_friction_allows": "formula",
+    "test_shifts.py::test_mass_and_motor_force_change_the_acceleration_as_newton_says": "formula",
+    "test_shifts.py::test_a_miscalibrated_odometry_model_drifts_by_its_error": "formula",
+    "test_shifts.py::test_latency_delays_the_motion_by_whole_control_steps": "hand",
+    "test_shifts.py::test_lidar_dropout_and_imu_noise_scale_as_declared": "formula",
+    "test_shifts.py::test_a_shift_keeps_the_episode_and_reports_itself": "hand",
+    "test_shifts.py::test_unknown_names_and_bad_values_are_refused_clearly": "contract",
+    "test_shifts.py::test_every_named_shift_runs_a_controller": "smoke",
+    # ---- test_simulation.py
+    # the obstacle counts; the poses against a third client
+    "test_simulation.py::test_two_worlds_in_one_process_stay_independent": "hand",
+    "test_simulation.py::test_robot_snapshot_equals_live_state_after_every_step_and_reset": "self",
+    "test_simulation.py::test_same_layout_reset_teleports_without_rebuilding": "hand",
+    "test_simulation.py::test_seeded_rollouts_are_bit_identical": "self",
+    "test_simulation.py::test_thousand_resets_do_not_grow_memory": "contract",
+    # ---- test_sweep.py
+    "test_sweep.py::test_sweep_file_errors_name_the_file_and_field": "contract",
+    "test_sweep.py::test_sweep_cli_reports_a_malformed_file_without_a_traceback": "contract",
+    "test_sweep.py::test_sweep_file_defaults_and_grid_expansion": "hand",
+    "test_sweep.py::test_sweep_shipped_files_are_valid": "contract",
+    "test_sweep.py::test_sweep_bootstrap_interval_matches_an_independent_resampling": "formula",  # a resampling loop in the test
+    "test_sweep.py::test_sweep_summary_groups_seeds_and_ranks_by_the_metric": "hand",
+    # its re-score runs the same evaluate_model as sweep/run.py
+    "test_sweep.py::test_sweep_two_trials_run_on_the_two_worker_nodes": "contract",
+    "test_sweep.py::test_sweep_a_failing_trial_is_reported_and_the_others_finish": "contract",
+    "test_sweep.py::test_sweep_optimize_writes_a_hyperparameter_file_train_accepts": "contract",
+    "test_sweep.py::test_sweep_interrupted_with_ctrl_c_resumes_without_rerunning_finished_trials": "contract",
+    # ---- test_tour.py
+    "test_tour.py::test_tour_matches_brute_force_on_random_matrices": "formula",
+    "test_tour.py::test_free_order_beats_the_given_order_where_they_differ": "hand",
+    "test_tour.py::test_tour_rejects_bad_input": "contract",
+    # ---- test_vector.py
+    "test_vector.py::test_make_vec_sync_is_seeded_autoresets_and_batches_info": "self",
+    "test_vector.py::test_make_vec_async_gives_the_sync_batch": "self",
+    # ---- test_viz.py
+    "test_viz.py::test_video_frames_are_composed_and_counted": "library",  # decoded by imageio; the documented frame count
+    "test_viz.py::test_recording_leaves_the_episode_unchanged": "self",
+    "test_viz.py::test_dashboard_needs_the_gui": "contract",
+    "test_viz.py::test_simplify_path_keeps_corners_and_caps_segments": "hand",
+    "test_viz.py::test_dashboard_throttles_and_replaces_in_place": "hand",
+    "test_viz.py::test_trajectory_log_and_plots": "hand",
+    "test_viz.py::test_bench_gui_reports_frame_rates": "hand",  # the documented render count
+    # ---- test_viz_mission.py
+    "test_viz_mission.py::test_visit_order_ranks_by_step": "hand",
+    "test_viz_mission.py::test_mission_plot_numbers_goals_and_visit_order": "hand",
+    "test_viz_mission.py::test_mission_plot_marks_unvisited_goals": "hand",
+    "test_viz_mission.py::test_single_goal_plot_has_no_mission_artists": "hand",
+    "test_viz_mission.py::test_mission_video_numbers_goals_and_shows_progress": "contract",
+    "test_viz_mission.py::test_dashboard_marks_every_goal_and_progress": "hand",
+    # ---- test_viz_movers.py
+    "test_viz_movers.py::test_plot_draws_one_route_per_mover_with_trail_and_footprint": "contract",
+    "test_viz_movers.py::test_scripted_events_are_marked_on_the_plot": "hand",
+    "test_viz_movers.py::test_static_world_logs_and_plots_no_movers_or_events": "hand",
+    "test_viz_movers.py::test_video_map_shows_movers_events_and_a_text_line": "contract",
+    "test_viz_movers.py::test_recording_and_logging_leave_a_dynamic_episode_unchanged": "self",
+    "test_viz_movers.py::test_dashboard_draws_routes_once_and_event_messages": "hand",
+}
+
+
+def collect(folder: Path = TESTS) -> list[str]:
+    """Every test function in ``folder``'s ``test_*.py`` files, read from their source: functions
+    named ``test*`` at module level or in a ``Test*`` class (``module::Class::name``)."""
+    names = []
+    for path in sorted(folder.glob("test_*.py")):
+        tree = ast.parse(path.read_text(), str(path))
+        for node in tree.body:
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.name.startswith("test"):
+                names.append(f"{path.name}::{node.name}")
+            elif isinstance(node, ast.ClassDef) and node.name.startswith("Test"):
+                names += [f"{path.name}::{node.name}::{sub.name}" for sub in node.body
+                          if isinstance(sub, (ast.FunctionDef, ast.AsyncFunctionDef)) and sub.name.startswith("test")]
+    return names
+
+
+def counts(kinds: dict[str, str] = KINDS) -> tuple[Counter, dict[str, Counter]]:
+    """The number of test functions of each kind, overall and per module."""
+    per_module: dict[str, Counter] = {}
+    for name, kind in kinds.items():
+        per_module.setdefault(name.split("::")[0], Counter())[kind] += 1
+    return sum(per_module.values(), Counter()), dict(sorted(per_module.items()))
+
+
+def _row(label: str, c: Counter) -> str:
+    total = sum(c.values())
+    independent = sum(c[k] for k in INDEPENDENT)
+    cells = " | ".join(str(c[k]) if c[k] else "" for k in ORDER)
+    return f"| {label} | {total} | {cells} | {independent} ({100 * independent / total:.0f} %) |"
+
+
+def markdown(kinds: dict[str, str] = KINDS) -> str:
+    """The overall and per-module counts by kind as two Markdown tables."""
+    overall, per_module = counts(kinds)
+    head = "| | tests | " + " | ".join(ORDER) + " | independent |\n|---|--:|" + "--:|" * len(ORDER) + "--:|"
+    lines = ["Overall:", "", head, _row("all", overall), "", "Per module:", "", head]
+    lines += [_row(f"`{module}`", c) for module, c in per_module.items()]
+    return "\n".join(lines) + "\n"
+
+
+if __name__ == "__main__":
+    sys.stdout.write(markdown())
