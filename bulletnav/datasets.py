@@ -16,7 +16,6 @@ without the shield).
 from __future__ import annotations
 
 import logging
-import re
 from typing import Any
 
 import gymnasium as gym
@@ -26,8 +25,6 @@ from bulletnav.errors import BulletnavError
 
 log = logging.getLogger(__name__)
 
-NAME = re.compile(r"^(?:[\w.-]+/)?[\w.-]+-v\d+$")
-"""A Minari dataset id: ``[namespace/]name-vN``."""
 
 
 def dataset_exists(name: str) -> bool:
@@ -38,13 +35,22 @@ def dataset_exists(name: str) -> bool:
 
 
 def check_name(name: str) -> str:
-    """``name`` when it is a valid, unused dataset id.
+    """``name`` when it is a valid, unused dataset id, by Minari's own rule
+    (``minari.dataset.minari_dataset.parse_dataset_id``, which ``minari.create_dataset_from_buffers``
+    applies when the episodes are written): checked before any episode runs.
 
     Raises:
         BulletnavError: a malformed id, or one the local store already holds.
     """
-    if not NAME.match(name):
-        raise BulletnavError(f"--dataset {name!r}: a Minari dataset id is [namespace/]name-vN, e.g. bulletnav/aisles-astar-v0")
+    from minari.dataset.minari_dataset import parse_dataset_id
+
+    try:
+        _, _, version = parse_dataset_id(name)  # int(None) when the -vN is missing: TypeError
+    except (ValueError, TypeError):
+        version = None
+    if version is None:
+        raise BulletnavError(f"--dataset {name!r}: a Minari dataset id is [namespace/]name-vN (name: letters, digits, "
+                             "'_' and '-'; namespace: 2 or more of them and '/'), e.g. bulletnav/aisles-astar-v0")
     if dataset_exists(name):
         from minari.storage.datasets_root_dir import get_dataset_path
 

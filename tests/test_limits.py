@@ -34,7 +34,52 @@ CASES = {
     "episode_steps": (lambda v: TaskConfig(steps_per_goal=v), "task steps_per_goal x goals", D.episode_steps + 1),
     "goals": (lambda v: TaskConfig(goals=v, steps_per_goal=100), "task goals", D.goals + 1),
     "sweep_trials": (lambda v: _sweep(v), "sweep trials (grid configurations x seeds)", D.sweep_trials + 1),
+    "suite_episodes": (lambda v: _suite(episodes=v), "field 'episodes'", D.suite_episodes + 1),
+    "suite_worlds": (lambda v: _suite(worlds=v), "field 'worlds' (entries)", D.suite_worlds + 1),
+    "suite_controllers": (lambda v: _suite(controllers=v), "field 'controllers' (entries)", D.suite_controllers + 1),
+    "suite_total": (lambda v: _suite(total=v), "episodes in all", D.suite_total + 1),
+    "map_extent": (lambda v: _mapper((0.0, 0.0, v, 1.0), 1.0), "map extent (x)", D.map_extent + 0.5),
+    # 2^-15 m cells (exact in binary): v cells in a row, 512 m at the limit
+    "map_cells": (lambda v: _mapper((0.0, 0.0, v * 2.0**-15, 2.0**-15), 2.0**-15), "map cells (", D.map_cells + 1),
+    "net_width": (lambda v: _sizes({"net_arch": {"pi": [64, v]}}, {}), "m.json: net_arch['pi'] width", D.net_width + 1),
+    "net_layers": (lambda v: _sizes({"net_arch": [64] * v}, {}), "m.json: net_arch layers", D.net_layers + 1),
+    "n_steps": (lambda v: _sizes({}, {"n_steps": v}), "m.json: n_steps", D.n_steps + 1),
+    "batch_size": (lambda v: _sizes({}, {"batch_size": v}), "m.json: batch_size", D.batch_size + 1),
+    "buffer_size": (lambda v: _sizes({}, {"buffer_size": v}), "m.json: buffer_size", D.buffer_size + 1),
+    "n_envs": (lambda v: _sizes({}, {"n_envs": v}), "m.json: n_envs", D.n_envs + 1),
+    "fleet_robots": (lambda v: _fleet(num_robots=v), "fleet num_robots", D.fleet_robots + 1),
+    "fleet_duration": (lambda v: _fleet(duration_s=v), "fleet duration_s", D.fleet_duration + 0.5),
 }
+
+
+def _suite(episodes=1, worlds=1, controllers=1, total=None):
+    from bulletnav.benchmark.suite import parse_suite
+
+    if total is not None:  # worlds of at most suite_episodes each, summing to `total`
+        sizes = [D.suite_episodes] * (total // D.suite_episodes) + ([total % D.suite_episodes] if total % D.suite_episodes else [])
+        world_list = [{"name": f"w{i}", "env": "bulletnav/Warehouse-v0", "episodes": n} for i, n in enumerate(sizes)]
+    else:
+        world_list = [{"name": f"w{i}", "env": "bulletnav/Warehouse-v0"} for i in range(worlds)]
+    return parse_suite({"episodes": episodes, "worlds": world_list,
+                        "controllers": [{"name": f"c{i}", "type": "navigator"} for i in range(controllers)]}, "s.yaml")
+
+
+def _mapper(bounds, resolution):
+    from bulletnav.planning.mapping import LidarMapper
+
+    return LidarMapper(bounds, resolution)
+
+
+def _sizes(kwargs, hyper):
+    from bulletnav.rl.safe import check_sizes
+
+    check_sizes(kwargs, hyper, "m.json")
+
+
+def _fleet(**kwargs):
+    from bulletnav.fleet.config import FleetConfig
+
+    return FleetConfig(**kwargs)
 
 
 def _sweep(trials: int):

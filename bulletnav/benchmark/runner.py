@@ -25,8 +25,17 @@ from pathlib import Path
 from typing import Any
 
 from bulletnav.benchmark.metrics import METRICS, EpisodeTrace, cell_summary, episode_metrics
-from bulletnav.benchmark.suite import ControllerSpec, Suite, SuiteError, WorldSpec, load_suite, replay_command
+from bulletnav.benchmark.suite import (
+    ControllerSpec,
+    Suite,
+    SuiteError,
+    WorldSpec,
+    load_suite,
+    replay_command,
+    untrusted,
+)
 from bulletnav.errors import BulletnavError
+from bulletnav.limits import inside
 
 log = logging.getLogger(__name__)
 
@@ -52,7 +61,8 @@ class _Cells:
 
     def get(self, w: int, c: int) -> tuple[Any, Any]:
         if (w, c) not in self.cells:
-            self.cells[(w, c)] = make_cell(self.suite.worlds[w], self.suite.controllers[c], self.root)
+            self.cells[(w, c)] = make_cell(self.suite.worlds[w], self.suite.controllers[c], self.root,
+                                           self.suite.trust_code)
         return self.cells[(w, c)]
 
     def close(self) -> None:
@@ -61,11 +71,16 @@ class _Cells:
         self.cells = {}
 
 
-def make_cell(world: WorldSpec, controller: ControllerSpec, root: Path = PROJECT_ROOT) -> tuple[Any, Any]:
+def make_cell(world: WorldSpec, controller: ControllerSpec, root: Path = PROJECT_ROOT,
+              trust_code: bool = False) -> tuple[Any, Any]:
     """The env (behind the shield if asked) and the policy of one cell.
 
+    Args:
+        trust_code: import a policy class outside the allow-list (``--trust-code``).
+
     Raises:
-        BulletnavError: a model file that cannot be loaded, a policy class that cannot be imported.
+        BulletnavError: a model file that cannot be loaded, a policy class outside the
+            allow-list (without ``trust_code``) or that cannot be imported.
     """
     import gymnasium as gym
 
@@ -98,11 +113,7 @@ def make_cell(world: WorldSpec, controller: ControllerSpec, root: Path = PROJECT
             check_model_fits(model, env, model_path, world.env)
             return SB3Policy(model, vecnorm)
     else:
-        module_name, _, class_name = controller.cls.partition(":")
-        try:
-            cls = getattr(import_module(module_name), class_name)
-        except (ImportError, AttributeError) as exc:
-            raise BulletnavError(f"controller {controller.name!r}: cannot import {controller.cls!r} ({exc})") from None
+        cls = policy_class(controller, trust_code)
 
         def policy_factory(env):
             return cls(env.unwrapped.scene, **controller.kwargs)
@@ -112,6 +123,26 @@ def make_cell(world: WorldSpec, controller: ControllerSpec, root: Path = PROJECT
 
         env = ShieldWrapper(env)
     return env, policy_factory(env)
+
+
+def policy_class(controller: ControllerSpec, trust_code: bool = False) -> type:
+    """The class a ``policy`` controller names, imported only from the allow-list
+    (:func:`bulletnav.benchmark.suite.untrusted`) unless ``trust_code``.
+
+    Raises:
+        BulletnavError: outside the allow-list, not importable, or not a class.
+    """
+    problem = None if trust_code else untrusted(controller.cls)
+    if problem:
+        raise SuiteError(f"controller {controller.name!r}: class {controller.cls!r}: {problem}")
+    module_name, _, class_name = controller.cls.partition(":")
+    try:
+        cls = getattr(import_module(module_name), class_name)
+    except (ImportError, AttributeError, ValueError) as exc:
+        raise BulletnavError(f"controller {controller.name!r}: cannot import {controller.cls!r} ({exc})") from None
+    if not isinstance(cls, type):
+        raise BulletnavError(f"controller {controller.name!r}: {controller.cls!r} is a {type(cls).__name__}, not a class")
+    return cls
 
 
 def run_chunk(cells: _Cells, w: int, c: int, episodes: list[int]) -> list[dict[str, Any]]:
@@ -204,7 +235,10 @@ def run_suite(suite: Suite, out: Path, workers: int = 1, address: str | None = N
     if workers < 1:
         raise BulletnavError(f"workers must be >= 1, got {workers}")
     out.mkdir(parents=True, exist_ok=True)
-    log_path, meta_path = out / "episodes.jsonl", out / "suite.json"
+    try:  # a link named like one of the files must not carry the writes out of the folder
+        log_path, meta_path, results_path = (inside(out, name) for name in ("episodes.jsonl", "suite.json", "results.json"))
+    except ValueError as exc:
+        raise BulletnavError(f"--out {out}: {exc}") from None
     if log_path.exists() and not resume:
         raise BulletnavError(f"{out} holds an earlier run ({log_path.name}): pass --resume to go on with it, "
                              "or choose another --out")
@@ -233,7 +267,7 @@ def run_suite(suite: Suite, out: Path, workers: int = 1, address: str | None = N
             run_in_pool([(_run_in_process, (suite, str(root), w, c, eps)) for w, c, eps in chunks], workers, keep)
     results = build_results(suite, rows, root)
     results["provenance"] = run_provenance(time.perf_counter() - t0, workers, address)
-    write_strict_json(out / "results.json", results)
+    write_strict_json(results_path, results)
     return results
 
 
@@ -391,14 +425,14 @@ def strict_json(value: Any) -> Any:
     return value
 
 
-def replay(suite_path: str, world: str, controller: str, seed: int) -> dict[str, Any]:
+def replay(suite_path: str, world: str, controller: str, seed: int, trust_code: bool = False) -> dict[str, Any]:
     """Run one episode of a suite again (episode ``seed - suite.seed`` of ``world`` with
-    ``controller``) and return its row.
+    ``controller``) and return its row (``trust_code``: as ``--trust-code``).
 
     Raises:
         SuiteError: no world or controller of that name in the suite.
     """
-    suite = load_suite(suite_path)
+    suite = load_suite(suite_path, trust_code)
     names_w = [w.name for w in suite.worlds]
     names_c = [c.name for c in suite.controllers]
     if world not in names_w or controller not in names_c:

@@ -27,13 +27,15 @@ episode of a report can be replayed by one ``bulletnav navigate`` / ``evaluate``
 from __future__ import annotations
 
 import hashlib
+import shlex
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 from bulletnav import limits
-from bulletnav.errors import BulletnavError, LimitError
+from bulletnav.errors import ConfigError, LimitError
+from bulletnav.rl.hyperparams import IMPORTABLE as HYPERPARAM_IMPORTABLE
 from bulletnav.yamlfile import read_yaml, show
 
 SUITES_DIR = Path(str(resources.files("bulletnav").joinpath("benchmark", "suites")))
@@ -54,11 +56,15 @@ WORLD_KWARGS = {"num_obstacles": "--obstacles", "world": "--world", "perturb": "
 """World kwargs a suite may set, with the CLI flag that replays them."""
 
 PLANNERS = ("none", "astar", "rrt")
-LIMITS = {"episodes": 100_000, "worlds": 64, "controllers": 64}
-"""Largest suite the parser accepts (raise them here)."""
+
+IMPORTABLE = tuple(p for p in HYPERPARAM_IMPORTABLE if not p.startswith("torch."))
+"""Packages whose classes a suite's ``policy`` entries may name without ``--trust-code``: the
+allow-list of hyperparameter files (:data:`bulletnav.rl.hyperparams.IMPORTABLE`) less torch's
+layers and optimizers, which are no policies. The sizes a suite may ask for are limits of
+:mod:`bulletnav.limits` (``suite_*``)."""
 
 
-class SuiteError(BulletnavError):
+class SuiteError(ConfigError):
     """A suite file that cannot be used; the message names the file and the field."""
 
 
@@ -114,6 +120,8 @@ class Suite:
     """Where it came from (file path)."""
     sha256: str = ""
     """SHA-256 of the file's bytes (the results record it)."""
+    trust_code: bool = False
+    """Policy classes outside :data:`IMPORTABLE` were accepted (``--trust-code``)."""
 
     def episodes_of(self, world: WorldSpec) -> int:
         return world.episodes or self.episodes
@@ -122,6 +130,17 @@ class Suite:
     def total(self) -> int:
         """Episodes in the whole suite."""
         return sum(self.episodes_of(w) for w in self.worlds) * len(self.controllers)
+
+    def out_dir(self, base: str | Path = "runs/benchmark") -> Path:
+        """``base/<name>``, the default output folder.
+
+        Raises:
+            SuiteError: it resolves outside ``base`` (a link inside ``base`` leading out).
+        """
+        try:
+            return limits.inside(base, self.name)
+        except ValueError as exc:
+            raise SuiteError(f"{self.source}: field 'name' = {show(self.name)}: the output folder {exc}") from None
 
 
 def resolve_suite(name_or_path: str) -> Path:
@@ -140,8 +159,9 @@ def resolve_suite(name_or_path: str) -> Path:
     return path
 
 
-def load_suite(name_or_path: str) -> Suite:
-    """Read and check a suite (:func:`resolve_suite`, :func:`parse_suite`).
+def load_suite(name_or_path: str, trust_code: bool = False) -> Suite:
+    """Read and check a suite (:func:`resolve_suite`, :func:`parse_suite`; ``trust_code`` is
+    ``--trust-code``).
 
     Raises:
         SuiteError: the file is missing, not YAML, or a field is wrong (named in the message).
@@ -152,7 +172,7 @@ def load_suite(name_or_path: str) -> Suite:
     except OSError as exc:
         raise SuiteError(f"{path}: cannot read suite file ({exc.strerror or exc})") from exc
     raw = read_yaml(path, "suite file", SuiteError, data)
-    return parse_suite(raw, str(path), hashlib.sha256(data).hexdigest())
+    return parse_suite(raw, str(path), hashlib.sha256(data).hexdigest(), trust_code)
 
 
 def _int(value: Any, where: str, name: str, lo: int, hi: int) -> int:
@@ -176,14 +196,16 @@ def _mapping(value: Any, where: str, name: str, allowed: set[str]) -> dict[str, 
     return value
 
 
-def parse_suite(raw: Any, where: str = "<suite>", sha256: str = "") -> Suite:
+def parse_suite(raw: Any, where: str = "<suite>", sha256: str = "", trust_code: bool = False) -> Suite:
     """Check a decoded suite document and build a :class:`Suite`.
+
+    Args:
+        trust_code: accept ``policy`` classes outside :data:`IMPORTABLE` (``--trust-code``:
+            running the suite imports and runs the module each names).
 
     Raises:
         SuiteError: naming ``where``, the field and what is wrong.
     """
-    import gymnasium as gym
-
     import bulletnav  # noqa: F401  (registers the ids)
 
     top = _mapping(raw, where, "the suite", {"name", "description", "episodes", "seed", "worlds", "controllers"})
@@ -191,94 +213,130 @@ def parse_suite(raw: Any, where: str = "<suite>", sha256: str = "") -> Suite:
         if required not in top:
             raise SuiteError(f"{where}: field '{required}' is missing")
     name = _str(top.get("name", Path(where).stem), where, "name")
-    episodes = _int(top.get("episodes", 20), where, "episodes", 1, LIMITS["episodes"])
-    seed = _int(top.get("seed", 0), where, "seed", 0, 2**31 - 1 - LIMITS["episodes"])
+    if not limits.is_slug(name):
+        given = "field 'name'" if "name" in top else "field 'name' (default: the file's name)"
+        raise SuiteError(f"{where}: {given} names the output folder: it must be {limits.SLUG_RULE}, got {show(name)}")
+    episodes = _int(top.get("episodes", 20), where, "episodes", 1, 2**31 - 1)
+    _limit(where, "suite_episodes", episodes, "field 'episodes'")
+    seed = _int(top.get("seed", 0), where, "seed", 0, 2**31 - 1)
     worlds_raw, controllers_raw = top["worlds"], top["controllers"]
     for key, items in (("worlds", worlds_raw), ("controllers", controllers_raw)):
-        if not isinstance(items, list) or not 1 <= len(items) <= LIMITS[key]:
-            raise SuiteError(f"{where}: field '{key}' must be a list of 1 to {LIMITS[key]} entries, got {show(items)}")
-    worlds = []
-    for i, w in enumerate(worlds_raw):
-        tag = f"worlds[{i}]"
-        w = _mapping(w, where, tag, {"name", "env", "kwargs", "episodes"})
-        env = _str(w.get("env"), where, f"{tag}.env")
-        if env not in gym.registry or not env.startswith("bulletnav/"):
-            known = sorted(e for e in gym.registry if e.startswith("bulletnav/"))
-            raise SuiteError(f"{where}: field '{tag}.env' must be a bulletnav env id ({', '.join(known)}), got {show(env)}")
-        kwargs = _mapping(w.get("kwargs") or {}, where, f"{tag}.kwargs", set(WORLD_KWARGS))
-        for key, limit in (("num_obstacles", "obstacles"), ("goals", "goals")):
-            if key in kwargs:
-                count = _int(kwargs[key], where, f"{tag}.kwargs.{key}", 0 if key == "num_obstacles" else 1, 2**31)
-                try:
-                    limits.check(limit, count, f"field '{tag}.kwargs.{key}'")
-                except LimitError as exc:
-                    raise SuiteError(f"{where}: {exc}") from None
-        if "world" in kwargs:
-            world_file = Path(_str(kwargs["world"], where, f"{tag}.kwargs.world"))
-            if not world_file.is_absolute():  # relative to the suite file, as written in it
-                world_file = Path(where).parent / world_file
-            kwargs = {**kwargs, "world": str(world_file)}
-        default_name = env.split("/")[-1].removeprefix("Warehouse").removesuffix("-v0").lower() or "scattered"
-        count = _int(w.get("episodes", 0), where, f"{tag}.episodes", 0, LIMITS["episodes"])
-        worlds.append(WorldSpec(_str(w.get("name", default_name), where, f"{tag}.name"), env, dict(kwargs), count))
-    controllers = []
-    for i, c in enumerate(controllers_raw):
-        tag = f"controllers[{i}]"
-        c = _mapping(c, where, tag, {"name", "type", "planner", "model", "class", "kwargs", "shield"})
-        kind = c.get("type")
-        if kind not in ("navigator", "model", "policy"):
-            raise SuiteError(f"{where}: field '{tag}.type' must be 'navigator', 'model' or 'policy', got {show(kind)}")
-        shield = c.get("shield", False)
-        if not isinstance(shield, bool):
-            raise SuiteError(f"{where}: field '{tag}.shield' must be true or false, got {show(shield)}")
-        spec: dict[str, Any] = {"type": kind, "shield": shield}
-        if kind == "navigator":
-            planner = c.get("planner", "astar")
-            if planner not in PLANNERS:
-                raise SuiteError(f"{where}: field '{tag}.planner' must be one of {list(PLANNERS)}, got {show(planner)}")
-            spec["planner"] = planner
-            default = {"none": "PID", "astar": "PID + A*", "rrt": "PID + RRT"}[planner]
-        elif kind == "model":
-            spec["model"] = _str(c.get("model"), where, f"{tag}.model")
-            default = "PPO" if spec["model"] == "shipped" else Path(spec["model"]).stem
-        else:
-            target = _str(c.get("class"), where, f"{tag}.class")
-            if target.count(":") != 1 or not all(target.split(":")):
-                raise SuiteError(f"{where}: field '{tag}.class' must be 'module:Class', got {show(target)}")
-            spec["cls"] = target
-            kwargs_ = c.get("kwargs") or {}
-            spec["kwargs"] = dict(_mapping(kwargs_, where, f"{tag}.kwargs", set(kwargs_) if isinstance(kwargs_, dict) else set()))
-            default = target.split(":")[1]
-        name_ = _str(c.get("name", default + (" + shield" if shield else "")), where, f"{tag}.name")
-        controllers.append(ControllerSpec(name=name_, **spec))
+        if not isinstance(items, list) or not items:
+            raise SuiteError(f"{where}: field '{key}' must be a non-empty list, got {show(items)}")
+        _limit(where, f"suite_{key}", len(items), f"field '{key}' (entries)")
+    worlds = [_parse_world(w, where, f"worlds[{i}]") for i, w in enumerate(worlds_raw)]
+    controllers = [_parse_controller(c, where, f"controllers[{i}]", trust_code) for i, c in enumerate(controllers_raw)]
     for label, names in (("worlds", [w.name for w in worlds]), ("controllers", [c.name for c in controllers])):
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
             raise SuiteError(f"{where}: {label} need distinct names; repeated: {dup}")
-    suite = Suite(name, episodes, seed, tuple(worlds), tuple(controllers), where, sha256)
-    if suite.total > LIMITS["episodes"] * 10:
-        raise SuiteError(f"{where}: {suite.total} episodes in all exceed the limit of {LIMITS['episodes'] * 10} "
-                         "(bulletnav.benchmark.suite.LIMITS)")
+    suite = Suite(name, episodes, seed, tuple(worlds), tuple(controllers), where, sha256, trust_code)
+    last = seed + max(suite.episodes_of(w) for w in worlds) - 1
+    if last > 2**31 - 1:
+        raise SuiteError(f"{where}: field 'seed' = {seed}: its last episode's seed {last} passes 2^31 - 1")
+    _limit(where, "suite_total", suite.total, "episodes in all (worlds' episodes x controllers)")
     return suite
 
 
+def _limit(where: str, name: str, value: int, what: str) -> None:
+    """:func:`bulletnav.limits.check` as a :class:`SuiteError` naming the file."""
+    try:
+        limits.check(name, value, what)
+    except LimitError as exc:
+        raise SuiteError(f"{where}: {exc}") from None
+
+
+def _parse_world(w: Any, where: str, tag: str) -> WorldSpec:
+    """One ``worlds:`` entry."""
+    import gymnasium as gym
+
+    w = _mapping(w, where, tag, {"name", "env", "kwargs", "episodes"})
+    env = _str(w.get("env"), where, f"{tag}.env")
+    if env not in gym.registry or not env.startswith("bulletnav/"):
+        known = sorted(e for e in gym.registry if e.startswith("bulletnav/"))
+        raise SuiteError(f"{where}: field '{tag}.env' must be a bulletnav env id ({', '.join(known)}), got {show(env)}")
+    kwargs = _mapping(w.get("kwargs") or {}, where, f"{tag}.kwargs", set(WORLD_KWARGS))
+    for key, limit in (("num_obstacles", "obstacles"), ("goals", "goals")):
+        if key in kwargs:
+            count = _int(kwargs[key], where, f"{tag}.kwargs.{key}", 0 if key == "num_obstacles" else 1, 2**31)
+            _limit(where, limit, count, f"field '{tag}.kwargs.{key}'")
+    if "world" in kwargs:
+        world_file = Path(_str(kwargs["world"], where, f"{tag}.kwargs.world"))
+        if not world_file.is_absolute():  # relative to the suite file, as written in it
+            world_file = Path(where).parent / world_file
+        kwargs = {**kwargs, "world": str(world_file)}
+    default_name = env.split("/")[-1].removeprefix("Warehouse").removesuffix("-v0").lower() or "scattered"
+    count = _int(w.get("episodes", 0), where, f"{tag}.episodes", 0, 2**31 - 1)
+    _limit(where, "suite_episodes", count, f"field '{tag}.episodes'")
+    return WorldSpec(_str(w.get("name", default_name), where, f"{tag}.name"), env, dict(kwargs), count)
+
+
+def _parse_controller(c: Any, where: str, tag: str, trust_code: bool) -> ControllerSpec:
+    """One ``controllers:`` entry."""
+    c = _mapping(c, where, tag, {"name", "type", "planner", "model", "class", "kwargs", "shield"})
+    kind = c.get("type")
+    if kind not in ("navigator", "model", "policy"):
+        raise SuiteError(f"{where}: field '{tag}.type' must be 'navigator', 'model' or 'policy', got {show(kind)}")
+    shield = c.get("shield", False)
+    if not isinstance(shield, bool):
+        raise SuiteError(f"{where}: field '{tag}.shield' must be true or false, got {show(shield)}")
+    spec: dict[str, Any] = {"type": kind, "shield": shield}
+    if kind == "navigator":
+        planner = c.get("planner", "astar")
+        if planner not in PLANNERS:
+            raise SuiteError(f"{where}: field '{tag}.planner' must be one of {list(PLANNERS)}, got {show(planner)}")
+        spec["planner"] = planner
+        default = {"none": "PID", "astar": "PID + A*", "rrt": "PID + RRT"}[planner]
+    elif kind == "model":
+        spec["model"] = _str(c.get("model"), where, f"{tag}.model")
+        default = "PPO" if spec["model"] == "shipped" else Path(spec["model"]).stem
+    else:
+        target = _str(c.get("class"), where, f"{tag}.class")
+        if target.count(":") != 1 or not all(target.split(":")):
+            raise SuiteError(f"{where}: field '{tag}.class' must be 'module:Class', got {show(target)}")
+        problem = None if trust_code else untrusted(target)
+        if problem:
+            raise SuiteError(f"{where}: field '{tag}.class' = {show(target)}: {problem}")
+        spec["cls"] = target
+        kwargs_ = c.get("kwargs") or {}
+        spec["kwargs"] = dict(_mapping(kwargs_, where, f"{tag}.kwargs", set(kwargs_) if isinstance(kwargs_, dict) else set()))
+        default = target.split(":")[1]
+    name_ = _str(c.get("name", default + (" + shield" if shield else "")), where, f"{tag}.name")
+    return ControllerSpec(name=name_, **spec)
+
+
+def untrusted(target: str) -> str | None:
+    """Why the policy class ``module:Class`` may not be imported without ``--trust-code``
+    (its module lies outside :data:`IMPORTABLE`), or None when it may."""
+    module = target.partition(":")[0]
+    if (module + ".").startswith(IMPORTABLE):
+        return None
+    allowed = ", ".join(m.rstrip(".") for m in IMPORTABLE)
+    return (f"a suite may name policy classes of {allowed} only; pass --trust-code to import and run "
+            f"the module {show(module)} (it runs that module's code)")
+
+
 def replay_command(suite: Suite, world: WorldSpec, controller: ControllerSpec, seed: int, root: Path) -> str:
-    """The ``bulletnav`` command that replays episode ``seed`` of ``world`` with ``controller``
-    (the same env kwargs, the same seeded reset, the same shield)."""
-    flags = [f"--env {world.env}"]
+    """The shell command that replays episode ``seed`` of ``world`` with ``controller`` (the
+    same env kwargs, the same seeded reset, the same shield): every argument in full and
+    quoted for a POSIX shell (``shlex.split`` gives the arguments back)."""
+    flags = ["--env", world.env]
     for key, value in world.kwargs.items():
-        flags.append(f"{WORLD_KWARGS[key]} {value}")
-    flags += [f"--seed {seed}", "--episodes 1"]
+        flags += [WORLD_KWARGS[key], str(value)]
+    flags += ["--seed", str(seed), "--episodes", "1"]
     if controller.shield:
         flags.append("--shield")
     if controller.type == "navigator":
-        return f"bulletnav navigate --planner {controller.planner} " + " ".join(flags) + " --video episode.mp4"
+        return shlex.join(["bulletnav", "navigate", "--planner", controller.planner, *flags, "--video", "episode.mp4"])
     if controller.type == "model":
         path = controller.model_path(world.env, root)
         try:
             shown = path.relative_to(root)
         except ValueError:
             shown = path
-        return f"bulletnav evaluate --model {shown} " + " ".join(flags) + " --video episode.mp4"
-    return (f"python -c \"from bulletnav.benchmark.runner import replay; print(replay({show(suite.source)}, "
-            f"{show(world.name)}, {show(controller.name)}, {seed}))\"")
+        return shlex.join(["bulletnav", "evaluate", "--model", str(shown), *flags, "--video", "episode.mp4"])
+    args = [repr(suite.source), repr(world.name), repr(controller.name), str(seed)]
+    if suite.trust_code:
+        args.append("trust_code=True")
+    code = f"import json; from bulletnav.benchmark.runner import replay; print(json.dumps(replay({', '.join(args)})))"
+    return shlex.join(["python", "-c", code])

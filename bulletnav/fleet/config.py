@@ -5,10 +5,16 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from bulletnav import limits
 from bulletnav.errors import ConfigError
 
 MAX_ROBOTS = 16
-"""Most robots one fleet holds (each robot takes one collision-filter bit of its own)."""
+"""Most robots one fleet holds by default: the limit ``fleet_robots`` (:mod:`bulletnav.limits`;
+``BULLETNAV_MAX_FLEET_ROBOTS`` raises it up to :data:`ROBOT_BITS`)."""
+
+ROBOT_BITS = 26
+"""Most robots the collision filter can tell apart, whatever the limit says: robot ``i`` takes
+bit ``5 + i`` of PyBullet's 32-bit filter group (:data:`bulletnav.fleet.lidar.FIRST_ROBOT_BIT`)."""
 
 DOCK_WALLS = ("auto", "south", "north", "west", "east")
 """Where the drop stations (the dock) may lie: along one wall (south is -y, west is -x), or
@@ -21,9 +27,11 @@ class FleetConfig:
     :class:`~bulletnav.config.EnvConfig`, as for the single-robot envs)."""
 
     num_robots: int = 4
-    """Robots in the warehouse, 1 to :data:`MAX_ROBOTS`; agents ``robot_0`` ... ``robot_{N-1}``."""
+    """Robots in the warehouse, 1 to the limit ``fleet_robots`` (16; :mod:`bulletnav.limits`);
+    agents ``robot_0`` ... ``robot_{N-1}``."""
     duration_s: float = 180.0
-    """Simulated length of an episode (s); every robot is truncated when it ends, none earlier."""
+    """Simulated length of an episode (s), at most the limit ``fleet_duration`` (3600); every
+    robot is truncated when it ends, none earlier."""
     collision_penalty_s: float = 5.0
     """After a collision a robot stands still this long (s): its actions are ignored."""
     min_clearance: float = 0.3
@@ -41,12 +49,14 @@ class FleetConfig:
 
     def __post_init__(self) -> None:
         n = self.num_robots
-        if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= MAX_ROBOTS:
-            raise ConfigError(f"fleet num_robots must be an integer from 1 to {MAX_ROBOTS}, got {n!r}")
+        if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= ROBOT_BITS:
+            raise ConfigError(f"fleet num_robots must be an integer from 1 to {limits.current().fleet_robots}, got {n!r}")
+        limits.check("fleet_robots", n, "fleet num_robots")
         for name in ("duration_s", "station_spacing", "station_offset"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ConfigError(f"fleet {name} must be a positive number, got {value!r}")
+        limits.check("fleet_duration", self.duration_s, "fleet duration_s")
         for name in ("collision_penalty_s", "min_clearance"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from bulletnav import limits
 from bulletnav.planning.grid import OccupancyGrid
 
 UNKNOWN, FREE, OCCUPIED = -1, 0, 1
@@ -26,17 +27,27 @@ class LidarMapper:
     ``occ_threshold``, free below ``free_threshold``, unknown in between (including never
     seen). Each cell gets at most one free vote per scan, so long rays do not outweigh their
     end points.
+
+    Raises:
+        ValueError: non-finite or reversed bounds, a resolution that is not a finite number > 0.
+        LimitError: an extent past the limit ``map_extent`` or more cells than ``map_cells``
+            (:mod:`bulletnav.limits`), before the grid is allocated.
     """
 
     def __init__(self, bounds: tuple[float, float, float, float], resolution: float = 0.2,
                  l_free: float = -0.4, l_occ: float = 0.85, l_max: float = 3.5,
                  occ_threshold: float = 0.6, free_threshold: float = -0.3, free_margin: float = 0.4) -> None:
-        if resolution <= 0:
-            raise ValueError(f"resolution must be > 0, got {resolution}")
+        if not (math.isfinite(resolution) and resolution > 0):
+            raise ValueError(f"resolution must be a finite number > 0 m, got {resolution}")
         x0, y0, x1, y1 = bounds
+        if not all(math.isfinite(v) for v in bounds) or x1 < x0 or y1 < y0:
+            raise ValueError(f"map bounds must be finite (x0, y0, x1, y1) m with x0 <= x1 and y0 <= y1, got {bounds}")
+        limits.check("map_extent", x1 - x0, "map extent (x)")
+        limits.check("map_extent", y1 - y0, "map extent (y)")
         self.resolution = resolution
         self.nx = max(1, int(math.ceil((x1 - x0) / resolution - 1e-9)))
         self.ny = max(1, int(math.ceil((y1 - y0) / resolution - 1e-9)))
+        limits.check("map_cells", self.nx * self.ny, f"map cells ({self.nx} x {self.ny} of {resolution:g} m)")
         self.x0, self.y0 = x0, y0
         self.log_odds = np.zeros((self.nx, self.ny), dtype=np.float32)
         self.l_free, self.l_occ, self.l_max = l_free, l_occ, l_max

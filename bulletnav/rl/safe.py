@@ -230,6 +230,44 @@ def kwargs_from_json(d: Any, what: str) -> dict[str, Any]:
             for k, v in d.items()}
 
 
+SIZED_HYPERPARAMETERS = ("n_steps", "batch_size", "buffer_size", "n_envs")
+"""Hyperparameters of a saved model that size what building it allocates, each bounded by the
+limit of the same name in :mod:`bulletnav.limits` (the network by ``net_width`` and ``net_layers``)."""
+
+
+def check_sizes(kwargs: Any, hyper: Any, what: str) -> None:
+    """Refuse a saved model whose network (``kwargs["net_arch"]``, ``features_dim``) or
+    hyperparameters (:data:`SIZED_HYPERPARAMETERS`) pass their limits, before anything is built.
+
+    Raises:
+        ModelError: a size that is not a whole number >= 1.
+        LimitError: a size past its limit (the message names the file, the entry, the value and
+            the ``BULLETNAV_MAX_*`` variable that raises it).
+    """
+    from bulletnav import limits
+
+    def whole(value: Any, name: str) -> int:
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise ModelError(f"{what}: {name} must be a whole number >= 1, got {str(value)[:60]!r}")
+        return value
+
+    arch = kwargs.get("net_arch") if isinstance(kwargs, dict) else None
+    nets = arch.items() if isinstance(arch, dict) else [("", arch)] if arch is not None else []
+    for key, net in nets:
+        name = f"net_arch[{key!r}]" if key else "net_arch"
+        if not isinstance(net, (list, tuple)):
+            raise ModelError(f"{what}: {name} must be a list of layer widths, got {str(net)[:60]!r}")
+        limits.check("net_layers", len(net), f"{what}: {name} layers")
+        for width in net:
+            limits.check("net_width", whole(width, f"{name} width"), f"{what}: {name} width")
+    extractor = kwargs.get("features_extractor_kwargs") if isinstance(kwargs, dict) else None
+    if isinstance(extractor, dict) and "features_dim" in extractor:
+        limits.check("net_width", whole(extractor["features_dim"], "features_dim"), f"{what}: features_dim")
+    for key in SIZED_HYPERPARAMETERS:
+        if isinstance(hyper, dict) and hyper.get(key) is not None:
+            limits.check(key, whole(hyper[key], key), f"{what}: {key}")
+
+
 def _kwargs_from_zip(entry: dict[str, Any], what: str) -> dict[str, Any]:
     try:
         names, _ = pickle_globals(entry[":serialized:"])
@@ -308,6 +346,7 @@ def zip_custom_objects(data: dict[str, Any], path: Path) -> dict[str, Any]:
         UnsafeModelError: an entry that cannot be rebuilt without running the file's code.
     """
     objects: dict[str, Any] = {}
+    check_sizes({}, data, str(path))  # n_steps, buffer_size, ... size what loading allocates
     for key, entry in data.items():
         if not (isinstance(entry, dict) and ":serialized:" in entry):
             continue
@@ -318,6 +357,7 @@ def zip_custom_objects(data: dict[str, Any], path: Path) -> dict[str, Any]:
             objects[key] = _bare_class(entry, BUFFER_CLASSES, what)
         elif key == "policy_kwargs":
             objects[key] = _kwargs_from_zip(entry, what)
+            check_sizes(objects[key], {}, what)
         elif key in ("observation_space", "action_space"):
             objects[key] = _space_from_zip(entry, what)
         elif key in ("lr_schedule", "learning_rate"):
@@ -589,6 +629,7 @@ def load_safe(model_path: Path, meta: dict[str, Any]) -> Any:
     act_space = space_from_json(p.get("action_space"), f"{side}: action_space")
     kwargs = kwargs_from_json(p.get("kwargs", {}), f"{side}: policy kwargs")
     hyper = p.get("hyperparameters", {})
+    check_sizes(kwargs, hyper, str(side))  # before the networks and buffers are built from them
     allowed = set(inspect.signature(cls.__init__).parameters) - {"self", "policy", "env", "policy_kwargs", "device",
                                                                  "_init_setup_model", "tensorboard_log", "verbose"}
     if not isinstance(hyper, dict) or not set(hyper) <= allowed:

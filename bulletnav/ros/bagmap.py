@@ -206,26 +206,41 @@ class BagMap:
     scans_skipped: int
     trajectory: list[tuple[float, float]]
     """The lidar's positions (m) where scans were integrated."""
+    poses_skipped: int = 0
+    """Poses of the bag with a NaN or infinite x, y or yaw: dropped before any scan is placed
+    (a scan whose time only such poses cover counts in ``scans_skipped``)."""
 
 
 def build_map(data: BagData, resolution: float = 0.1, margin: float | None = None) -> BagMap:
     """Integrate every scan of ``data`` at its lidar pose (see the module docstring).
 
     The grid covers the trajectory grown by the largest finite ``range_max`` (capped at 30 m;
-    10 m when no scan gives one), or by ``margin`` (m)."""
+    10 m when no scan gives one), or by ``margin`` (m). Poses with a NaN or infinite value are
+    dropped and counted (``poses_skipped``, logged as a warning).
+
+    Raises:
+        BulletnavError: no scan has a finite pose.
+        LimitError: the grid would pass the limits ``map_extent`` or ``map_cells``
+            (:mod:`bulletnav.limits`; the message names the variable that raises it).
+    """
+    poses = [(t, p) for t, p in data.poses if all(math.isfinite(v) for v in p)]
+    bad_poses = len(data.poses) - len(poses)
+    if bad_poses:
+        log.warning("%d of %d %s poses have a NaN or infinite value: dropped", bad_poses, len(data.poses), data.pose_source)
     placed = []
     skipped = 0
     for scan in data.scans:
-        base = pose_at(data.poses, scan.stamp_ns)
-        if base is None:
+        base = pose_at(poses, scan.stamp_ns)
+        pose = None if base is None else compose(base, data.mounts.get(scan.frame, (0.0, 0.0, 0.0)))
+        if pose is None or not all(math.isfinite(v) for v in pose):
             skipped += 1
             continue
-        mount = data.mounts.get(scan.frame, (0.0, 0.0, 0.0))
-        placed.append((compose(base, mount), scan))
+        placed.append((pose, scan))
     if not placed:
-        raise BulletnavError(f"no scan has a pose: the {data.pose_source} poses span "
-                             f"{(data.poses[0][0] if data.poses else 0) / 1e9:.3f}-"
-                             f"{(data.poses[-1][0] if data.poses else 0) / 1e9:.3f} s, the scans do not fall in it")
+        dropped = f" ({bad_poses} of {len(data.poses)} not finite, dropped)" if bad_poses else ""
+        raise BulletnavError(f"no scan has a pose: the {data.pose_source} poses{dropped} span "
+                             f"{(poses[0][0] if poses else 0) / 1e9:.3f}-"
+                             f"{(poses[-1][0] if poses else 0) / 1e9:.3f} s, the scans do not fall in it")
     finite = [s.range_max for _, s in placed if math.isfinite(s.range_max) and s.range_max > 0]
     reach = margin if margin is not None else (min(max(finite), 30.0) if finite else 10.0)
     xs = [p[0] for p, _ in placed]
@@ -237,7 +252,7 @@ def build_map(data: BagData, resolution: float = 0.1, margin: float | None = Non
         max_range = scan.range_max if math.isfinite(scan.range_max) else reach
         ranges = np.where(np.isposinf(r) | (r >= max_range), max_range, r)[valid]
         mapper.integrate(pose, scan.angles[valid], ranges, max_range)
-    return BagMap(mapper, len(placed), skipped, [(p[0], p[1]) for p, _ in placed])
+    return BagMap(mapper, len(placed), skipped, [(p[0], p[1]) for p, _ in placed], bad_poses)
 
 
 def plan_path(bag_map: BagMap, goal: tuple[float, float], radius: float = 0.2) -> list[tuple[float, float]] | None:

@@ -122,8 +122,9 @@ class SweepSpec:
         if data["algo"] not in ALGOS:
             raise bad("algo", f"must be one of {', '.join(ALGOS)}")
         kw: dict[str, Any] = {"algo": data["algo"], "name": str(data.get("name") or default_name)}
-        if "/" in kw["name"] or not kw["name"].strip():
-            raise bad("name", "must be a plain directory name")
+        if not limits.is_slug(kw["name"]):
+            given = "" if data.get("name") else f" (default: the file's name, {show(default_name)})"
+            raise bad("name", f"names the results folder{given}: it must be {limits.SLUG_RULE}")
         env_id = data.get("env_id", ENV_ID)
         if not isinstance(env_id, str) or not env_id:
             raise bad("env_id", "must be a registered env id")
@@ -215,6 +216,17 @@ class SweepSpec:
         """Every combination of the grid's values (one empty configuration without a grid)."""
         keys = list(self.grid)
         return [dict(zip(keys, values)) for values in itertools.product(*(self.grid[k] for k in keys))]
+
+    def results_dir(self, out: str | Path) -> Path:
+        """``out/<name>``, where the sweep's tables, plot and (local storage) trials go.
+
+        Raises:
+            ConfigError: it resolves outside ``out`` (a link inside ``out`` leading out).
+        """
+        try:
+            return limits.inside(out, self.name)
+        except ValueError as exc:
+            raise ConfigError(f"sweep {self.name!r}: the results folder {exc}") from None
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data (what trials receive and the results record)."""
