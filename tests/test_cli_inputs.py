@@ -113,8 +113,25 @@ def test_rollout_note_says_how_many_steps_will_be_trained():
     assert _rollout_note(_train_args(timesteps=0, n_envs=2)) is None  # --init-from copies: no rollout
     assert "A2C learns in rollouts of n_steps 8 x 3 envs = 24 steps, so 120 steps" in \
         _rollout_note(_train_args(algo="a2c", timesteps=100, n_envs=3))
-    sac = _rollout_note(_train_args(algo="sac", timesteps=101, n_envs=2))
-    assert sac is None or "SAC collects train_freq" in sac
+    # sac.yml: train_freq 1, so 2 envs collect 2 steps per update: 101 is one short of a whole 102
+    assert _rollout_note(_train_args(algo="sac", timesteps=101, n_envs=2)) == (
+        "--timesteps 101 is not a whole number of rollouts: SAC collects train_freq 1 x 2 envs per update = 2 steps, "
+        "so 102 steps will be trained (pass a multiple of 2 to train exactly that)")
+    assert _rollout_note(_train_args(algo="td3", timesteps=100, n_envs=2)) is None  # 50 updates of 2 steps
+
+
+def test_rollout_note_reads_train_freq_from_the_hyperparameter_file(tmp_path):
+    """``train_freq: [4, step]`` is 4 x n_envs steps per update; ``[1, episode]`` has no fixed step count."""
+    def note(freq: str, timesteps: int) -> str | None:
+        path = tmp_path / "sac.yml"
+        path.write_text(f"bulletnav/Warehouse-v0:\n  policy: MlpPolicy\n  n_envs: 3\n  train_freq: {freq}\n")
+        return _rollout_note(_train_args(algo="sac", timesteps=timesteps, hyperparams=path))
+
+    assert note("[4, step]", 100) == (
+        "--timesteps 100 is not a whole number of rollouts: SAC collects train_freq 4 x 3 envs per update = 12 steps, "
+        "so 108 steps will be trained (pass a multiple of 12 to train exactly that)")
+    assert note("[4, step]", 96) is None  # 8 updates of 12 steps
+    assert note("[1, episode]", 100) is None  # episodes per update: no step count to round to
 
 
 def test_train_prints_the_note_and_refuses_a_folder_holding_a_run(monkeypatch, tmp_path, capsys):
