@@ -60,8 +60,16 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from numba import njit
 
+from bulletnav.control.shield_kernels import (
+    blocked_points,
+    in_pose_frames,
+    pose_gaps,
+    scan_points,
+    start_speed,
+    sweep_profile,
+    travel,
+)
 from bulletnav.geometry import RobotGeometry
 
 _BATCH = 8
@@ -197,8 +205,8 @@ class Shield:
         self._tail = np.linspace(0.0, 1.0, config.samples - 1)[None, 1:]
         # the compiled kernels load (or compile) now, not inside an episode's first decision
         one, grid = np.zeros(1), np.zeros((1, 1))
-        _blocked_points(one, one, grid, grid, grid, grid, one, self._outline)
-        _pose_gaps(one, one, grid, grid, grid, grid, self._outline)
+        blocked_points(one, one, grid, grid, grid, grid, one, self._outline)
+        pose_gaps(one, one, grid, grid, grid, grid, self._outline)
         self._next = np.roll(np.arange(len(self.angles)), -1)  # each ray's neighbours
         self._prev = np.roll(np.arange(len(self.angles)), 1)
         self.sweep(0.0, 0.0, 0.0)
@@ -216,7 +224,7 @@ class Shield:
         surface lines (when they meet at 15 degrees or more, inside the gap's wedge, in front
         of the straight join and within twice its length of both hits), and the two legs to it
         are filled too."""
-        return _scan_points(np.asarray(ranges, dtype=np.float64), self.cos, self.sin, self.geometry.lidar_offset,
+        return scan_points(np.asarray(ranges, dtype=np.float64), self.cos, self.sin, self.geometry.lidar_offset,
                             self.max_range, self.config.join, within, fill, _SIN_CORNER)
 
     def sweep(self, v: float | np.ndarray, w: float | np.ndarray, v_now: float, w_now: float | None = None
@@ -228,7 +236,7 @@ class Shield:
         v = np.atleast_1d(np.asarray(v, dtype=np.float64))
         w = np.atleast_1d(np.asarray(w, dtype=np.float64))
         out = np.zeros((v.shape[0], cfg.samples, 3))
-        t, mid, ds = _sweep_profile(v, w, float(v_now), np.nan if w_now is None else float(w_now), self._tail[0],
+        t, mid, ds = sweep_profile(v, w, float(v_now), np.nan if w_now is None else float(w_now), self._tail[0],
                                     self.dt, cfg.decel, self._half_base, out)
         # position by the distance travelled in each interval along the interval's mean heading
         np.cumsum(ds * np.cos(mid), axis=1, out=out[:, 1:, 0])
@@ -248,10 +256,10 @@ class Shield:
             return np.zeros(n_cmd, dtype=bool)
         if points.ndim == 2:  # one point set for every pose: the compiled loop, which stops at a command's first hit
             m = np.array(np.broadcast_to(np.asarray(margin, dtype=np.float64), (n_cmd,)))  # a writable copy: one signature
-            return _blocked_points(np.ascontiguousarray(points[:, 0]), np.ascontiguousarray(points[:, 1]),
+            return blocked_points(np.ascontiguousarray(points[:, 0]), np.ascontiguousarray(points[:, 1]),
                                    np.ascontiguousarray(poses[:, :, 0]), np.ascontiguousarray(poses[:, :, 1]),
                                    np.cos(poses[:, :, 2]), np.sin(poses[:, :, 2]), m, self._outline)
-        bx, by = _in_pose_frames(poses, points)
+        bx, by = in_pose_frames(poses, points)
         m = np.broadcast_to(np.asarray(margin, dtype=np.float64), (n_cmd,)).reshape((n_cmd,) + (1,) * (bx.ndim - 1))
         hit = np.zeros(bx.shape, dtype=bool)
         for cx, cy, hx, hy in self._outline:
@@ -267,7 +275,7 @@ class Shield:
         """(C, K) :meth:`_clearance` at each pose."""
         if points.shape[-2] == 0:
             return np.full(poses.shape[:2], np.inf)
-        bx, by = _in_pose_frames(poses, points)
+        bx, by = in_pose_frames(poses, points)
         dist = np.full(bx.shape, np.inf)
         for cx, cy, hx, hy in self._outline:
             dx = np.maximum(np.abs(bx - cx) - hx, 0.0)
@@ -305,10 +313,10 @@ class Shield:
         """(C,) True where the sweep of command (v, w) is clear of ``points`` (body frame) and
         ``movers`` for the outline grown by the sweep's margin (see :meth:`margin`)."""
         poses, times = self.sweep(v, w, v_now, w_now)
-        margin = self.margin(_start_speed(np.atleast_1d(np.asarray(v, dtype=np.float64)), v_now))
+        margin = self.margin(start_speed(np.atleast_1d(np.asarray(v, dtype=np.float64)), v_now))
         if len(points):  # only points within the grown outline's reach of some pose can be hit
             m = float(margin.max())
-            far = _travel(poses) + float(np.hypot(self._outline_abs[:, 0] + m, self._outline_abs[:, 1] + m).max())
+            far = travel(poses) + float(np.hypot(self._outline_abs[:, 0] + m, self._outline_abs[:, 1] + m).max())
             points = points[points[:, 0] ** 2 + points[:, 1] ** 2 <= far * far]
         blocked = self._blocked(poses, points, margin)
         if movers:
@@ -330,7 +338,7 @@ class Shield:
         filled in every 1 cm and off the movers: the test for turning in place once inside the margin."""
         cfg = self.config
         poses, times = self.sweep(v, w, v_now, w_now)
-        dense = self.points(ranges, within=self._bare_radius + cfg.close_margin + _travel(poses), fill=0.01)
+        dense = self.points(ranges, within=self._bare_radius + cfg.close_margin + travel(poses), fill=0.01)
         margin = np.full(poses.shape[0], cfg.close_margin)
         blocked = self._blocked(poses, dense, margin)
         if movers:
@@ -344,8 +352,8 @@ class Shield:
         past a mover that waits for the robot. The clearance never shrinks while it creeps, so
         a creep can pass a gap that is there but never wedge the robot in tighter."""
         poses, times = self.sweep(v, w, v_now, w_now)
-        dense = self.points(ranges, within=self._reach + _travel(poses), fill=0.01)  # all within the margin of a pose
-        gaps = _pose_gaps(np.ascontiguousarray(dense[:, 0]), np.ascontiguousarray(dense[:, 1]),
+        dense = self.points(ranges, within=self._reach + travel(poses), fill=0.01)  # all within the margin of a pose
+        gaps = pose_gaps(np.ascontiguousarray(dense[:, 0]), np.ascontiguousarray(dense[:, 1]),
                           np.ascontiguousarray(poses[:, :, 0]), np.ascontiguousarray(poses[:, :, 1]),
                           np.cos(poses[:, :, 2]), np.sin(poses[:, :, 2]), self._outline)
         if movers:
@@ -439,250 +447,6 @@ class Shield:
             return ShieldDecision(True, 0.0, 0.0, float(change[stop]), self._touch_free(v_now, points, near, pose, w_now))
         best = int(turns[np.argmax(clear)])
         return ShieldDecision(True, float(cand[best, 0]), float(cand[best, 1]), float(change[best]), True)
-
-
-@njit(cache=True, nogil=True)
-def _sweep_profile(v, w, v_now, w_now, tail, dt, decel, half_base, out):  # pragma: no cover  (compiled)
-    """Times (C, K), mid-interval headings (C, K-1) and distances travelled per interval (C, K-1)
-    of the stopping sweeps of commands (``v``, ``w``: (C,)), yaws written into ``out[:, :, 2]``
-    (see :meth:`Shield.sweep`; ``w_now`` NaN: no yaw-rate transient). Each value is computed by
-    the formula, and in the order, of the array expressions it replaced (numpy's ``maximum`` /
-    ``minimum`` and sequential ``cumsum``), so the sweeps are the same bit for bit; the headings'
-    cosines and sines stay numpy's."""
-    n_cmd, n = out.shape[0], out.shape[1]
-    t = np.zeros((n_cmd, n))
-    mid = np.zeros((n_cmd, n - 1))
-    ds = np.zeros((n_cmd, n - 1))
-    after = np.zeros(n)
-    rate = np.zeros(n)
-    travelled = np.zeros(n)
-    for c in range(n_cmd):
-        vc, wc = v[c], w[c]
-        drive = vc > 0
-        if drive:
-            v1 = v_now if v_now >= vc else vc
-        else:
-            v1 = v_now if v_now >= 0.0 else 0.0
-        stop = v1 / decel
-        spin = 0.0 if drive else abs(wc) * half_base / decel
-        longest = stop if stop >= spin else spin
-        after[0] = 0.0
-        after[1] = 0.0
-        for k in range(2, n):
-            after[k] = tail[k - 2] * longest
-        for k in range(n):
-            t[c, k] = after[k] + dt
-        t[c, 0] = 0.0
-        for k in range(n):
-            braking = after[k] if after[k] <= stop else stop
-            speed = v1 - decel * braking
-            tk = t[c, k] if t[c, k] <= dt else dt
-            travelled[k] = v1 * tk + braking * (v1 - 0.5 * decel * braking)
-            if drive:
-                rate[k] = wc * speed / (v1 if v1 >= 1e-9 else 1e-9)
-            else:
-                left = 1.0 - after[k] / (spin if spin >= 1e-9 else 1e-9)
-                rate[k] = wc * (left if left >= 0.0 else 0.0)
-        if not np.isnan(w_now):
-            rate[0] = w_now
-        # yaw by the trapezoid rule (exact where the rate is linear between samples), summed as cumsum does
-        out[c, 0, 2] = 0.0
-        for k in range(n - 1):
-            step = (rate[k + 1] + rate[k]) * (0.5 * (t[c, k + 1] - t[c, k]))
-            out[c, k + 1, 2] = step if k == 0 else out[c, k, 2] + step
-        for k in range(n - 1):
-            mid[c, k] = 0.5 * (out[c, k + 1, 2] + out[c, k, 2])
-            ds[c, k] = travelled[k + 1] - travelled[k]
-    return t, mid, ds
-
-
-@njit(cache=True, nogil=True)
-def _scan_points(r, cos, sin, lidar_x, max_range, join, within, fill, sin_corner):  # pragma: no cover  (compiled)
-    """:meth:`Shield.points` (see there): the hits, the rebuilt corners, then the points filling
-    each joined gap and each corner's two legs, in that order. Every value is computed by the
-    formula, and in the order, of the array version it replaced (``hypot`` is the C library's in
-    both), so the points are the same bit for bit."""
-    n = r.shape[0]
-    x = np.empty(n)
-    y = np.empty(n)
-    hit = np.empty(n, dtype=np.bool_)
-    for i in range(n):
-        hit[i] = r[i] < max_range * 0.999
-        x[i] = lidar_x + r[i] * cos[i]
-        y[i] = r[i] * sin[i]
-    span = np.empty(n)
-    d = np.empty(n)
-    pair = np.empty(n, dtype=np.bool_)
-    side = np.empty(n, dtype=np.bool_)
-    for i in range(n):
-        j = (i + 1) % n
-        span[i] = math.hypot(x[j] - x[i], y[j] - y[i])
-        pair[i] = hit[i] and hit[j] and span[i] < join
-        side[i] = hit[i] and hit[j] and span[i] < 2.0 * join
-        d[i] = math.hypot(x[i], y[i])
-    # corners: gap (b, c) joined, one surface seen on each side (hits a and e)
-    cb = np.empty(n, dtype=np.int64)
-    cc = np.empty(n, dtype=np.int64)
-    cxs = np.empty(n)
-    cys = np.empty(n)
-    nc = 0
-    for b in range(n):
-        if not (pair[b] and side[(b - 1) % n] and side[(b + 1) % n]):
-            continue
-        c = (b + 1) % n
-        a = (b - 1) % n
-        e = (c + 1) % n
-        d1x, d1y = x[b] - x[a], y[b] - y[a]
-        d2x, d2y = x[e] - x[c], y[e] - y[c]
-        gx, gy = x[c] - x[b], y[c] - y[b]
-        denom = d1x * d2y - d1y * d2x
-        if not abs(denom) > sin_corner * math.hypot(d1x, d1y) * math.hypot(d2x, d2y):
-            continue
-        s1 = (gx * d2y - gy * d2x) / denom
-        s2 = (gx * d1y - gy * d1x) / denom
-        cx = x[b] + s1 * d1x
-        cy = y[b] + s1 * d1y
-        toward = (gx * (cy - y[b]) - gy * (cx - x[b])) * (gx * (0.0 - y[b]) - gy * (lidar_x - x[b])) > 0.0
-        l1 = math.hypot(cx - x[b], cy - y[b])
-        l2 = math.hypot(cx - x[c], cy - y[c])
-        leg = l1 if l1 >= l2 else l2
-        if not (s1 > 0.0 and s2 < 0.0 and toward and leg < 2.0 * span[b]):
-            continue
-        if within < math.inf:
-            dc = math.hypot(cx, cy)
-            dbc = d[b] if d[b] <= d[c] else d[c]
-            if not (dc if dc <= dbc else dbc) - leg / 2 < within:
-                continue
-        cb[nc], cc[nc], cxs[nc], cys[nc] = b, c, cx, cy
-        nc += 1
-    if within < math.inf:
-        for i in range(n):
-            j = (i + 1) % n
-            dmin = d[i] if d[i] <= d[j] else d[j]
-            pair[i] = pair[i] and dmin - span[i] / 2 < within
-            hit[i] = hit[i] and d[i] < within
-    # segments: the joins, then every corner's first legs, then its second legs
-    ns = 0
-    sx = np.empty(n + 2 * nc)
-    sy = np.empty(n + 2 * nc)
-    ex = np.empty(n + 2 * nc)
-    ey = np.empty(n + 2 * nc)
-    for i in range(n):
-        if pair[i]:
-            j = (i + 1) % n
-            sx[ns], sy[ns], ex[ns], ey[ns] = x[i], y[i], x[j], y[j]
-            ns += 1
-    for q in range(nc):
-        sx[ns], sy[ns], ex[ns], ey[ns] = x[cb[q]], y[cb[q]], cxs[q], cys[q]
-        ns += 1
-    for q in range(nc):
-        sx[ns], sy[ns], ex[ns], ey[ns] = cxs[q], cys[q], x[cc[q]], y[cc[q]]
-        ns += 1
-    counts = np.empty(ns, dtype=np.int64)
-    total = 0
-    for q in range(ns):
-        k = int(math.hypot(ex[q] - sx[q], ey[q] - sy[q]) / fill)
-        counts[q] = k if k <= 40 else 40
-        total += counts[q]
-    nh = 0
-    for i in range(n):
-        nh += hit[i]
-    pts = np.empty((nh + nc + total, 2))
-    p = 0
-    for i in range(n):
-        if hit[i]:
-            pts[p, 0], pts[p, 1] = x[i], y[i]
-            p += 1
-    for q in range(nc):
-        pts[p, 0], pts[p, 1] = cxs[q], cys[q]
-        p += 1
-    for q in range(ns):
-        k = counts[q]
-        for m in range(1, k + 1):
-            tq = m / (k + 1)
-            pts[p, 0] = sx[q] + tq * (ex[q] - sx[q])
-            pts[p, 1] = sy[q] + tq * (ey[q] - sy[q])
-            p += 1
-    return pts
-
-
-@njit(cache=True, nogil=True)
-def _blocked_points(px, py, x0, y0, cos, sin, margin, outline):  # pragma: no cover  (compiled)
-    """(C,) True where a point (``px``, ``py``: (N,)) lies in the outline (rectangles ``outline``
-    (R, 4): centre x, y, half sizes) grown by ``margin[c]`` at one of command c's poses (``x0``,
-    ``y0``, ``cos``, ``sin`` of the yaw: (C, K)). The same arithmetic, in the same order, as
-    :func:`_in_pose_frames` and the rectangle test (no fused multiply-add: numba compiles
-    without fastmath), so the answers are those of the array version bit for bit; it stops at a
-    command's first hit."""
-    n_cmd, n_pose = cos.shape
-    out = np.zeros(n_cmd, dtype=np.bool_)
-    for c in range(n_cmd):
-        m = margin[c]
-        for k in range(n_pose):
-            co, si, xk, yk = cos[c, k], sin[c, k], x0[c, k], y0[c, k]
-            for n in range(px.shape[0]):
-                dx = px[n] - xk
-                dy = py[n] - yk
-                bx = co * dx + si * dy
-                by = -si * dx + co * dy
-                for r in range(outline.shape[0]):
-                    if abs(bx - outline[r, 0]) <= outline[r, 2] + m and abs(by - outline[r, 1]) <= outline[r, 3] + m:
-                        out[c] = True
-                        break
-                if out[c]:
-                    break
-            if out[c]:
-                break
-    return out
-
-
-@njit(cache=True, nogil=True)
-def _pose_gaps(px, py, x0, y0, cos, sin, outline):  # pragma: no cover  (compiled)
-    """(C, K) the smallest distance (m) from a point (``px``, ``py``: (N,)) to the bare outline
-    (rectangles ``outline`` (R, 4)) at each pose (``x0``, ``y0``, ``cos``, ``sin`` of the
-    yaw: (C, K)); inf without points. The arithmetic of :func:`_in_pose_frames` and
-    :meth:`Shield._pose_clearance`, in their order."""
-    n_cmd, n_pose = cos.shape
-    out = np.full((n_cmd, n_pose), np.inf)
-    for c in range(n_cmd):
-        for k in range(n_pose):
-            co, si, xk, yk = cos[c, k], sin[c, k], x0[c, k], y0[c, k]
-            best = np.inf
-            for n in range(px.shape[0]):
-                dx = px[n] - xk
-                dy = py[n] - yk
-                bx = co * dx + si * dy
-                by = -si * dx + co * dy
-                for r in range(outline.shape[0]):
-                    ex = abs(bx - outline[r, 0]) - outline[r, 2]
-                    ey = abs(by - outline[r, 1]) - outline[r, 3]
-                    d = math.hypot(ex if ex > 0.0 else 0.0, ey if ey > 0.0 else 0.0)
-                    if d < best:
-                        best = d
-            out[c, k] = best
-    return out
-
-
-def _start_speed(v: np.ndarray, v_now: float) -> np.ndarray:
-    """The speed (m/s) a sweep runs at over the control period: the larger of the current and
-    the commanded forward speed when driving, the current one (coasting) otherwise."""
-    return np.where(v > 0, np.maximum(v_now, v), max(v_now, 0.0))
-
-
-def _travel(poses: np.ndarray) -> float:
-    """The farthest any of the poses (C, K, 3) gets from the start (m)."""
-    return float(np.sqrt((poses[:, :, 0] ** 2 + poses[:, :, 1] ** 2).max()))
-
-
-def _in_pose_frames(poses: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Points ((N, 2), or per pose (C, K, M, 2)) in the frame of each pose (C, K, 3): x and y,
-    (C, K, N) or (C, K, M)."""
-    if points.ndim == 2:
-        points = points[None, None]
-    px = points[..., 0] - poses[:, :, 0, None]
-    py = points[..., 1] - poses[:, :, 1, None]
-    c, s = np.cos(poses[:, :, 2])[..., None], np.sin(poses[:, :, 2])[..., None]
-    return c * px + s * py, -s * px + c * py
 
 
 NO_DECISION = ShieldDecision(False, 0.0, 0.0, 0.0, True)

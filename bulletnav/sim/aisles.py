@@ -33,7 +33,8 @@ import numpy as np
 
 from bulletnav.config import AislesConfig, WorldConfig
 from bulletnav.errors import LayoutError
-from bulletnav.sim.layout import Layout, Obstacle
+from bulletnav.sim.layout import Layout
+from bulletnav.sim.specs import Obstacle
 
 OPEN, WALL, RACK = 0, 1, 2
 """How the rows meet an end wall: an open end aisle, rows running into the wall, rows running
@@ -164,17 +165,36 @@ def generate_aisles(rng: np.random.Generator, config: WorldConfig = WorldConfig(
             two rows with aisles between them.
     """
     a = config.aisles
-    if a.row_axis == "random":
-        # rows need two blocks of racks and a cross aisle along them; draw only between axes that have room
-        fits = [length >= 2 * a.rack_length[0] + a.cross_aisle_width[0] for length in config.size]
-        along_x = bool(rng.random() < 0.5) if all(fits) else fits[0]
-    else:
-        along_x = a.row_axis == "x"
+    along_x = _along_x(rng, config)
     lu, lv = (config.size[0], config.size[1]) if along_x else (config.size[1], config.size[0])
-    hu, hv = lu / 2, lv / 2
     items: list[_Item] = []
+    ends, blocks = _blocks_along(rng, a, lu, lv, items)
+    row_spans, aisles = _rows_across_blocks(rng, a, lv, blocks, items)
+    segments = _aisle_segments(rng, a, aisles, blocks, ends, items)
+    for seg in segments:  # pallets and boxes against the faces of each segment
+        n = int(rng.poisson(a.clutter_per_metre * (seg.u1 - seg.u0)))
+        for _ in range(n):
+            _place_clutter(rng, a, seg, items)
+    _place_columns(rng, a, row_spans, blocks, ends, items)
+    obstacles = tuple(_to_world(it, along_x) for it in items)
+    return Layout(config.size, obstacles, config.wall_height, name="aisles", source="procedural aisles")
 
-    # ---- along the rows: end treatments, blocks of racks, cross aisles
+
+def _along_x(rng: np.random.Generator, config: WorldConfig) -> bool:
+    """Whether the rows run along x (``row_axis``; "random" draws only between axes that have
+    room for two blocks of racks and a cross aisle along them)."""
+    a = config.aisles
+    if a.row_axis == "random":
+        fits = [length >= 2 * a.rack_length[0] + a.cross_aisle_width[0] for length in config.size]
+        return bool(rng.random() < 0.5) if all(fits) else fits[0]
+    return a.row_axis == "x"
+
+
+def _blocks_along(rng: np.random.Generator, a: AislesConfig, lu: float, lv: float,
+                  items: list[_Item]) -> tuple[list[int], list[tuple[float, float]]]:
+    """Along the rows (length ``lu``, m): the two end treatments (a rack row along an end wall
+    added to ``items``), and the blocks of racks between the cross aisles, ``(u0, u1)`` each."""
+    hu, hv = lu / 2, lv / 2
     ends, end_depths, cross, n_blocks = _ends(rng, a, lu)
     room = lu - sum(end_depths) - sum(cross)
     extra = room - n_blocks * a.rack_length[0]
@@ -191,12 +211,17 @@ def generate_aisles(rng: np.random.Generator, config: WorldConfig = WorldConfig(
             for length in _split(rng, lv, *a.rack_length):
                 items.append(_Item(u0, u1, v, v + length, a.rack_height, "rack"))
                 v += length
+    return ends, blocks
 
-    # ---- across the rows: rows of racks and the aisles between them
+
+def _rows_across_blocks(rng: np.random.Generator, a: AislesConfig, lv: float, blocks: list[tuple[float, float]],
+                        items: list[_Item]) -> tuple[list[tuple[float, float]], list[tuple[float, float]]]:
+    """Across the rows (width ``lv``, m): the rows of racks in every block (added to ``items``)
+    and the aisles between them; returns the rows' and the aisles' ``(v0, v1)`` spans."""
     rows, widths, wall_lo, wall_hi = _rows_across(rng, a, lv)
     row_spans: list[tuple[float, float]] = []
     aisles: list[tuple[float, float]] = []
-    v = -hv
+    v = -lv / 2
     if not wall_lo:
         aisles.append((v, v + widths[0]))
         v += widths[0]
@@ -216,8 +241,13 @@ def generate_aisles(rng: np.random.Generator, config: WorldConfig = WorldConfig(
             w = next(w_iter)
             aisles.append((v, v + w))
             v += w
+    return row_spans, aisles
 
-    # ---- aisle segments and their mouths; dead ends
+
+def _aisle_segments(rng: np.random.Generator, a: AislesConfig, aisles: list[tuple[float, float]],
+                    blocks: list[tuple[float, float]], ends: list[int], items: list[_Item]) -> list[_Segment]:
+    """The aisle segments (one per aisle and block) and their mouths, closed at a closed end;
+    dead ends made with pallet stacks (``pallet_stack_prob``, and at least one)."""
     segments: list[_Segment] = []
     for v0, v1 in aisles:
         for i, (b0, b1) in enumerate(blocks):
@@ -231,14 +261,12 @@ def generate_aisles(rng: np.random.Generator, config: WorldConfig = WorldConfig(
     if not any(any(s.closed) for s in segments):
         seg = segments[int(rng.integers(len(segments)))]
         _close_with_pallets(rng, seg, int(rng.integers(2)), items)
+    return segments
 
-    # ---- pallets and boxes against the faces of each segment
-    for seg in segments:
-        n = int(rng.poisson(a.clutter_per_metre * (seg.u1 - seg.u0)))
-        for _ in range(n):
-            _place_clutter(rng, a, seg, items)
 
-    # ---- building columns at row ends facing a cross aisle or an open end aisle
+def _place_columns(rng: np.random.Generator, a: AislesConfig, row_spans: list[tuple[float, float]],
+                   blocks: list[tuple[float, float]], ends: list[int], items: list[_Item]) -> None:
+    """Building columns at row ends facing a cross aisle or an open end aisle (``columns``)."""
     sites = []
     for r in range(len(row_spans)):
         for c in range(len(blocks) + 1):  # corridor c lies before block c (0: the low end, last: the high end)
@@ -259,9 +287,6 @@ def generate_aisles(rng: np.random.Generator, config: WorldConfig = WorldConfig(
         u = blocks[c - 1][1] + radius if side == 0 else blocks[c][0] - radius
         vc = (v0 + v1) / 2
         items.append(_Item(u - radius, u + radius, vc - radius, vc + radius, 3.0, "column", kind="cylinder"))
-
-    obstacles = tuple(_to_world(it, along_x) for it in items)
-    return Layout(config.size, obstacles, config.wall_height, name="aisles", source="procedural aisles")
 
 
 def _close_with_pallets(rng: np.random.Generator, seg: _Segment, mouth: int, items: list[_Item]) -> None:
