@@ -21,7 +21,7 @@ from scipy.sparse.csgraph import dijkstra
 from bulletnav.config import DynamicConfig
 from bulletnav.sim.kernels import line_clear
 from bulletnav.sim.layout import Layout
-from bulletnav.sim.movers import ForkliftSpec, MoverSpec, WorkerSpec
+from bulletnav.sim.specs import ForkliftSpec, MoverSpec, WorkerSpec
 
 RESOLUTION = 0.1
 """Grid resolution (m) of the clearance map."""

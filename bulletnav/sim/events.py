@@ -14,27 +14,18 @@ obstacles come back at the next reset. Every event that happens is reported in `
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 import pybullet as p
 from scipy import ndimage
 
-from bulletnav.sim.layout import Layout, Obstacle
-from bulletnav.sim.movers import PARK_Z, ForkliftSpec, MoverSpec
+from bulletnav.sim.layout import Layout
+from bulletnav.sim.movers import PARK_Z
+from bulletnav.sim.specs import EventSpec, ForkliftSpec, MoverSpec, Obstacle
 from bulletnav.sim.world import COLOURS, STATIC_GROUP, STATIC_MASK, static_body
 
 PALLET = Obstacle("box", (0.0, 0.0), size=(1.2, 0.8, 1.0), label="pallet")
 """What a drawn event adds: a loaded pallet, 1.2 x 0.8 x 1.0 m."""
-
-
-@dataclass(frozen=True)
-class EventSpec:
-    """At ``at`` seconds, add the obstacle ``add`` or remove the obstacles labelled ``remove``."""
-
-    at: float
-    add: Obstacle | None = None
-    remove: str | None = None
 
 
 class Events:

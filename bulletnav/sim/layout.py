@@ -28,71 +28,19 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from bulletnav import limits
 from bulletnav.config import WorldConfig
 from bulletnav.errors import LayoutError, LimitError
-from bulletnav.sim.kernels import BOX, CYLINDER, any_within, mark_levels, mark_within
+from bulletnav.sim.kernels import any_within, mark_levels, mark_within
+from bulletnav.sim.specs import EventSpec, ForkliftSpec, MoverSpec, Obstacle, WorkerSpec
 from bulletnav.yamlfile import read_yaml, show
-
-if TYPE_CHECKING:
-    from bulletnav.sim.events import EventSpec
-    from bulletnav.sim.movers import MoverSpec
 
 WALL_THICKNESS = 0.2
 """Thickness of the enclosing walls (m); they stand just outside the floor extent."""
-
-
-@dataclass(frozen=True)
-class Obstacle:
-    """One static obstacle footprint extruded to a height.
-
-    ``kind`` is ``"box"`` (``size`` = full x, y, z extents in its own frame, rotated by
-    ``yaw``) or ``"cylinder"`` (``radius``, ``height``). ``center`` is the footprint centre
-    (x, y) in metres; every obstacle stands on the floor.
-    """
-
-    kind: str
-    center: tuple[float, float]
-    size: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    radius: float = 0.0
-    height: float = 0.0
-    yaw: float = 0.0
-    label: str = ""
-    """Free-form category (rack, pallet, box, column) used for colours and statistics."""
-
-    @property
-    def top(self) -> float:
-        """Height of the obstacle's top above the floor (m)."""
-        return self.size[2] if self.kind == "box" else self.height
-
-    def distance(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """Euclidean distance from points (x, y) to the footprint (0 inside)."""
-        dx = x - self.center[0]
-        dy = y - self.center[1]
-        if self.kind == "cylinder":
-            return np.maximum(np.hypot(dx, dy) - self.radius, 0.0)
-        c, s = math.cos(self.yaw), math.sin(self.yaw)
-        lx = np.abs(c * dx + s * dy) - self.size[0] / 2
-        ly = np.abs(-s * dx + c * dy) - self.size[1] / 2
-        return np.hypot(np.maximum(lx, 0.0), np.maximum(ly, 0.0))
-
-    def footprint(self) -> tuple[int, float, float, float, float, float, float, float]:
-        """The footprint as the numbers :mod:`bulletnav.sim.kernels` takes (kind, centre, cos and
-        sin of yaw, half sizes, radius), for the compiled form of :meth:`distance`."""
-        if self.kind == "cylinder":
-            return CYLINDER, self.center[0], self.center[1], 1.0, 0.0, 0.0, 0.0, self.radius
-        return BOX, self.center[0], self.center[1], math.cos(self.yaw), math.sin(self.yaw), self.size[0] / 2, \
-            self.size[1] / 2, 0.0
-
-    def bounding_radius(self) -> float:
-        """Radius of the smallest centred circle that holds the footprint (m)."""
-        if self.kind == "cylinder":
-            return self.radius
-        return 0.5 * math.hypot(self.size[0], self.size[1])
 
 
 @dataclass(frozen=True)
@@ -310,7 +258,6 @@ def _points(value: Any, where: str, field_name: str, layout: Layout) -> tuple[tu
 
 
 def _parse_dynamic(raw: Any, layout: Layout, where: str) -> tuple[MoverSpec, ...]:
-    from bulletnav.sim.movers import ForkliftSpec, WorkerSpec
 
     if raw is None:
         return ()
@@ -357,7 +304,6 @@ def _parse_dynamic(raw: Any, layout: Layout, where: str) -> tuple[MoverSpec, ...
 
 
 def _parse_events(raw: Any, layout: Layout, where: str) -> tuple[EventSpec, ...]:
-    from bulletnav.sim.events import EventSpec
 
     if raw is None:
         return ()

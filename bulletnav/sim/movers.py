@@ -26,10 +26,10 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import ClassVar
 
 import pybullet as p
 
+from bulletnav.sim.specs import ForkliftSpec, MoverSpec, WorkerSpec
 from bulletnav.sim.world import STATIC_GROUP, STATIC_MASK, static_body
 
 PARK_Z = -20.0
@@ -37,63 +37,6 @@ PARK_Z = -20.0
 
 FORKLIFT_COLOUR = (0.95, 0.62, 0.05, 1.0)
 WORKER_COLOUR = (0.15, 0.45, 0.95, 1.0)
-
-
-@dataclass(frozen=True)
-class ForkliftSpec:
-    """A forklift: a box ``size`` = (length along its heading, width, height) m driving
-    ``route`` (at least 2 points, m) back and forth at ``speed`` m/s."""
-
-    route: tuple[tuple[float, float], ...]
-    speed: float = 0.5
-    size: tuple[float, float, float] = (1.1, 0.8, 2.0)
-    accel: float | None = None
-    """m/s^2 ramp from rest and down to each reversal; None = constant speed."""
-    yield_to_robot: bool = True
-    field_length: float = 1.0
-    """Length (m) of the safety field ahead of the front."""
-    field_margin: float = 0.2
-    """The field is the forklift's width plus this (m) wide."""
-    turn_rate: float = 1.0
-    """At a route corner it stops and turns in place at this rate (rad/s); while it turns,
-    its field is the circle it sweeps (half its diagonal + ``field_margin``). At a route's
-    end it drives back the way it came (no turn: a box reversed covers the same floor)."""
-    kind: ClassVar[str] = "forklift"
-
-    @property
-    def shape(self) -> tuple[str, tuple[float, ...]]:
-        return ("box", tuple(self.size))
-
-    @property
-    def bounding_radius(self) -> float:
-        return 0.5 * math.hypot(self.size[0], self.size[1])
-
-
-@dataclass(frozen=True)
-class WorkerSpec:
-    """A worker: a cylinder (``radius``, ``height`` m) walking ``waypoints`` back and forth
-    at ``speed`` m/s, pausing ``pause`` s at each waypoint."""
-
-    waypoints: tuple[tuple[float, float], ...]
-    speed: float = 1.0
-    radius: float = 0.25
-    height: float = 1.7
-    pause: float = 1.0
-    yield_to_robot: bool = True
-    stop_distance: float = 0.6
-    """The worker stops while the robot's footprint is closer than this (m)."""
-    kind: ClassVar[str] = "worker"
-
-    @property
-    def shape(self) -> tuple[str, tuple[float, ...]]:
-        return ("cylinder", (self.radius, self.height))
-
-    @property
-    def bounding_radius(self) -> float:
-        return self.radius
-
-
-MoverSpec = ForkliftSpec | WorkerSpec
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,8 @@ from scipy.sparse.csgraph import dijkstra
 
 from bulletnav.config import SamplerConfig
 from bulletnav.errors import SamplingError
-from bulletnav.sim.layout import Layout, Obstacle
+from bulletnav.sim.layout import Layout
+from bulletnav.sim.specs import Obstacle
 
 log = logging.getLogger(__name__)
 

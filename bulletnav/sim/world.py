@@ -12,7 +12,8 @@ import pybullet as p
 
 from bulletnav.config import PhysicsConfig
 from bulletnav.sim.client import configure_physics
-from bulletnav.sim.layout import WALL_THICKNESS, Layout, Obstacle
+from bulletnav.sim.layout import WALL_THICKNESS, Layout
+from bulletnav.sim.specs import Obstacle
 
 log = logging.getLogger(__name__)
 

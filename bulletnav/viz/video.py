@@ -46,7 +46,8 @@ from typing import Any
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
-from bulletnav.sim.layout import WALL_THICKNESS, Layout, Obstacle
+from bulletnav.sim.layout import WALL_THICKNESS, Layout
+from bulletnav.sim.specs import Obstacle
 from bulletnav.sim.world import COLOURS
 from bulletnav.viz.mission import mission_goals, progress_text
 from bulletnav.viz.movers import (
