@@ -13,7 +13,7 @@ from bulletnav.tasks.mission import MissionTask
 from bulletnav.tasks.navigation import NavigationTask
 
 if TYPE_CHECKING:
-    from bulletnav.envs.scene import Scene
+    from bulletnav.tasks.view import TaskScene
 
 TASKS: dict[str, type[Task]] = {}
 
@@ -29,7 +29,7 @@ def register_task(name: str, cls: type[Task]) -> None:
     TASKS[name] = cls
 
 
-def make_task(config: EnvConfig, scene: Scene) -> Task:
+def make_task(config: EnvConfig, scene: TaskScene) -> Task:
     """The task ``config.task_name`` on ``scene``.
 
     Raises:

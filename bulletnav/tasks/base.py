@@ -9,6 +9,9 @@ end; it also chooses where each episode starts. The env calls, every step::
 and at every reset ``task.initialize_episode(scene, rng, options)`` (which places the
 robot with ``scene.place_robot``) and then ``observe`` and ``info``.
 
+A task sees the scene only through :class:`~bulletnav.tasks.view.TaskScene`, a read-only
+protocol below both packages: ``bulletnav.envs`` imports the tasks, never the other way.
+
 Add a task by writing one module with a :class:`Task` subclass and registering it with
 :func:`bulletnav.tasks.register_task`; see ``docs/architecture.md``.
 """
@@ -25,7 +28,7 @@ from gymnasium import spaces
 from bulletnav.config import EnvConfig
 
 if TYPE_CHECKING:
-    from bulletnav.envs.scene import Scene
+    from bulletnav.tasks.view import TaskScene
 
 
 class Task(ABC):
@@ -39,7 +42,7 @@ class Task(ABC):
     reward_terms: ClassVar[tuple[str, ...]] = ()
     """Names of the reward terms; ``info`` carries each as ``reward_<name>``."""
 
-    def __init__(self, config: EnvConfig, scene: Scene) -> None:
+    def __init__(self, config: EnvConfig, scene: TaskScene) -> None:
         self.config = config
         self.goals: tuple[tuple[float, float], ...] = ()
         """The episode's goal points (m), in the task's order; empty for goal-free tasks."""
@@ -54,26 +57,26 @@ class Task(ABC):
         """The space of :meth:`observe`'s value."""
 
     @abstractmethod
-    def initialize_episode(self, scene: Scene, rng: np.random.Generator, options: dict[str, Any]) -> None:
+    def initialize_episode(self, scene: TaskScene, rng: np.random.Generator, options: dict[str, Any]) -> None:
         """Choose the episode (start, goals) with ``rng`` and ``options`` and place the robot
         with ``scene.place_robot``. The scene's layout is already chosen."""
 
-    def after_step(self, scene: Scene) -> None:  # noqa: B027 (an optional hook)
+    def after_step(self, scene: TaskScene) -> None:  # noqa: B027 (an optional hook)
         """Read what the other hooks of this step need (once, after physics)."""
 
     @abstractmethod
-    def observe(self, scene: Scene) -> Any:
+    def observe(self, scene: TaskScene) -> Any:
         """The observation of the current state (a fresh array or dict of arrays)."""
 
     @abstractmethod
-    def reward(self, scene: Scene) -> dict[str, float]:
+    def reward(self, scene: TaskScene) -> dict[str, float]:
         """Named reward terms of the step just taken (the env's reward is their sum)."""
 
     @abstractmethod
-    def end(self, scene: Scene) -> tuple[bool, bool, str | None]:
+    def end(self, scene: TaskScene) -> tuple[bool, bool, str | None]:
         """``(terminated, truncated, reason)`` after the step; reason is None while running."""
 
-    def info(self, scene: Scene) -> dict[str, Any]:
+    def info(self, scene: TaskScene) -> dict[str, Any]:
         """The task's entries of ``info`` (the env adds the reward terms and ``end_reason``)."""
         return {}
 

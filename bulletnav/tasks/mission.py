@@ -38,7 +38,7 @@ from bulletnav.tasks.base import pose_option
 from bulletnav.tasks.navigation import NavigationTask
 
 if TYPE_CHECKING:
-    from bulletnav.envs.scene import Scene
+    from bulletnav.tasks.view import TaskScene
 
 
 class MissionTask(NavigationTask):
@@ -46,7 +46,7 @@ class MissionTask(NavigationTask):
 
     reward_terms = (*NavigationTask.reward_terms, "subgoal")
 
-    def __init__(self, config: EnvConfig, scene: Scene) -> None:
+    def __init__(self, config: EnvConfig, scene: TaskScene) -> None:
         super().__init__(config, scene)
         t = config.task
         self.k = t.goals
@@ -76,7 +76,7 @@ class MissionTask(NavigationTask):
         return sum(self.reached)
 
     # ------------------------------------------------------------------ episode
-    def _choose_episode(self, scene: Scene, rng: np.random.Generator, options: dict[str, Any]):
+    def _choose_episode(self, scene: TaskScene, rng: np.random.Generator, options: dict[str, Any]):
         layout = scene.layout
         assert layout is not None
         start = pose_option(options["start"], 3, "start") if "start" in options else layout.start
@@ -88,7 +88,7 @@ class MissionTask(NavigationTask):
         start, goals = sample_mission(scene.free_space, rng, self.config.sampler, self.k, self._separation, start=start)
         return start, goals
 
-    def _goal_option(self, value: Any, scene: Scene) -> tuple[tuple[float, float], ...]:
+    def _goal_option(self, value: Any, scene: TaskScene) -> tuple[tuple[float, float], ...]:
         try:
             goals = [pose_option(g, 2, "goals") for g in value]
         except TypeError:
@@ -108,7 +108,7 @@ class MissionTask(NavigationTask):
                     raise ValueError(f"options['goals']: {list(g)} lies inside obstacle {i} ({o.label or o.kind})")
         return tuple((float(g[0]), float(g[1])) for g in goals)
 
-    def _begin(self, scene: Scene, start: tuple[float, float, float], rng: np.random.Generator) -> None:
+    def _begin(self, scene: TaskScene, start: tuple[float, float, float], rng: np.random.Generator) -> None:
         self.reached = [False] * len(self.goals)
         self.reached_at = [None] * len(self.goals)
         self._steps = 0
@@ -147,7 +147,7 @@ class MissionTask(NavigationTask):
         return min(left, key=lambda i: math.hypot(self.goals[i][0] - x, self.goals[i][1] - y))
 
     # ------------------------------------------------------------------ step
-    def after_step(self, scene: Scene) -> None:
+    def after_step(self, scene: TaskScene) -> None:
         self._steps += 1
         if self.order == "free" and self.guide is None:
             target = self._nearest(self._x, self._y)
@@ -158,7 +158,7 @@ class MissionTask(NavigationTask):
                 return
         super().after_step(scene)
 
-    def reward(self, scene: Scene) -> dict[str, float]:
+    def reward(self, scene: TaskScene) -> dict[str, float]:
         terms = super().reward(scene)
         terms["subgoal"] = 0.0
         if self._success:  # inside the radius of the current target
@@ -174,13 +174,13 @@ class MissionTask(NavigationTask):
                 self._progress.clear()
         return terms
 
-    def end(self, scene: Scene) -> tuple[bool, bool, str | None]:
+    def end(self, scene: TaskScene) -> tuple[bool, bool, str | None]:
         terminated, truncated, reason = super().end(scene)
         if not (terminated or truncated) and self._steps >= self.max_steps:
             return False, True, "time_limit"
         return terminated, truncated, reason
 
-    def observe(self, scene: Scene) -> np.ndarray:
+    def observe(self, scene: TaskScene) -> np.ndarray:
         base = super().observe(scene)
         scale, x, y, yaw = self._distance_scale, self._x, self._y, self._yaw_now()
         left = len(self.reached) - sum(self.reached)
@@ -200,7 +200,7 @@ class MissionTask(NavigationTask):
             return float(self._odometry[2])
         return self._robot.state.yaw
 
-    def info(self, scene: Scene) -> dict[str, Any]:
+    def info(self, scene: TaskScene) -> dict[str, Any]:
         out = super().info(scene)
         out.update(goals=self.goals, goals_reached=self.goals_reached, goals_total=len(self.goals),
                    reached=tuple(self.reached), reached_at=tuple(self.reached_at), goal_order=self.order)

@@ -21,7 +21,7 @@ from bulletnav.tasks.base import Task, pose_option
 from bulletnav.tasks.guidance import PathGuide
 
 if TYPE_CHECKING:
-    from bulletnav.envs.scene import Scene
+    from bulletnav.tasks.view import TaskScene
 
 
 class NavigationTask(Task):
@@ -34,7 +34,7 @@ class NavigationTask(Task):
 
     reward_terms = ("progress", "goal", "collision", "time", "heading", "stuck", "proximity")
 
-    def __init__(self, config: EnvConfig, scene: Scene) -> None:
+    def __init__(self, config: EnvConfig, scene: TaskScene) -> None:
         super().__init__(config, scene)
         scene.sensors.require("lidar", "imu", "odometry", by="the navigation task")
         t = config.task
@@ -100,11 +100,11 @@ class NavigationTask(Task):
         return spaces.Box(self.obs_low, self.obs_high, dtype=np.float32)
 
     # ------------------------------------------------------------------ episode
-    def initialize_episode(self, scene: Scene, rng: np.random.Generator, options: dict[str, Any]) -> None:
+    def initialize_episode(self, scene: TaskScene, rng: np.random.Generator, options: dict[str, Any]) -> None:
         start, self.goals = self._choose_episode(scene, rng, options)
         self._begin(scene, start, rng)
 
-    def _choose_episode(self, scene: Scene, rng: np.random.Generator, options: dict[str, Any]
+    def _choose_episode(self, scene: TaskScene, rng: np.random.Generator, options: dict[str, Any]
                         ) -> tuple[tuple[float, float, float], tuple[tuple[float, float], ...]]:
         """The episode's start pose and goal(s), from options, the layout or the sampler."""
         layout = scene.layout
@@ -121,7 +121,7 @@ class NavigationTask(Task):
             goal = pose_option(options["goal"], 2, "goal")  # type: ignore[assignment]
         return start, ((float(goal[0]), float(goal[1])),)
 
-    def _begin(self, scene: Scene, start: tuple[float, float, float], rng: np.random.Generator) -> None:
+    def _begin(self, scene: TaskScene, start: tuple[float, float, float], rng: np.random.Generator) -> None:
         """Place the robot at ``start`` and reset the per-episode state (goals already chosen)."""
         scene.place_robot(start, rng, self.goals)
         if self._guided:
@@ -148,13 +148,13 @@ class NavigationTask(Task):
         """What the progress term measures: the path cost with guidance, else the straight distance."""
         return self.path_cost if self._guided else self.distance
 
-    def after_step(self, scene: Scene) -> None:
+    def after_step(self, scene: TaskScene) -> None:
         if self._history_len:
             self._history.appendleft(self._range_list)  # the scan of the step before, newest first
         self.collision = scene.in_collision()
         self._measure(scene)
 
-    def _measure(self, scene: Scene) -> None:
+    def _measure(self, scene: TaskScene) -> None:
         odometry = self._odometry = self._odometry_sensor.floats()
         if self._odometry_pose:
             x, y, yaw = odometry[0], odometry[1], odometry[2]
@@ -176,7 +176,7 @@ class NavigationTask(Task):
             self._guide_heading = math.atan2(ly - y, lx - x) - yaw
 
     # ------------------------------------------------------------------ step
-    def observe(self, scene: Scene) -> np.ndarray:
+    def observe(self, scene: TaskScene) -> np.ndarray:
         """The observation vector (see the env docstring for the table).
 
         Built as one list of Python floats and rounded to float32 once: each lidar entry is
@@ -199,7 +199,7 @@ class NavigationTask(Task):
                        math.cos(self._guide_heading)]
         return np.array(values, dtype=np.float32)
 
-    def reward(self, scene: Scene) -> dict[str, float]:
+    def reward(self, scene: TaskScene) -> dict[str, float]:
         wp, wg, wc, wt, wh, far_from, ws, window, stuck_progress, wx, near = self._weights
         if self._odometry_pose:  # path length is always measured on the true path
             state = self._robot.state
@@ -235,14 +235,14 @@ class NavigationTask(Task):
             terms["mover_proximity"] = weight * (within - gap) if gap < within else 0.0
         return terms
 
-    def end(self, scene: Scene) -> tuple[bool, bool, str | None]:
+    def end(self, scene: TaskScene) -> tuple[bool, bool, str | None]:
         if self._success:
             return True, False, "success"
         if self.collision:
             return (True, False, "collision") if self.task.collision_terminates else (False, True, "collision")
         return False, False, None
 
-    def info(self, scene: Scene) -> dict[str, Any]:
+    def info(self, scene: TaskScene) -> dict[str, Any]:
         state = scene.robot.state
         out = {
             "distance_to_goal": self.distance, "collision": self.collision, "is_success": self._success,
