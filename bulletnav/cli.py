@@ -656,6 +656,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     from bulletnav.errors import RunError
     from bulletnav.provenance import command_line
     from bulletnav.rl.train import TrainConfig, train
+    from bulletnav.viz.compare import plot_learning_curve
 
     logging.getLogger("bulletnav.rl.curriculum").setLevel(logging.INFO)  # stage changes on the console
     out = Path(args.out)
@@ -681,7 +682,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         init_from=Path(args.init_from) if args.init_from else None, trust_pickle=args.trust_pickle,
         stop_at_success=args.stop_at_success, **extra,
     )
-    record = train(cfg)
+    record = train(cfg, plot_curve=plot_learning_curve)
     final = record.get("final_eval") or {}
     print(f"trained {args.algo.upper()} for {record['total_timesteps']} timesteps in {record['wall_time_s']:.0f} s "
           f"({record['n_envs']} envs, seed {args.seed})")
@@ -997,6 +998,7 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
     from bulletnav.benchmark.report import best_controllers, screenshots, write_report
     from bulletnav.benchmark.runner import run_suite
     from bulletnav.benchmark.suite import load_suite
+    from bulletnav.viz.plots import draw_layout
 
     suite = load_suite(args.suite)
     out = Path(args.out or f"runs/benchmark/{suite.name}")
@@ -1005,7 +1007,7 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
         if not results_file.is_file():
             raise BulletnavError(f"{results_file}: no results to report (run the suite first)")
         results = json.loads(results_file.read_text())
-        report = write_report(results, out / "report.html")
+        report = write_report(results, out / "report.html", draw_layout)
         print(f"report:  {report}")
         for shot in (screenshots(report, out, tab=args.screenshot_tab) if args.screenshots else []):
             print(f"screenshot: {shot}")
@@ -1025,7 +1027,7 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
     finally:
         if bar is not None:
             bar.close()
-    report = write_report(results, out / "report.html")
+    report = write_report(results, out / "report.html", draw_layout)
     if args.json:
         print(_json(results))
         return 0

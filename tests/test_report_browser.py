@@ -13,6 +13,7 @@ import pytest
 from bulletnav.benchmark.report import write_report
 from bulletnav.benchmark.runner import build_results
 from bulletnav.benchmark.suite import load_suite
+from bulletnav.viz.plots import draw_layout
 
 HERE = Path(__file__).resolve().parent
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -28,7 +29,7 @@ def report(tmp_path_factory) -> Path:
                              "command": "pytest"}
     out = tmp_path_factory.mktemp("report")
     (out / "results.json").write_text(json.dumps(results))
-    return write_report(results, out / "report.html")
+    return write_report(results, out / "report.html", draw_layout)
 
 
 def test_report_in_chromium(report, tmp_path):
