@@ -17,7 +17,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from bulletnav.bench.planner_bench import bench_planners, box_world, narrow_problem, rrt_problem
 from bulletnav.planning import OccupancyGrid, astar, astar_cost, astar_result, rrt, warmup
-from bulletnav.planning.rrt import _connected, _narrow_cells
+from bulletnav.planning.rrt import DEFAULT_MAX_ITERS, _connected, _narrow_cells
 
 SQRT2 = math.sqrt(2.0)
 
@@ -351,16 +351,26 @@ def test_rrt_deterministic_per_seed(make):
 
 
 def test_rrt_budget_only_truncates():
-    """A larger budget changes nothing once a smaller one has found the path: the iterations
-    run the same way, only the stopping point differs."""
+    """A budget changes nothing but where the iterations stop: below the smallest budget that
+    finds the full-budget path (found by bisection) every budget gives None, from it on every
+    budget gives exactly that path, and the path is free by dense sampling. (At 052a810 this
+    read ``path is None or path == full``, which held if every budget failed.)"""
     rng = np.random.default_rng(5)
+    truncated = 0
     for i in range(20):
         grid, start, goal = narrow_problem(rng)
-        full = rrt(grid, start, goal, np.random.default_rng(i))
-        assert full is not None
-        for budget in (1, 255, 256, 257, 1000):
-            path = rrt(grid, start, goal, np.random.default_rng(i), max_iters=budget)
-            assert path is None or path == full
+        plan = lambda budget, p=(grid, start, goal), i=i: rrt(*p, np.random.default_rng(i), max_iters=budget)  # noqa: E731
+        full = plan(DEFAULT_MAX_ITERS)
+        assert full is not None and full[0] == start and full[-1] == goal and sampled_path_free(grid, full)
+        lo, hi = 0, DEFAULT_MAX_ITERS  # plan(lo) is None (no iterations), plan(hi) is the path
+        assert plan(lo) is None
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            lo, hi = (lo, mid) if plan(mid) is not None else (mid, hi)
+        for budget in sorted({1, 255, 256, 257, 1000, hi - 1, hi, hi + 1, 2 * hi} - {0}):
+            assert plan(budget) == (full if budget >= hi else None), (i, budget, hi)
+        truncated += hi > 1
+    assert truncated == 20  # one iteration never suffices here: the None side was checked on every problem
 
 
 def test_rrt_none_cases():
@@ -449,11 +459,43 @@ def test_narrow_problems_are_narrow():
         assert closed[s] or closed[g] or not _connected(closed, *s, *g)
 
 
-def test_bench_planners_reports(report):
-    figures = bench_planners(seed=1, n=30)
-    assert set(figures) == {"astar_median_ms", "astar_p95_ms", "rrt_median_ms", "rrt_p95_ms", "rrt_success_rate",
-                            "rrt_narrow_median_ms", "rrt_narrow_p95_ms", "rrt_narrow_success_rate", "n"}
-    assert all(math.isfinite(v) and v >= 0 for v in figures.values())
-    assert 0.0 <= figures["rrt_success_rate"] <= 1.0 and 0.0 <= figures["rrt_narrow_success_rate"] <= 1.0
-    for key, value in figures.items():
-        report(key, f"{value:.4g}")
+def test_bench_planners_times_each_call_and_counts_only_valid_paths(monkeypatch, report):
+    """The benchmark on a fake clock: A* costs 1.25 ms a call, RRT 2.5 ms when it finds a path
+    and 40 ms when it does not. The figures must be those costs' median and 95th percentile
+    (the standard library's), and each solve rate the share of RRT paths that run from start to
+    goal and are free by dense sampling. (At 052a810 only the keys and finiteness were checked.)"""
+    import statistics
+    import types
+
+    from bulletnav.bench import planner_bench
+
+    now = [0.0]
+    plans = []
+    real_astar, real_rrt = planner_bench.astar, planner_bench.rrt
+
+    def astar_costing(grid, start, goal, **kwargs):
+        now[0] += 1.25e-3
+        return real_astar(grid, start, goal, **kwargs)
+
+    def rrt_costing(grid, start, goal, rng, **kwargs):
+        path = real_rrt(grid, start, goal, rng, **kwargs)
+        now[0] += 2.5e-3 if path is not None else 40e-3
+        plans.append((grid, start, goal, path))
+        return path
+
+    monkeypatch.setattr(planner_bench, "time", types.SimpleNamespace(perf_counter=lambda: now[0]))
+    monkeypatch.setattr(planner_bench, "astar", astar_costing)
+    monkeypatch.setattr(planner_bench, "rrt", rrt_costing)
+    n = 30
+    figures = bench_planners(seed=1, n=n)
+    assert figures["n"] == n and len(plans) == 2 * n  # the boxes' plans, then the narrow ones'
+    assert figures["astar_median_ms"] == pytest.approx(1.25) and figures["astar_p95_ms"] == pytest.approx(1.25)
+    for name, chunk in (("rrt", plans[:n]), ("rrt_narrow", plans[n:])):
+        valid = [path is not None and path[0] == start and path[-1] == goal and sampled_path_free(grid, path)
+                 for grid, start, goal, path in chunk]
+        assert all(v for v, (*_, path) in zip(valid, chunk) if path is not None), f"{name}: a path that is not free"
+        assert figures[f"{name}_success_rate"] == sum(valid) / n
+        costs = [2.5 if v else 40.0 for v in valid]
+        assert figures[f"{name}_median_ms"] == pytest.approx(statistics.median(costs))
+        assert figures[f"{name}_p95_ms"] == pytest.approx(statistics.quantiles(costs, n=20, method="inclusive")[-1])
+        report(f"{name} solved (fake-clock run, seed 1)", f"{sum(valid)}/{n}")
