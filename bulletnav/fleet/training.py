@@ -159,34 +159,16 @@ def train_fleet(cfg: FleetTrainConfig) -> dict[str, Any]:
         ConfigError: a bad hyperparameter file or setting.
     """
     import torch
-    from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
     from bulletnav.files import write_json
-    from bulletnav.rl.callbacks import CheckpointCallback, ThroughputCallback, TimedVecEnv, finish_checkpoint, save_checkpoint
-    from bulletnav.rl.hyperparams import load_hyperparams, model_kwargs, policy_class, upgrade_hyperparams
-    from bulletnav.rl.io import atomic_save_model, atomic_save_vecnormalize, load_model
-    from bulletnav.rl.safe import apply_stats, load_stats, load_zip, save_safe
-    from bulletnav.rl.sidecar import sidecar_path, vecnormalize_path
+    from bulletnav.rl.callbacks import CheckpointCallback, ThroughputCallback, TimedVecEnv
 
     torch.set_num_threads(1)  # 2 cores: more threads slow PPO down
     out = Path(cfg.out)
     ckpt = out / "checkpoints" / "last.zip"
     recorded = out / "config.json"
-    if cfg.resume:
-        finish_checkpoint(out)  # a run killed while writing its last checkpoint
-        if not ckpt.is_file() or not recorded.is_file():
-            raise ModelError(f"{ckpt}: no checkpoint to resume from")
-        original = json.loads(recorded.read_text())
-        hp = upgrade_hyperparams(original["hyperparams"], str(recorded))
-        env_kwargs = dict(original["env_kwargs"])
-        fleets, seed = int(original["fleets"]), int(original["seed"])
-        init_from = Path(original["init_from"])
-    else:
-        hp_path = cfg.hyperparams or default_hyperparams()
-        hp = load_hyperparams("ppo", env_id=HYPERPARAMS_ENV_ID, path=hp_path)
-        env_kwargs = fleet_env_kwargs(cfg.init_from, hp, cfg)
-        fleets, seed, init_from = cfg.fleets, cfg.seed, Path(cfg.init_from)
+    hp, env_kwargs, fleets, seed, init_from = _run_settings(cfg, ckpt, recorded)
     out.mkdir(parents=True, exist_ok=True)
     venv = VecMonitor(TimedVecEnv(make_fleet_vec_env(env_kwargs, fleets, seed)))
     slots = list(venv.unwrapped.slots)
@@ -194,37 +176,9 @@ def train_fleet(cfg: FleetTrainConfig) -> dict[str, Any]:
     start_steps, prior = 0, 0.0
     episodes: list[dict[str, Any]] = []
     if cfg.resume:
-        stats = load_stats(ckpt, {})
-        if normalize:
-            if not isinstance(stats, dict):
-                raise ModelError(f"{ckpt}: no normalization statistics beside it ({vecnormalize_path(ckpt).name})")
-            venv = apply_stats(VecNormalize(venv, **normalize), stats)
-        model = load_zip(ckpt, PPO, env=venv)
-        start_steps = int(model.num_timesteps)
-        last = json.loads(ckpt.with_suffix(".json").read_text()) if ckpt.with_suffix(".json").is_file() else {}
-        prior = float(last.get("wall_time", 0.0))
-        if (out / "episodes.json").is_file():
-            episodes = [r for r in json.loads((out / "episodes.json").read_text()) if r["timesteps"] <= start_steps]
+        model, venv, start_steps, prior, episodes = _resumed_model(out, ckpt, venv, normalize)
     else:
-        init, init_meta, _ = load_model(init_from)
-        if not isinstance(init, PPO):
-            raise ModelError(f"{init_from}: fleet training fine-tunes PPO models, not {type(init).__name__}")
-        for what, theirs, ours in (("observation", init.observation_space, venv.observation_space),
-                                   ("action", init.action_space, venv.action_space)):
-            if theirs.shape != ours.shape or not (np.array_equal(theirs.low, ours.low) and np.array_equal(theirs.high, ours.high)):
-                raise ModelError(f"{init_from}: its {what} space {theirs} differs from the fleet's {ours}")
-        if normalize:
-            venv = VecNormalize(venv, **normalize)
-            stats = load_stats(init_from, init_meta)
-            if isinstance(stats, dict):
-                apply_stats(venv, stats)
-            venv.training, venv.norm_reward = True, bool(normalize.get("norm_reward", True))
-        model = PPO(policy_class(hp), venv, seed=seed, device="cpu", verbose=0, **model_kwargs(hp, venv.action_space.shape[0]))
-        try:
-            model.policy.load_state_dict(init.policy.state_dict(), strict=True)
-        except RuntimeError as exc:
-            raise ModelError(f"{init_from}: its weights do not fit the policy of {cfg.hyperparams or default_hyperparams()}: "
-                             f"{str(exc)[:300]}") from None
+        model, venv = _fine_tune_model(cfg, init_from, venv, normalize, hp, seed)
     vecnorm = venv if isinstance(venv, VecNormalize) else None
     timer = venv.venv.venv if vecnorm is not None else venv.venv  # VecNormalize > VecMonitor > TimedVecEnv
     started = time.time() - prior
@@ -248,25 +202,130 @@ def train_fleet(cfg: FleetTrainConfig) -> dict[str, Any]:
         model.learn(total_timesteps=remaining, callback=callbacks, progress_bar=cfg.progress_bar,
                     reset_num_timesteps=not cfg.resume)
     wall = time.time() - t0
-    save_checkpoint(model, out, vecnorm, state())
+    _save_final(cfg, model, venv, vecnorm, state(), env_kwargs, record)
+    record.update(throughput=throughput.summary() if remaining else None, wall_time_s=round(wall, 1),
+                  wall_time_total_s=round(prior + wall, 1), total_timesteps=int(model.num_timesteps),
+                  episodes=len(episodes), last_episodes=episodes[-fleets * 3:])
+    write_json(out / "run.json", record)
+    return record
+
+
+def _run_settings(cfg: FleetTrainConfig, ckpt: Path, recorded: Path) -> tuple[dict[str, Any], dict[str, Any], int, int, Path]:
+    """A run's hyperparameters, fleet env settings, fleets, seed and initial model: the recorded
+    ones of the run resumed (``resume``), else those of ``cfg``.
+
+    Raises:
+        ModelError: ``resume`` without a checkpoint.
+    """
+    from bulletnav.rl.callbacks import finish_checkpoint
+    from bulletnav.rl.hyperparams import load_hyperparams, upgrade_hyperparams
+
+    if cfg.resume:
+        finish_checkpoint(Path(cfg.out))  # a run killed while writing its last checkpoint
+        if not ckpt.is_file() or not recorded.is_file():
+            raise ModelError(f"{ckpt}: no checkpoint to resume from")
+        original = json.loads(recorded.read_text())
+        hp = upgrade_hyperparams(original["hyperparams"], str(recorded))
+        env_kwargs = dict(original["env_kwargs"])
+        return hp, env_kwargs, int(original["fleets"]), int(original["seed"]), Path(original["init_from"])
+    hp_path = cfg.hyperparams or default_hyperparams()
+    hp = load_hyperparams("ppo", env_id=HYPERPARAMS_ENV_ID, path=hp_path)
+    env_kwargs = fleet_env_kwargs(cfg.init_from, hp, cfg)
+    return hp, env_kwargs, cfg.fleets, cfg.seed, Path(cfg.init_from)
+
+
+def _resumed_model(out: Path, ckpt: Path, venv: Any, normalize: dict[str, Any]) -> tuple[Any, Any, int, float, list[dict[str, Any]]]:
+    """The model of the last checkpoint on ``venv`` (normalized with the checkpoint's
+    statistics), the env it learns on, its timesteps, the wall time (s) before it and the
+    episode rows up to it.
+
+    Raises:
+        ModelError: normalization without statistics beside the checkpoint.
+    """
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from bulletnav.rl.safe import apply_stats, load_stats, load_zip
+    from bulletnav.rl.sidecar import vecnormalize_path
+
+    stats = load_stats(ckpt, {})
+    if normalize:
+        if not isinstance(stats, dict):
+            raise ModelError(f"{ckpt}: no normalization statistics beside it ({vecnormalize_path(ckpt).name})")
+        venv = apply_stats(VecNormalize(venv, **normalize), stats)
+    model = load_zip(ckpt, PPO, env=venv)
+    start_steps = int(model.num_timesteps)
+    last = json.loads(ckpt.with_suffix(".json").read_text()) if ckpt.with_suffix(".json").is_file() else {}
+    prior = float(last.get("wall_time", 0.0))
+    episodes = []
+    if (out / "episodes.json").is_file():
+        episodes = [r for r in json.loads((out / "episodes.json").read_text()) if r["timesteps"] <= start_steps]
+    return model, venv, start_steps, prior, episodes
+
+
+def _fine_tune_model(cfg: FleetTrainConfig, init_from: Path, venv: Any, normalize: dict[str, Any], hp: dict[str, Any],
+                     seed: int) -> tuple[Any, Any]:
+    """A new PPO model on ``venv`` with the weights (and normalization statistics) of the
+    single-robot model ``init_from``, and the env it learns on.
+
+    Raises:
+        ModelError: not a PPO model, its spaces differ from the fleet's, or its weights do not
+            fit the policy of the hyperparameters.
+    """
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from bulletnav.rl.hyperparams import model_kwargs, policy_class
+    from bulletnav.rl.io import load_model
+    from bulletnav.rl.safe import apply_stats, load_stats
+
+    init, init_meta, _ = load_model(init_from)
+    if not isinstance(init, PPO):
+        raise ModelError(f"{init_from}: fleet training fine-tunes PPO models, not {type(init).__name__}")
+    for what, theirs, ours in (("observation", init.observation_space, venv.observation_space),
+                               ("action", init.action_space, venv.action_space)):
+        if theirs.shape != ours.shape or not (np.array_equal(theirs.low, ours.low) and np.array_equal(theirs.high, ours.high)):
+            raise ModelError(f"{init_from}: its {what} space {theirs} differs from the fleet's {ours}")
+    if normalize:
+        venv = VecNormalize(venv, **normalize)
+        stats = load_stats(init_from, init_meta)
+        if isinstance(stats, dict):
+            apply_stats(venv, stats)
+        venv.training, venv.norm_reward = True, bool(normalize.get("norm_reward", True))
+    model = PPO(policy_class(hp), venv, seed=seed, device="cpu", verbose=0, **model_kwargs(hp, venv.action_space.shape[0]))
+    try:
+        model.policy.load_state_dict(init.policy.state_dict(), strict=True)
+    except RuntimeError as exc:
+        raise ModelError(f"{init_from}: its weights do not fit the policy of {cfg.hyperparams or default_hyperparams()}: "
+                         f"{str(exc)[:300]}") from None
+    return model, venv
+
+
+def _save_final(cfg: FleetTrainConfig, model: Any, venv: Any, vecnorm: Any, state: dict[str, Any],
+                env_kwargs: dict[str, Any], record: dict[str, Any]) -> None:
+    """Save the last checkpoint, then ``out/model.zip`` with its normalization statistics and its
+    sidecar (the fleet settings in its own block), and close the env."""
+    from bulletnav.files import write_json
+    from bulletnav.rl.callbacks import save_checkpoint
+    from bulletnav.rl.io import atomic_save_model, atomic_save_vecnormalize
+    from bulletnav.rl.safe import save_safe
+    from bulletnav.rl.sidecar import sidecar_path, vecnormalize_path
+
+    out = Path(cfg.out)
+    save_checkpoint(model, out, vecnorm, state)
     final = out / "model.zip"
     atomic_save_model(model, final)
     if vecnorm is not None:
         atomic_save_vecnormalize(vecnorm, vecnormalize_path(final))
     venv.close()
     fleet_block = {"num_robots": int(env_kwargs["num_robots"]), "dynamic": bool(env_kwargs["dynamic"]),
-                   "duration_s": float(env_kwargs["duration_s"]), "fleets": fleets}
+                   "duration_s": float(env_kwargs["duration_s"]), "fleets": record["fleets"]}
     single = {k: v for k, v in env_kwargs.items() if k not in ("num_robots", "dynamic", "duration_s")}
     meta = {"algo": "ppo", "env_id": HYPERPARAMS_ENV_ID if fleet_block["dynamic"] else "bulletnav/WarehouseAisles-v0",
-            "env_kwargs": single, "fleet": fleet_block, "trained_in": FLEET_ENV_ID, "init_from": str(init_from),
-            "shield": False, "seed": seed, "timesteps": int(model.num_timesteps), "git_commit": record["git_commit"],
+            "env_kwargs": single, "fleet": fleet_block, "trained_in": FLEET_ENV_ID, "init_from": record["init_from"],
+            "shield": False, "seed": record["seed"], "timesteps": int(model.num_timesteps), "git_commit": record["git_commit"],
             "command": cfg.command}
     write_json(sidecar_path(final), save_safe(model, final, vecnorm, meta))
-    record.update(throughput=throughput.summary() if remaining else None, wall_time_s=round(wall, 1),
-                  wall_time_total_s=round(prior + wall, 1), total_timesteps=int(model.num_timesteps),
-                  episodes=len(episodes), last_episodes=episodes[-fleets * 3:])
-    write_json(out / "run.json", record)
-    return record
 
 
 def versions() -> dict[str, str]:

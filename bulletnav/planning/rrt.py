@@ -319,12 +319,7 @@ def rrt(grid: OccupancyGrid, start_xy: Sequence[float], goal_xy: Sequence[float]
     Raises:
         ValueError: A parameter is out of range.
     """
-    if not (math.isfinite(step) and step > 0):
-        raise ValueError(f"step must be a positive number of metres, got {step!r}")
-    if not 0.0 <= goal_bias <= 1.0:
-        raise ValueError(f"goal_bias must be in [0, 1], got {goal_bias!r}")
-    if max_iters < 0:
-        raise ValueError(f"max_iters must be >= 0, got {max_iters!r}")
+    _check_arguments(step, goal_bias, max_iters)
     sx, sy = float(start_xy[0]), float(start_xy[1])
     gx, gy = float(goal_xy[0]), float(goal_xy[1])
     if not (grid.is_free_point((sx, sy)) and grid.is_free_point((gx, gy))):
@@ -334,8 +329,37 @@ def rrt(grid: OccupancyGrid, start_xy: Sequence[float], goal_xy: Sequence[float]
         return [(sx, sy), (gx, gy)]
     if math.hypot(gx - sx, gy - sy) <= step and _segment_free(occ, res, ox, oy, sx, sy, gx, gy):
         return [(sx, sy), (gx, gy)]
+    trees = _grow_trees(grid, (sx, sy), (gx, gy), rng, float(step), float(goal_bias), int(max_iters))
+    if trees is None:
+        return None
+    nodes, parent, state = trees
+    path = _join_path(nodes, parent, int(state[1]), int(state[2]))
+    if shortcut:
+        path = _shortcut(occ, res, ox, oy, path)
+    out = list(map(tuple, path.tolist()))
+    # The kernel copied start and goal bit for bit, but hand back the caller's exact values.
+    out[0], out[-1] = (sx, sy), (gx, gy)
+    return out
+
+
+def _check_arguments(step: float, goal_bias: float, max_iters: int) -> None:
+    """Raise ValueError for a parameter of :func:`rrt` out of range."""
+    if not (math.isfinite(step) and step > 0):
+        raise ValueError(f"step must be a positive number of metres, got {step!r}")
+    if not 0.0 <= goal_bias <= 1.0:
+        raise ValueError(f"goal_bias must be in [0, 1], got {goal_bias!r}")
+    if max_iters < 0:
+        raise ValueError(f"max_iters must be >= 0, got {max_iters!r}")
+
+
+def _grow_trees(grid: OccupancyGrid, start: tuple[float, float], goal: tuple[float, float], rng: np.random.Generator,
+                step: float, goal_bias: float, max_iters: int) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The two trees (nodes, parents) and the search state (extending tree, join node in tree 0,
+    in tree 1) once they are joined, in batches of :data:`_BATCH` iterations; None when start and
+    goal are not connected on the grid or ``max_iters`` run out (see :func:`rrt`)."""
+    (sx, sy), (gx, gy) = start, goal
+    occ, res, (ox, oy) = grid.occupied, grid.resolution, grid.origin
     x0, x1, y0, y1 = grid.bounds
-    max_iters = int(max_iters)
     # One iteration adds at most one node to the extending tree and, while connecting, one
     # per step along a straight line across the map to the other.
     per_iter = 2 + int(math.ceil(math.hypot(x1 - x0, y1 - y0) / step))
@@ -354,29 +378,26 @@ def rrt(grid: OccupancyGrid, start_xy: Sequence[float], goal_xy: Sequence[float]
             # Grid analyses only once the first batch failed: most problems never pay for them.
             if not _connected(occ, *grid.world_to_cell((sx, sy)), *grid.world_to_cell((gx, gy))):
                 return None
-            narrow = _narrow_cells(occ, res, float(step))
+            narrow = _narrow_cells(occ, res, step)
         batch = min(_BATCH, max_iters - done)
         need = int(count.max()) + batch * per_iter
         if need > capacity:  # grow geometrically; the trees' contents carry over unchanged
             capacity = max(need, 2 * capacity)
-            grown_nodes = np.empty((2, capacity, 2))
-            grown_parent = np.empty((2, capacity), dtype=np.int64)
-            grown_nodes[:, : nodes.shape[1]] = nodes
-            grown_parent[:, : parent.shape[1]] = parent
-            nodes, parent = grown_nodes, grown_parent
+            nodes, parent = _enlarged(nodes, parent, capacity)
         rand = rng.random((batch, 4))
-        _grow(occ, res, ox, oy, x0, y0, x1 - x0, y1 - y0, float(step), float(goal_bias),
+        _grow(occ, res, ox, oy, x0, y0, x1 - x0, y1 - y0, step, goal_bias,
               rand, narrow, nodes, parent, count, state, done >= _BATCH)
         done += batch
-    if state[1] < 0:
-        return None
-    path = _join_path(nodes, parent, int(state[1]), int(state[2]))
-    if shortcut:
-        path = _shortcut(occ, res, ox, oy, path)
-    out = list(map(tuple, path.tolist()))
-    # The kernel copied start and goal bit for bit, but hand back the caller's exact values.
-    out[0], out[-1] = (sx, sy), (gx, gy)
-    return out
+    return None if state[1] < 0 else (nodes, parent, state)
+
+
+def _enlarged(nodes: np.ndarray, parent: np.ndarray, capacity: int) -> tuple[np.ndarray, np.ndarray]:
+    """The two trees' arrays with room for ``capacity`` nodes each, their contents copied."""
+    grown_nodes = np.empty((2, capacity, 2))
+    grown_parent = np.empty((2, capacity), dtype=np.int64)
+    grown_nodes[:, : nodes.shape[1]] = nodes
+    grown_parent[:, : parent.shape[1]] = parent
+    return grown_nodes, grown_parent
 
 
 def _warmup() -> None:
