@@ -75,8 +75,10 @@ def test_against_head_measures_both_sides(capsys):
     assert out["benchmark"] == "env_against" and out["rounds"] == 1 and len(out["before_commit"]) == 7
     row = out["ids"]["bulletnav/WarehouseAisles-v0"]
     for side in ("before", "after"):
-        for key in ("reset_ms", "reset_ms_p90", "steps_per_s_with_resets", "steps_per_s_between_resets"):
+        for key in ("reset_ms", "reset_ms_p90", "reset_cpu_ms", "steps_per_s_with_resets", "steps_per_s_between_resets",
+                    "cpu_steps_per_s_with_resets", "cpu_steps_per_s_between_resets"):
             assert row[side][key] > 0, (side, key)
         assert 0 <= row[side]["reset_share"] < 1
-    for key in ("steps_per_s_with_resets", "steps_per_s_between_resets", "reset"):
+    for key in ("steps_per_s_with_resets", "steps_per_s_between_resets", "cpu_steps_per_s_with_resets",
+                "cpu_steps_per_s_between_resets", "reset", "reset_cpu"):
         assert row["speedup"][key] > 0 and len(row["ratios"][key]) == 1

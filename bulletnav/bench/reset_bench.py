@@ -215,9 +215,13 @@ def bench_vec(env_id: str = "bulletnav/Warehouse-v0", counts: tuple[int, ...] = 
 PROBE = Path(__file__).with_name("against_probe.py")
 """The self-contained measuring script both sides of :func:`bench_against` run."""
 
-AGAINST_KEYS = ("reset_ms", "reset_ms_p90", "steps_per_s_with_resets", "steps_per_s_between_resets", "reset_share",
-                "episodes")
+AGAINST_KEYS = ("reset_ms", "reset_ms_p90", "reset_cpu_ms", "steps_per_s_with_resets", "steps_per_s_between_resets",
+                "cpu_steps_per_s_with_resets", "cpu_steps_per_s_between_resets", "reset_share", "episodes")
 """The probe's figures that :func:`bench_against` reports per side (medians over rounds)."""
+
+RATIO_KEYS = ("steps_per_s_with_resets", "steps_per_s_between_resets", "cpu_steps_per_s_with_resets",
+              "cpu_steps_per_s_between_resets")
+"""Throughputs compared per round as after over before (reset times: before over after)."""
 
 
 def _git(root: Path, *args: str) -> subprocess.CompletedProcess:
@@ -284,13 +288,9 @@ def _against_row(before: list[dict], after: list[dict]) -> dict[str, Any]:
     (``speedup``) and spread."""
     row: dict[str, Any] = {side: {key: round(_median([r[key] for r in runs]), 3) for key in AGAINST_KEYS}
                            for side, runs in (("before", before), ("after", after))}
-    ratios = {
-        "steps_per_s_with_resets": [a["steps_per_s_with_resets"] / b["steps_per_s_with_resets"]
-                                    for a, b in zip(after, before)],
-        "steps_per_s_between_resets": [a["steps_per_s_between_resets"] / b["steps_per_s_between_resets"]
-                                       for a, b in zip(after, before)],
-        "reset": [b["reset_ms"] / a["reset_ms"] for a, b in zip(after, before)],
-    }
+    faster = {key: [a[key] / b[key] for a, b in zip(after, before)] for key in RATIO_KEYS}
+    ratios = {**faster, "reset": [b["reset_ms"] / a["reset_ms"] for a, b in zip(after, before)],
+              "reset_cpu": [b["reset_cpu_ms"] / a["reset_cpu_ms"] for a, b in zip(after, before)]}
     row["speedup"] = {key: round(_median(values), 3) for key, values in ratios.items()}
     row["ratios"] = {key: [round(v, 3) for v in values] for key, values in ratios.items()}
     return row
