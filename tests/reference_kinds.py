@@ -301,10 +301,10 @@ KINDS: dict[str, str] = {
     "test_guidance.py::test_guidance_off_keeps_the_observation_and_checkers_pass_with_it_on": "library",
     "test_guidance.py::test_an_unknown_guidance_is_refused_by_name": "contract",
     # ---- test_layout.py
-    "test_layout.py::test_sample_layouts_load_and_admit_start_goal_pairs": "contract",
+    "test_layout.py::test_sample_layouts_load_and_admit_start_goal_pairs": "library",  # Shapely clearance, SciPy components, hypot
     "test_layout.py::test_bad_layout_files_name_file_and_field": "contract",
     "test_layout.py::test_unreadable_and_non_yaml_files": "contract",
-    "test_layout.py::test_layout_round_trips_through_dict": "self",
+    "test_layout.py::test_layout_round_trips_through_dict": "library",  # clearance against Shapely from the dict
     "test_layout.py::test_same_seed_same_layout_and_different_seed_different_layout": "hand",  # the article's 31 obstacles
     "test_layout.py::test_obstacle_count_is_configurable_and_gaps_hold": "formula",
     "test_layout.py::test_too_many_obstacles_raise_a_clear_error": "contract",

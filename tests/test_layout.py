@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+import shapely
 from scipy.sparse import csgraph
 
 from bulletnav.config import RobotConfig, SamplerConfig, WorldConfig, asset_path
@@ -22,10 +23,17 @@ BASE = {"size": [10.0, 8.0], "obstacles": [{"type": "box", "center": [1.0, 1.0],
 def test_sample_layouts_load_and_admit_start_goal_pairs(name):
     layout = load_layout(asset_path("worlds", f"{name}.yaml"))
     free = FreeSpace.build(layout, SamplerConfig(), RADIUS)
-    start, goal = sample_start_goal(free, np.random.default_rng(0), SamplerConfig())
+    cfg = SamplerConfig()
+    start, goal = sample_start_goal(free, np.random.default_rng(0), cfg)
     assert free.reachable(start[:2], goal)
     if layout.start is not None:
         assert free.reachable(layout.start[:2], layout.goal)
+    # Against references outside the sampler: the Euclidean start-goal distance, Shapely's
+    # clearance from the file's own obstacle fields, SciPy's connected components.
+    assert cfg.min_goal_distance <= math.hypot(goal[0] - start[0], goal[1] - start[1]) <= cfg.max_goal_distance
+    clearance = _shapely_clearance(layout_to_dict(layout), np.array([start[:2], goal]))
+    assert clearance.min() >= cfg.clearance - 0.04  # up to the sampler's grid
+    assert _reachable_independent(layout, start[:2], goal, cfg)
 
 
 @pytest.mark.parametrize(
@@ -68,10 +76,38 @@ def test_unreadable_and_non_yaml_files(tmp_path):
         load_layout(bad)
 
 
+def _shapely_clearance(data: dict, points: np.ndarray) -> np.ndarray:
+    """Distance from each point (inside the floor) to the nearest wall or obstacle footprint,
+    by Shapely from a layout dict's fields: a box is its ``size`` rectangle turned by ``yaw``
+    about ``center``, a cylinder the disc of ``radius`` (exact: point distance less radius)."""
+    hx, hy = data["size"][0] / 2, data["size"][1] / 2
+    walls = shapely.box(-hx, -hy, hx, hy).exterior
+    pts = shapely.points(points)
+    out = shapely.distance(walls, pts)
+    for o in data["obstacles"]:
+        if o["type"] == "box":
+            sx, sy = o["size"][0] / 2, o["size"][1] / 2
+            shape = shapely.affinity.rotate(shapely.box(-sx, -sy, sx, sy), o.get("yaw", 0.0), origin=(0, 0),
+                                            use_radians=True)
+            d = shapely.distance(shapely.affinity.translate(shape, *o["center"]), pts)
+        else:
+            d = np.maximum(shapely.distance(shapely.Point(o["center"]), pts) - o["radius"], 0.0)
+        out = np.minimum(out, d)
+    return out
+
+
 def test_layout_round_trips_through_dict():
     layout = generate_warehouse(np.random.default_rng(3))
-    again = parse_layout(layout_to_dict(layout))
+    data = layout_to_dict(layout)
+    again = parse_layout(data)
     assert again == layout
+    # The dict's fields mean the footprints the layout measures: its clearance at 4,000 random
+    # points on the floor against Shapely's from the dict alone.
+    hx, hy = layout.half_extents
+    pts = np.random.default_rng(0).uniform((-hx, -hy), (hx, hy), size=(4000, 2))
+    expected = _shapely_clearance(data, pts)
+    assert (expected == 0).sum() > 100 and expected.max() > 0.5  # points inside footprints and in the open
+    np.testing.assert_allclose(again.clearance(pts[:, 0], pts[:, 1]), expected, atol=1e-9)
 
 
 def test_same_seed_same_layout_and_different_seed_different_layout():
