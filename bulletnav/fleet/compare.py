@@ -216,40 +216,11 @@ def run_comparison(out: Path, entries: list[Entry], robots: Sequence[int] = (4, 
     """
     root = Path(root or PROJECT_ROOT)
     env_kwargs = dict(env_kwargs or {})
-    if "num_robots" in env_kwargs:
-        raise ConfigError("pass fleet sizes as robots=, not env_kwargs['num_robots']")
-    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
-        raise ConfigError(f"episodes must be a whole number >= 1, got {episodes!r}")
-    if not robots or any(isinstance(n, bool) or not isinstance(n, int) or n < 1 for n in robots):
-        raise ConfigError(f"robots must be fleet sizes >= 1, got {list(robots)!r}")
-    if workers < 1:
-        raise ConfigError(f"workers must be >= 1, got {workers}")
+    _check_arguments(entries, robots, episodes, workers, env_kwargs, root)
     labels = [e.label for e in entries]
-    if not entries or len(set(labels)) != len(labels):
-        raise ConfigError(f"entries must be non-empty with distinct labels, got {labels}")
-    for entry in entries:  # a missing or unfit model fails now, not an hour in
-        if entry.model and not Path(resolve(entry.model, root)).is_file():
-            raise BulletnavError(f"{entry.model}: model file not found (entry {entry.label!r})")
     settings = {"entries": [entry_record(e, root) for e in entries], "robots": list(robots), "episodes": episodes,
                 "seed": seed, "env_kwargs": env_kwargs}
-    out.mkdir(parents=True, exist_ok=True)
-    log_path, meta_path = out / "episodes.jsonl", out / "settings.json"
-    if not run:
-        resume = True
-        if not log_path.is_file():
-            raise BulletnavError(f"{out}: no {log_path.name} to make tables from (run the comparison first)")
-    if log_path.exists() and not resume:
-        raise BulletnavError(f"{out} holds an earlier run ({log_path.name}): pass --resume to go on with it, "
-                             "or choose another --out")
-    if resume and meta_path.is_file():
-        check_resumable(json.loads(meta_path.read_text()), settings, meta_path)
-    rows = reopen_rows(log_path)
-    if resume and meta_path.is_file():  # entries of the earlier run that this one leaves out stay in the log
-        kept = {e["label"]: e for e in json.loads(meta_path.read_text())["entries"]}
-        kept.update({e["label"]: e for e in settings["entries"]})
-        write_strict_json(meta_path, {**settings, "entries": list(kept.values())})
-    else:
-        write_strict_json(meta_path, settings)
+    log_path, rows = _open_run(out, settings, resume or not run, run)
     rows = [r for r in rows if r["entry"] in labels and r["robots"] in robots and r["episode"] < episodes]
     done = {row_key(r["entry"], r["robots"], r["episode"]) for r in rows}
     chunks = plan_chunks(entries, robots, episodes, done) if run else []
@@ -273,6 +244,53 @@ def run_comparison(out: Path, entries: list[Entry], robots: Sequence[int] = (4, 
 
     write_bytes(out / "comparison.md", comparison_markdown(results).encode())
     return results
+
+
+def _check_arguments(entries: list[Entry], robots: Sequence[int], episodes: int, workers: int,
+                     env_kwargs: dict[str, Any], root: Path) -> None:
+    """Raise for bad settings of :func:`run_comparison`, and for an entry's missing model (now,
+    not an hour in)."""
+    if "num_robots" in env_kwargs:
+        raise ConfigError("pass fleet sizes as robots=, not env_kwargs['num_robots']")
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
+        raise ConfigError(f"episodes must be a whole number >= 1, got {episodes!r}")
+    if not robots or any(isinstance(n, bool) or not isinstance(n, int) or n < 1 for n in robots):
+        raise ConfigError(f"robots must be fleet sizes >= 1, got {list(robots)!r}")
+    if workers < 1:
+        raise ConfigError(f"workers must be >= 1, got {workers}")
+    labels = [e.label for e in entries]
+    if not entries or len(set(labels)) != len(labels):
+        raise ConfigError(f"entries must be non-empty with distinct labels, got {labels}")
+    for entry in entries:
+        if entry.model and not Path(resolve(entry.model, root)).is_file():
+            raise BulletnavError(f"{entry.model}: model file not found (entry {entry.label!r})")
+
+
+def _open_run(out: Path, settings: dict[str, Any], resume: bool, run: bool) -> tuple[Path, list[dict[str, Any]]]:
+    """``out``'s episode log and the rows already in it, with ``settings.json`` written (a
+    resumed run's earlier entries kept in it).
+
+    Raises:
+        BulletnavError: ``out`` holds an earlier run and ``resume`` is off, or a run of other
+            settings; ``run`` off and no log.
+    """
+    out.mkdir(parents=True, exist_ok=True)
+    log_path, meta_path = out / "episodes.jsonl", out / "settings.json"
+    if not run and not log_path.is_file():
+        raise BulletnavError(f"{out}: no {log_path.name} to make tables from (run the comparison first)")
+    if log_path.exists() and not resume:
+        raise BulletnavError(f"{out} holds an earlier run ({log_path.name}): pass --resume to go on with it, "
+                             "or choose another --out")
+    if resume and meta_path.is_file():
+        check_resumable(json.loads(meta_path.read_text()), settings, meta_path)
+    rows = reopen_rows(log_path)
+    if resume and meta_path.is_file():  # entries of the earlier run that this one leaves out stay in the log
+        kept = {e["label"]: e for e in json.loads(meta_path.read_text())["entries"]}
+        kept.update({e["label"]: e for e in settings["entries"]})
+        write_strict_json(meta_path, {**settings, "entries": list(kept.values())})
+    else:
+        write_strict_json(meta_path, settings)
+    return log_path, rows
 
 
 def common_episodes(rows: list[dict[str, Any]], labels: Sequence[str], robots: Sequence[int]) -> dict[int, set[int]]:
