@@ -102,7 +102,10 @@ def test_sweep_bootstrap_interval_matches_an_independent_resampling():
     ref = np.quantile(means, [0.025, 0.975])
     assert abs(lo - ref[0]) < 0.004 and abs(hi - ref[1]) < 0.004
     assert lo < x.mean() < hi and x.min() <= lo and hi <= x.max()
-    assert bootstrap_ci(x) == bootstrap_ci(x)  # seeded: the same table twice
+    # by hand: resampled means of [0, 1] are 0, 0.5, 1 with chances 1/4, 1/2, 1/4, so the 2.5 % and
+    # 97.5 % quantiles are 0 and 1, and the 30 % and 70 % ones both 0.5
+    assert bootstrap_ci([0.0, 1.0], resamples=20_000) == (0.0, 1.0)
+    assert bootstrap_ci([0.0, 1.0], level=0.4, resamples=20_000) == (0.5, 0.5)
     assert all(np.isnan(bootstrap_ci([0.5])))
 
 
@@ -135,9 +138,41 @@ def two_node_cluster():
         cluster.shutdown()
 
 
+def _episode_rows(model_path: str, env_id: str, episodes: int, seed: int) -> list[dict]:
+    """The held-out episodes of a trial's model, stepped here: episode k reset with ``seed + k``,
+    the model's deterministic action on its normalised observation, until the env ends it; a
+    row per episode with its success, reward sum and steps."""
+    import gymnasium as gym
+
+    from bulletnav.rl.envs import EVALUATE_OBSTACLES, evaluation_env_kwargs
+    from bulletnav.rl.io import load_model
+
+    model, meta, normalizer = load_model(model_path)
+    kwargs = evaluation_env_kwargs(meta["env_kwargs"])
+    if env_id == "bulletnav/Warehouse-v0":
+        kwargs["num_obstacles"] = EVALUATE_OBSTACLES  # the benchmark's warehouses, as `bulletnav evaluate` scores
+    env = gym.make(env_id, **kwargs)
+    rows = []
+    try:
+        for k in range(episodes):
+            obs, info = env.reset(seed=seed + k)
+            total, steps, done = 0.0, 0, False
+            while not done:
+                if normalizer is not None and normalizer.norm_obs:  # reward-only statistics leave obs alone
+                    obs = normalizer.normalize_obs(obs)
+                action, _ = model.predict(obs, deterministic=True)
+                obs, reward, terminated, truncated, info = env.step(action)
+                total += reward
+                steps += 1
+                done = terminated or truncated
+            rows.append({"seed": seed + k, "success": bool(info["is_success"]), "reward": total, "steps": steps})
+    finally:
+        env.close()
+    return rows
+
+
 @pytest.mark.slow
 def test_sweep_two_trials_run_on_the_two_worker_nodes(tmp_path, two_node_cluster):
-    from bulletnav.rl.evaluate import evaluate_model
     from bulletnav.sweep.run import SweepOptions, run_sweep
 
     spec = SweepSpec.from_dict({**TINY, "name": "two", "seeds": [0, 1]})
@@ -147,9 +182,13 @@ def test_sweep_two_trials_run_on_the_two_worker_nodes(tmp_path, two_node_cluster
     assert {r["node"] for r in rows} == two_node_cluster["workers"]  # one trial on each worker, none on the head
     for r in rows:
         assert r["timesteps"] >= spec.timesteps and Path(r["model"]).is_file()
-        # the table's score is the saved model's, re-scored independently on the same episodes
-        again = evaluate_model(r["model"], spec.env_id, spec.evaluation_episodes, spec.evaluation_seed)
-        assert r["success_rate"] == again["success_rate"] and r["mean_reward"] == pytest.approx(again["mean_reward"])
+        # the table's score is the saved model's: recomputed from episode rows that a loop written
+        # here collects (not evaluate_model, run_episodes or summarize, which the sweep used)
+        episodes = _episode_rows(r["model"], spec.env_id, spec.evaluation_episodes, spec.evaluation_seed)
+        assert [e["seed"] for e in episodes] == [1000, 1001]
+        assert r["success_rate"] == sum(e["success"] for e in episodes) / len(episodes)
+        assert r["mean_reward"] == pytest.approx(sum(e["reward"] for e in episodes) / len(episodes), rel=1e-9)
+        assert r["mean_length"] == pytest.approx(sum(e["steps"] for e in episodes) / len(episodes), rel=1e-12)
         run = json.loads((Path(r["model"]).parent / "run.json").read_text())
         assert run["seed"] == r["seed"] and run["hyperparams"]["n_steps"] == 64 and run["n_envs"] == 1
     out = tmp_path / "two"
