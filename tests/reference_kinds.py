@@ -191,19 +191,19 @@ KINDS: dict[str, str] = {
     "test_fleet.py::test_parallel_api": "library",  # PettingZoo's parallel_api_test
     "test_fleet.py::test_aec_api": "library",  # PettingZoo's api_test
     "test_fleet.py::test_agents_and_truncation_together": "hand",
-    "test_fleet.py::test_spaces_equal_single_robot": "self",  # against the single-robot env of the same package
-    "test_fleet.py::test_each_robot_maps_actions_as_the_single_robot_env_does": "self",
+    "test_fleet.py::test_spaces_equal_single_robot": "formula",  # shape by hand from the documented table; heading and distance entries from pose and goal
+    "test_fleet.py::test_each_robot_maps_actions_as_the_single_robot_env_does": "hand",  # (v, w) of each action worked out from the documented ranges
     "test_fleet.py::test_same_seed_same_episode_here_and_in_a_fresh_process": "self",
     "test_fleet.py::test_lidar_sees_other_robot_not_itself": "formula",  # range = robot face from its geometry
     "test_fleet.py::test_robot_robot_collision_stops_both_and_episode_goes_on": "hand",
     "test_fleet.py::test_errand_completes_pick_then_drop_and_next_is_assigned": "hand",
-    "test_fleet.py::test_stations_derived_from_an_aisle_warehouse": "contract",
+    "test_fleet.py::test_stations_derived_from_an_aisle_warehouse": "library",  # station clearance by Shapely from the obstacle footprints
     "test_fleet.py::test_dock_moves_in_where_racks_line_every_wall": "hand",
-    "test_fleet.py::test_procedural_floor_with_racks_on_every_wall_gets_a_dock": "contract",
+    "test_fleet.py::test_procedural_floor_with_racks_on_every_wall_gets_a_dock": "library",  # dock stations clear of racks and walls by Shapely
     "test_fleet.py::test_num_robots_out_of_range": "contract",
     "test_fleet.py::test_more_robots_than_fit": "contract",
     "test_fleet.py::test_world_without_stations": "contract",
-    "test_fleet.py::test_shipped_dynamic_policy_runs_on_every_robot": "contract",
+    "test_fleet.py::test_shipped_dynamic_policy_runs_on_every_robot": "formula",  # path_length against the sum of step lengths of the true poses
     # the planner's A* as a second algorithm
     "test_fleet.py::test_route_distance_follows_the_floor_plan_like_an_independent_a_star": "formula",
     # ---- test_fleet_bench.py

@@ -91,8 +91,24 @@ def test_spaces_equal_single_robot(kwargs, single_id):
         for agent in env.possible_agents:
             assert env.observation_space(agent) == single.observation_space
             assert env.action_space(agent) == single.action_space
-        obs, _ = env.reset(seed=1)
+        obs, infos = env.reset(seed=1)
         assert all(single.observation_space.contains(o) for o in obs.values())
+        # against the documented layout (the env's observation table), by hand: lidar_rays + 7
+        # entries, 3 more with floor-plan guidance; actions (v m/s, w rad/s) in [0, 0.5] x [-1.5, 1.5]
+        # or [-1, 1]^2 normalized
+        rays = kwargs.get("lidar_rays", 36)
+        extra = 3 if kwargs.get("guidance") == "floorplan" else 0
+        space = env.observation_space("robot_0")
+        assert space.shape == (rays + 7 + extra,)
+        low, high = ([-1.0, -1.0], [1.0, 1.0]) if kwargs.get("normalize_actions") else ([0.0, -1.5], [0.5, 1.5])
+        assert np.allclose(env.action_space("robot_0").low, low) and np.allclose(env.action_space("robot_0").high, high)
+        for agent, o in obs.items():  # entries 36 and 42 recomputed from the robot's pose and goal
+            x, y, yaw = infos[agent]["pose"]
+            gx, gy = infos[agent]["goal"]
+            heading = math.remainder(math.atan2(gy - y, gx - x) - yaw, 2 * math.pi)
+            assert o[rays] == pytest.approx(heading / math.pi, abs=1e-5)
+            assert o[rays + 6] == pytest.approx(min(math.hypot(gx - x, gy - y) / 10.0, 3.0), abs=1e-5)
+            assert ((o[:rays] >= 0.0) & (o[:rays] <= 1.0)).all()
     finally:
         env.close()
         single.close()
@@ -106,8 +122,14 @@ def test_each_robot_maps_actions_as_the_single_robot_env_does(normalize):
     single = gym.make("bulletnav/WarehouseAisles-v0", normalize_actions=normalize).unwrapped
     env = fleet_v0.parallel_env(num_robots=2, duration_s=1.0, normalize_actions=normalize)
     try:
-        for action in (np.array([0.3, -0.7], np.float32), np.array([9.0, -9.0]), [1, 0], (0.25, 1.25)):
+        # hand values: physical actions clipped to v in [0, 0.5] m/s, w in [-1.5, 1.5] rad/s;
+        # normalized ones mapped linearly from [-1, 1] onto those ranges first
+        expected = ([(0.325, -1.05), (0.5, -1.5), (0.5, 0.0), (0.3125, 1.5)] if normalize else
+                    [(0.3, -0.7), (0.5, -1.5), (0.5, 0.0), (0.25, 1.25)])
+        for action, want in zip((np.array([0.3, -0.7], np.float32), np.array([9.0, -9.0]), [1, 0], (0.25, 1.25)),
+                                expected):
             assert env.command(action) == single.command(action)
+            assert env.command(action) == pytest.approx(want, abs=1e-6)
         for bad in (np.array([np.nan, 0.0]), [0.1], {"v": 1}):
             with pytest.raises(ValueError) as theirs:
                 single.command(bad)
@@ -247,6 +269,7 @@ def test_stations_derived_from_an_aisle_warehouse():
         for pt in (*st.pick, *st.drop):
             assert free.reachable(st.pick[0], pt)
             assert float(layout.clearance(np.array(pt[0]), np.array(pt[1]))) > env.config.sampler.clearance
+            assert _shapely_clearance(layout, pt) > env.config.sampler.clearance  # Shapely's distance, too
         poses = [infos[a]["pose"] for a in env.possible_agents]
         for i in range(4):
             assert free.reachable(tuple(poses[i][:2]), infos[f"robot_{i}"]["goal"])
@@ -285,8 +308,33 @@ def test_procedural_floor_with_racks_on_every_wall_gets_a_dock():
     try:
         env.reset(seed=1015)  # raised "no drop stations" before the dock could move in
         assert len(env.stations.drop) >= 1
+        # the dock is free floor: every drop station clear of every rack and wall by Shapely's distance
+        layout = env._scene.layout
+        assert sum(o.label == "rack" for o in layout.obstacles) >= 4
+        for pt in env.stations.drop:
+            assert _shapely_clearance(layout, pt) > env.config.sampler.clearance, pt
     finally:
         env.close()
+
+
+def _shapely_clearance(layout, point) -> float:
+    """Distance (m) from ``point`` to the nearest obstacle footprint or wall, by Shapely from the
+    obstacles' documented centre, size and yaw (an independent reference for station clearance)."""
+    from shapely import affinity
+    from shapely.geometry import Point, box
+
+    shapes = []
+    for o in layout.obstacles:
+        if o.kind == "cylinder":
+            shapes.append(Point(o.center).buffer(o.radius, quad_segs=64))
+        else:
+            hx, hy = o.size[0] / 2, o.size[1] / 2
+            rect = box(o.center[0] - hx, o.center[1] - hy, o.center[0] + hx, o.center[1] + hy)
+            shapes.append(affinity.rotate(rect, o.yaw, origin=tuple(o.center), use_radians=True))
+    hx, hy = layout.half_extents
+    shapes.append(box(-hx, -hy, hx, hy).exterior)  # the walls' inner faces
+    pt = Point(point)
+    return min(pt.distance(s) for s in shapes)
 
 
 # ------------------------------------------------------------------ bad arguments
@@ -337,11 +385,18 @@ def test_shipped_dynamic_policy_runs_on_every_robot():
         policy = SB3Policy(model, normalizer)
         obs, infos = env.reset(seed=11)
         policy.reset(infos["robot_0"])
+        driven = dict.fromkeys(infos, 0.0)
+        last = {a: infos[a]["pose"][:2].copy() for a in infos}
         while env.agents:
             actions = {a: policy.act(obs[a], infos[a]) for a in env.agents}
             obs, rewards, _, _, infos = env.step(actions)
             assert all(np.isfinite(r) for r in rewards.values())
+            for a, info in infos.items():  # the driven length, summed here from the true poses step by step
+                driven[a] += math.dist(last[a], info["pose"][:2])
+                last[a] = info["pose"][:2].copy()
         assert all(info["path_length"] > 0.0 for info in infos.values())
+        for a, info in infos.items():
+            assert info["path_length"] == pytest.approx(driven[a], rel=1e-6, abs=1e-9), a
     finally:
         env.close()
 
