@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass
 
 from bulletnav import limits
-from bulletnav.errors import ConfigError
+from bulletnav.errors import ConfigError, LimitError
 
 MAX_ROBOTS = 16
 """Most robots one fleet holds by default: the limit ``fleet_robots`` (:mod:`bulletnav.limits`;
@@ -51,12 +51,12 @@ class FleetConfig:
         n = self.num_robots
         if isinstance(n, bool) or not isinstance(n, int) or not 1 <= n <= ROBOT_BITS:
             raise ConfigError(f"fleet num_robots must be an integer from 1 to {limits.current().fleet_robots}, got {n!r}")
-        limits.check("fleet_robots", n, "fleet num_robots")
+        _check("fleet_robots", n, "fleet num_robots")
         for name in ("duration_s", "station_spacing", "station_offset"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ConfigError(f"fleet {name} must be a positive number, got {value!r}")
-        limits.check("fleet_duration", self.duration_s, "fleet duration_s")
+        _check("fleet_duration", self.duration_s, "fleet duration_s")
         for name in ("collision_penalty_s", "min_clearance"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
@@ -72,3 +72,11 @@ class FleetConfig:
             for i, pt in enumerate(points):
                 if len(pt) != 2 or not all(isinstance(v, (int, float)) and math.isfinite(v) for v in pt):
                     raise ConfigError(f"fleet {name}[{i}] must be 2 finite numbers (x, y), got {pt!r}")
+
+
+def _check(name: str, value: float, what: str) -> None:
+    """:func:`bulletnav.limits.check` as a :class:`ConfigError` (the message still names the variable)."""
+    try:
+        limits.check(name, value, what)
+    except LimitError as exc:
+        raise ConfigError(str(exc)) from None
