@@ -82,14 +82,12 @@ def _load(dataset_id: str) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray]:
 
 def train_bc(cfg: BCConfig) -> dict[str, Any]:
     """Fit, save and return the run record (also ``out/run.json``)."""
-    import gymnasium as gym
     import torch
-    from stable_baselines3 import PPO
 
     import bulletnav  # noqa: F401  (registers the envs the dataset's spec names)
     from bulletnav.files import write_json
     from bulletnav.provenance import git_commit, machine
-    from bulletnav.rl.hyperparams import load_hyperparams, model_kwargs, policy_class
+    from bulletnav.rl.hyperparams import load_hyperparams
     from bulletnav.rl.io import atomic_save_model
     from bulletnav.rl.safe import save_safe
     from bulletnav.rl.sidecar import sidecar_path
@@ -108,55 +106,19 @@ def train_bc(cfg: BCConfig) -> dict[str, Any]:
     # the network is PPO's for this env id, in the env PPO trains in (the hyperparameter file's
     # env settings over the dataset's): a BC model then fine-tunes with train --init-from
     env_kwargs = {k: v for k, v in {**dict(spec.kwargs), **hp.get("env_kwargs", {})}.items() if k != "render_mode"}
-    source = ds.action_space
-    env = gym.make(spec.id, **env_kwargs)
-    try:
-        target = env.action_space
-        if env.observation_space.shape != obs.shape[1:] or target.shape != acts.shape[1:]:
-            raise BulletnavError(f"--dataset {cfg.dataset}: observations {obs.shape[1:]} / actions {acts.shape[1:]} do not "
-                                 f"fit PPO's env for {spec.id} ({env.observation_space.shape} / {target.shape}); record the "
-                                 "dataset with the env settings of rl/hyperparams/ppo.yml")
-        model = PPO(policy_class(hp), env, seed=cfg.seed, device="cpu", verbose=0,
-                    **model_kwargs(hp, target.shape[0]))
-    finally:
-        env.close()
-    if not (np.array_equal(source.low, target.low) and np.array_equal(source.high, target.high)):
-        # the same commands in the other action scale (physical units <-> [-1, 1]), linearly
-        acts = (target.low + (acts - source.low) / (source.high - source.low) * (target.high - target.low)).astype(np.float32)
+    model = _ppo_model(cfg, spec.id, hp, env_kwargs, obs.shape[1:], acts.shape[1:])
+    acts = _in_action_scale(acts, ds.action_space, model.action_space)
     policy = model.policy
     policy.set_training_mode(True)
     if not cfg.fit_std and hasattr(policy, "log_std"):
         policy.log_std.requires_grad_(False)
-    optimizer = torch.optim.Adam([q for q in policy.parameters() if q.requires_grad], lr=cfg.learning_rate)
     episodes = np.unique(owner)
-    n_held = int(round(cfg.validation * len(episodes)))
-    if cfg.validation > 0 and len(episodes) > 1:
-        n_held = max(n_held, 1)
-    held = rng.permutation(episodes)[:n_held]
+    held = _held_out(rng, episodes, cfg.validation)
     val = np.isin(owner, held)
     x_tr, a_tr = torch.as_tensor(obs[~val]), torch.as_tensor(acts[~val])
     x_va, a_va = torch.as_tensor(obs[val]), torch.as_tensor(acts[val])
-    history = []
     t0 = time.time()
-    for epoch in range(cfg.epochs):
-        order = torch.as_tensor(rng.permutation(len(x_tr)))
-        losses = []
-        for start in range(0, len(order), cfg.batch_size):
-            idx = order[start:start + cfg.batch_size]
-            _, log_prob, _ = policy.evaluate_actions(x_tr[idx], a_tr[idx])
-            loss = -log_prob.mean()
-            optimizer.zero_grad()
-            loss.backward()
-            optimizer.step()
-            losses.append(loss.item())
-        row = {"epoch": epoch + 1, "train_nll": float(np.mean(losses))}
-        if len(x_va):
-            with torch.no_grad():
-                _, log_prob, _ = policy.evaluate_actions(x_va, a_va)
-                mean = policy.get_distribution(x_va).distribution.mean
-            row.update(val_nll=float(-log_prob.mean()), val_action_mse=float(((mean - a_va) ** 2).mean()))
-        history.append(row)
-        log.info("bc epoch %d: %s", epoch + 1, row)
+    history = _fit(cfg, policy, rng, (x_tr, a_tr), (x_va, a_va))
     wall = time.time() - t0
     policy.set_training_mode(False)
     if hasattr(policy, "log_std"):
@@ -178,6 +140,80 @@ def train_bc(cfg: BCConfig) -> dict[str, Any]:
     write_json(cfg.out / "history.json", history)
     write_json(cfg.out / "run.json", json.loads(json.dumps(record, default=str)))
     return record
+
+
+def _ppo_model(cfg: BCConfig, env_id: str, hp: dict[str, Any], env_kwargs: dict[str, Any], obs_shape: tuple[int, ...],
+               act_shape: tuple[int, ...]) -> Any:
+    """A new PPO model with the network of the hyperparameters, in the env ``env_id`` made with
+    ``env_kwargs`` (closed again).
+
+    Raises:
+        BulletnavError: the dataset's observation or action shape does not fit that env.
+    """
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+
+    from bulletnav.rl.hyperparams import model_kwargs, policy_class
+
+    env = gym.make(env_id, **env_kwargs)
+    try:
+        target = env.action_space
+        if env.observation_space.shape != obs_shape or target.shape != act_shape:
+            raise BulletnavError(f"--dataset {cfg.dataset}: observations {obs_shape} / actions {act_shape} do not "
+                                 f"fit PPO's env for {env_id} ({env.observation_space.shape} / {target.shape}); record the "
+                                 "dataset with the env settings of rl/hyperparams/ppo.yml")
+        return PPO(policy_class(hp), env, seed=cfg.seed, device="cpu", verbose=0, **model_kwargs(hp, target.shape[0]))
+    finally:
+        env.close()
+
+
+def _in_action_scale(acts: np.ndarray, source: Any, target: Any) -> np.ndarray:
+    """The dataset's actions (in ``source``'s box) as the same commands in ``target``'s box
+    (physical units <-> [-1, 1], linearly); unchanged where the boxes are equal."""
+    if np.array_equal(source.low, target.low) and np.array_equal(source.high, target.high):
+        return acts
+    return (target.low + (acts - source.low) / (source.high - source.low) * (target.high - target.low)).astype(np.float32)
+
+
+def _held_out(rng: np.random.Generator, episodes: np.ndarray, validation: float) -> np.ndarray:
+    """The episodes held out for validation: the fraction ``validation`` of them (at least one
+    when it is above 0 and there are two or more), drawn from ``rng``."""
+    n_held = int(round(validation * len(episodes)))
+    if validation > 0 and len(episodes) > 1:
+        n_held = max(n_held, 1)
+    return rng.permutation(episodes)[:n_held]
+
+
+def _fit(cfg: BCConfig, policy: Any, rng: np.random.Generator, train: tuple[Any, Any],
+         validation: tuple[Any, Any]) -> list[dict[str, float]]:
+    """Fit ``policy`` to the training (observations, actions) by the negative log-likelihood of
+    the actions, ``cfg.epochs`` epochs of shuffled batches with Adam; one row per epoch (the
+    training loss, and the validation loss and action error where there is a validation set)."""
+    import torch
+
+    (x_tr, a_tr), (x_va, a_va) = train, validation
+    optimizer = torch.optim.Adam([q for q in policy.parameters() if q.requires_grad], lr=cfg.learning_rate)
+    history = []
+    for epoch in range(cfg.epochs):
+        order = torch.as_tensor(rng.permutation(len(x_tr)))
+        losses = []
+        for start in range(0, len(order), cfg.batch_size):
+            idx = order[start:start + cfg.batch_size]
+            _, log_prob, _ = policy.evaluate_actions(x_tr[idx], a_tr[idx])
+            loss = -log_prob.mean()
+            optimizer.zero_grad()
+            loss.backward()
+            optimizer.step()
+            losses.append(loss.item())
+        row = {"epoch": epoch + 1, "train_nll": float(np.mean(losses))}
+        if len(x_va):
+            with torch.no_grad():
+                _, log_prob, _ = policy.evaluate_actions(x_va, a_va)
+                mean = policy.get_distribution(x_va).distribution.mean
+            row.update(val_nll=float(-log_prob.mean()), val_action_mse=float(((mean - a_va) ** 2).mean()))
+        history.append(row)
+        log.info("bc epoch %d: %s", epoch + 1, row)
+    return history
 
 
 __all__ = ["BCConfig", "train_bc"]
