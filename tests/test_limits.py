@@ -17,6 +17,24 @@ from bulletnav.limits import Limits, env_var
 
 D = Limits()
 
+# The defaults and variables as docs/limits.md publishes them, written out by hand: the
+# boundary tests below are held to these numbers, not to the values the module reads itself.
+SPEC = {
+    "world_size": (200.0, "BULLETNAV_MAX_WORLD_SIZE"), "obstacles": (1000, "BULLETNAV_MAX_OBSTACLES"),
+    "movers": (64, "BULLETNAV_MAX_MOVERS"), "events": (1000, "BULLETNAV_MAX_EVENTS"),
+    "event_rate": (600.0, "BULLETNAV_MAX_EVENT_RATE"), "lidar_rays": (4096, "BULLETNAV_MAX_LIDAR_RAYS"),
+    "camera_width": (4096, "BULLETNAV_MAX_CAMERA_WIDTH"), "camera_height": (4096, "BULLETNAV_MAX_CAMERA_HEIGHT"),
+    "camera_pixels": (8_388_608, "BULLETNAV_MAX_CAMERA_PIXELS"), "episode_steps": (100_000, "BULLETNAV_MAX_EPISODE_STEPS"),
+    "goals": (8, "BULLETNAV_MAX_GOALS"), "sweep_trials": (10_000, "BULLETNAV_MAX_SWEEP_TRIALS"),
+    "suite_episodes": (100_000, "BULLETNAV_MAX_SUITE_EPISODES"), "suite_worlds": (64, "BULLETNAV_MAX_SUITE_WORLDS"),
+    "suite_controllers": (64, "BULLETNAV_MAX_SUITE_CONTROLLERS"), "suite_total": (1_000_000, "BULLETNAV_MAX_SUITE_TOTAL"),
+    "map_extent": (1000.0, "BULLETNAV_MAX_MAP_EXTENT"), "map_cells": (16_777_216, "BULLETNAV_MAX_MAP_CELLS"),
+    "net_width": (4096, "BULLETNAV_MAX_NET_WIDTH"), "net_layers": (16, "BULLETNAV_MAX_NET_LAYERS"),
+    "n_steps": (1_048_576, "BULLETNAV_MAX_N_STEPS"), "batch_size": (1_048_576, "BULLETNAV_MAX_BATCH_SIZE"),
+    "buffer_size": (5_000_000, "BULLETNAV_MAX_BUFFER_SIZE"), "n_envs": (256, "BULLETNAV_MAX_N_ENVS"),
+    "fleet_robots": (16, "BULLETNAV_MAX_FLEET_ROBOTS"), "fleet_duration": (3600.0, "BULLETNAV_MAX_FLEET_DURATION"),
+}
+
 CASES = {
     # limit -> (build with value v, the field as the message names it, a value just above the limit)
     "world_size": (lambda v: WorldConfig(size=(v, 10.0)), "world size (x)", D.world_size + 0.5),
@@ -92,17 +110,22 @@ def _sweep(trials: int):
 
 def test_every_limit_has_a_case_and_a_documented_row():
     names = [f.name for f in fields(Limits)]
-    assert sorted(CASES) == sorted(names)
+    assert sorted(CASES) == sorted(names) == sorted(SPEC)
     page = open("docs/limits.md").read()
     for name in names:
         assert f"`{env_var(name)}`" in page, name
         assert f"`{name}`" in page, name
+    # Each documented row states the hand-written default and variable; the module agrees.
+    rows = {m[1]: (m[2], m[3]) for m in re.finditer(r"^\| `(\w+)` \| ([\d,]+) \| [^|]+ \| `(\w+)` \|", page, re.M)}
+    for name, (default, var) in SPEC.items():
+        assert rows[name] == (f"{default:,.0f}", var), name
+        assert getattr(D, name) == default and type(getattr(D, name)) is type(default) and env_var(name) == var, name
 
 
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_accepted_at_the_limit(name):
     build, _, _ = CASES[name]
-    build(getattr(D, name))
+    build(SPEC[name][0])  # the documented default itself passes
 
 
 @pytest.mark.parametrize("name", sorted(CASES))
@@ -114,15 +137,19 @@ def test_refused_just_above_with_field_value_limit_and_variable(name):
     assert isinstance(err.value, BulletnavError) and isinstance(err.value, ValueError)
     assert what in message
     assert f"exceeds the limit {getattr(D, name)} (raise it with {env_var(name)})" in message
+    limit, var = SPEC[name]
+    reported = 10_010 if name == "sweep_trials" else above  # the sweep case rounds up to whole seeds of 10 configurations
+    assert message.endswith(f" = {reported} exceeds the limit {limit} (raise it with {var})")
 
 
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_raised_by_its_environment_variable(name, monkeypatch):
     build, _, above = CASES[name]
-    monkeypatch.setenv(env_var(name), str(above * 2 if name != "camera_pixels" else above))
+    assert env_var(name) == SPEC[name][1]
+    monkeypatch.setenv(SPEC[name][1], str(above * 2 if name != "camera_pixels" else above))
     assert getattr(limits.current(), name) == type(getattr(D, name))(above * 2 if name != "camera_pixels" else above)
     build(above)
-    monkeypatch.delenv(env_var(name))
+    monkeypatch.delenv(SPEC[name][1])
     with pytest.raises((LimitError, ConfigError)):
         build(above)
 
@@ -166,6 +193,14 @@ def test_max_episode_steps_through_make_env():
     with pytest.raises(LimitError, match=r"max_episode_steps = 1000000 exceeds the limit 100000 "
                                          r"\(raise it with BULLETNAV_MAX_EPISODE_STEPS\)"):
         make_env("bulletnav/Warehouse-v0", {"max_episode_steps": 1_000_000})
+    # The boundary by hand: 100,001 is refused with the exact line, 100,000 builds the env.
+    with pytest.raises(LimitError) as err:
+        make_env("bulletnav/Warehouse-v0", {}, max_episode_steps=100_001)
+    assert str(err.value) == ("max_episode_steps = 100001 exceeds the limit 100000 "
+                              "(raise it with BULLETNAV_MAX_EPISODE_STEPS)")
+    env = make_env("bulletnav/Warehouse-v0", {"max_episode_steps": 100_000})
+    assert env.spec.max_episode_steps == 100_000
+    env.close()
 
 
 BOX = {"type": "box", "center": [0.0, 0.0], "size": [0.2, 0.2, 0.5]}
@@ -194,14 +229,15 @@ def test_layout_files_name_file_field_and_limit(tmp_path, data, what):
 def test_layout_at_the_limits_loads(tmp_path):
     from bulletnav.sim.layout import load_layout
 
-    data = {"size": [D.world_size, 10.0], "obstacles": [BOX] * D.obstacles,
-            "dynamic": [{"type": "worker", "waypoints": [[1, 1], [2, 2]]}] * D.movers,
-            "events": [{"at": 1.0, "add": {**BOX, "center": [3.0, 3.0]}}] * D.events, "goals": [[1.0, 1.0]] * D.goals}
+    # the documented limits, by hand (one more of each is refused above)
+    data = {"size": [200.0, 10.0], "obstacles": [BOX] * 1000,
+            "dynamic": [{"type": "worker", "waypoints": [[1, 1], [2, 2]]}] * 64,
+            "events": [{"at": 1.0, "add": {**BOX, "center": [3.0, 3.0]}}] * 1000, "goals": [[1.0, 1.0]] * 8}
     path = tmp_path / "big.yaml"
     path.write_text(yaml.safe_dump(data))
     layout = load_layout(path)
-    assert (len(layout.obstacles), len(layout.dynamic), len(layout.events), len(layout.goals)) == \
-        (D.obstacles, D.movers, D.events, D.goals)
+    assert (len(layout.obstacles), len(layout.dynamic), len(layout.events), len(layout.goals)) == (1000, 64, 1000, 8)
+    assert layout.size == (200.0, 10.0)
 
 
 def test_benchmark_suite_world_kwargs(tmp_path):
@@ -210,7 +246,7 @@ def test_benchmark_suite_world_kwargs(tmp_path):
     def suite(**kwargs):
         return {"worlds": [{"env": "bulletnav/Warehouse-v0", "kwargs": kwargs}], "controllers": [{"type": "navigator"}]}
 
-    assert parse_suite(suite(num_obstacles=D.obstacles, goals=D.goals), "s.yaml").name == "s"
+    assert parse_suite(suite(num_obstacles=1000, goals=8), "s.yaml").name == "s"  # the documented limits
     with pytest.raises(SuiteError, match=r"s.yaml: field 'worlds\[0\].kwargs.num_obstacles' = 1001 exceeds the limit"):
         parse_suite(suite(num_obstacles=D.obstacles + 1), "s.yaml")
     with pytest.raises(SuiteError, match=r"field 'worlds\[0\].kwargs.goals' = 9 exceeds the limit 8"):
@@ -225,6 +261,11 @@ def test_sweep_grid_is_refused_before_it_is_expanded():
     grid = {f"k{i}": list(range(10)) for i in range(20)}  # 10^20 configurations
     with pytest.raises(ConfigError, match=r"sweep: field 'grid': sweep trials .* = 100000000000000000000 exceeds"):
         SweepSpec.from_dict({"algo": "ppo", "grid": grid})
+    # The boundary by hand: 100 x 100 configurations pass, 10,001 (73 x 137) are refused.
+    SweepSpec.from_dict({"algo": "ppo", "grid": {"a": list(range(100)), "b": list(range(100))}})
+    with pytest.raises(ConfigError, match=r"sweep trials \(grid configurations x seeds\) = 10001 exceeds the limit 10000 "
+                                          r"\(raise it with BULLETNAV_MAX_SWEEP_TRIALS\)$"):
+        SweepSpec.from_dict({"algo": "ppo", "grid": {"a": list(range(73)), "b": list(range(137))}})
 
 
 def test_mission_goals_option(monkeypatch):
