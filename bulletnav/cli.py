@@ -1269,7 +1269,6 @@ def cmd_map(args: argparse.Namespace) -> int:
 
 def cmd_replay(args: argparse.Namespace) -> int:
     """Draw a recording's episodes from the file alone."""
-    import os
     import tempfile
     from pathlib import Path
 
@@ -1291,14 +1290,13 @@ def cmd_replay(args: argparse.Namespace) -> int:
         summary = replay(args.recording, video=video, plot=args.plot)
         if args.frame:
             import imageio.v3 as iio
-            from PIL import Image
+
+            from bulletnav.files import save_image
 
             frames = summary["frames"]
             at = frames // 2 if args.frame_at is None else min(args.frame_at, frames) - 1
             image = iio.imread(video, index=at)
-            tmp = Path(args.frame).with_name(f".{Path(args.frame).name}.{os.getpid()}.tmp.png")
-            Image.fromarray(image).save(tmp)
-            os.replace(tmp, args.frame)
+            save_image(image, args.frame)  # a PNG whatever the name's suffix
             summary["frame"], summary["frame_index"] = args.frame, at
     finally:
         if scratch is not None:

@@ -8,13 +8,22 @@
 - The robot's outline, wheels and sensor mounts are read from its URDF in one place
   (:mod:`bulletnav.geometry`), which agrees with what PyBullet loads; the modules that use
   them carry none of the numbers themselves.
+- The package's import graph (imports inside functions and ``TYPE_CHECKING`` blocks count)
+  has no circles, and no module imports one of a higher layer (:data:`LAYERS`); every module
+  imports in a fresh process in layer order. Tasks see the scene through
+  :class:`bulletnav.tasks.view.TaskScene`.
+- One module writes files (:mod:`bulletnav.files`: temp file + ``os.replace``, one permission
+  rule); no other module makes temp files or renames them into place.
 """
 
 from __future__ import annotations
 
 import ast
+import functools
 import io
+import json
 import math
+import os
 import re
 import tokenize
 from pathlib import Path
@@ -304,3 +313,415 @@ def test_geometry_users_carry_no_outline_numbers():
                   if not any(line in f for line in NOT_GEOMETRY)]
     assert not found, ("robot geometry numbers written into modules that must read them from bulletnav.geometry:\n"
                        + "\n".join(found))
+
+
+# ---------------------------------------------------------------------------------------
+# (d) the package import graph: no circles, no upward imports
+
+LAYERS: tuple[tuple[str, ...], ...] = (
+    ("bulletnav", "errors"),                        # the package's ids and constants (imports nothing of its own), exceptions
+    ("limits",),
+    ("config",),
+    ("geometry", "yamlfile", "provenance", "files"),
+    ("sim",),
+    ("sensors",),
+    ("planning",),
+    ("tasks",),
+    ("envs",),
+    ("control",),
+    ("policy", "evaluation"),
+    ("rl",),
+    ("benchmark", "datasets"),
+    ("fleet",),
+    ("viz",),
+    ("ros", "sweep", "bench"),
+    ("cli",),
+)
+"""The package's layers, lowest first, as the code has them: a module may import modules of its
+own layer or lower ones, never a higher one. Each name is a module or subpackage under
+``bulletnav`` (``"bulletnav"`` is the package's own ``__init__``). The order is the one the
+imports force: ``envs`` builds its scene from ``sim`` and ``sensors`` and runs ``tasks``;
+``control`` and ``evaluation`` drive envs; ``rl`` trains on them; ``benchmark`` runs
+controllers and models; ``fleet`` reuses the env, tasks, rl and benchmark; ``viz`` draws
+scenes and fleets; ``ros`` replays recordings into ``viz``'s videos, ``sweep`` runs ``rl``
+training and passes ``viz``'s learning curve in, ``bench`` measures everything; the CLI
+sits on top. Benchmark reports and training draw through callables their caller passes
+(``draw_layout``, ``plot_curve``), so neither imports ``viz``."""
+
+
+def _module_name(path: Path, root: Path = ROOT) -> str:
+    parts = path.relative_to(root).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+MODULES = {_module_name(path): path for path in sorted(PKG.rglob("*.py"))}
+"""Every module of the package by dotted name (a package by its ``__init__``)."""
+
+
+def package_imports(path: Path, modules: dict[str, Path] | None = None, root: Path = ROOT) -> set[str]:
+    """The package modules ``path`` imports, anywhere in the file (functions and
+    ``TYPE_CHECKING`` blocks included), relative imports resolved.
+
+    The rule for packages: ``import a.b.c`` and ``from a.b import c`` (``c`` a module) depend on
+    ``a.b.c`` only. Python runs the ``__init__`` of ``a`` and ``a.b`` first, but that is implied
+    by every import of a submodule and is not an edge; otherwise a package whose ``__init__``
+    re-exports its submodules would form a circle with each of them. ``import a.b`` and ``from
+    a.b import name`` (``name`` not a module: a class, function, constant re-exported by the
+    ``__init__``) depend on ``a.b``'s ``__init__``: a circle through such a re-export is real
+    (it works only in one import order) and is reported.
+    """
+    modules = MODULES if modules is None else modules
+    name = _module_name(path, root)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    out: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        if isinstance(node, ast.Import):
+            out |= {alias.name for alias in node.names if alias.name in modules}
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")
+                base = base[: len(base) - (node.level - 1)]
+                module = ".".join([*base, node.module] if node.module else base)
+            else:
+                module = node.module or ""
+            for alias in node.names:
+                if f"{module}.{alias.name}" in modules:
+                    out.add(f"{module}.{alias.name}")
+                elif module in modules:
+                    out.add(module)
+    out.discard(name)
+    return out
+
+
+def import_graph(modules: dict[str, Path] | None = None, root: Path = ROOT) -> dict[str, set[str]]:
+    """Module -> the package modules it imports (:func:`package_imports`); the package's own
+    graph is read once per test session."""
+    if modules is None:
+        return _package_graph()
+    return {name: package_imports(path, modules, root) - {name} for name, path in modules.items()}
+
+
+@functools.cache
+def _package_graph() -> dict[str, set[str]]:
+    return {name: package_imports(path) - {name} for name, path in MODULES.items()}
+
+
+def circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of ``graph`` with more than one module, or one module
+    importing itself (Tarjan's algorithm, iterative), each sorted, sorted by first name."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+    for start in sorted(graph):
+        if start in index:
+            continue
+        work = [(start, iter(sorted(graph[start])))]
+        index[start] = low[start] = len(index)
+        stack.append(start)
+        on_stack.add(start)
+        while work:
+            node, children = work[-1]
+            child = next(children, None)
+            if child is not None:
+                if child not in index:
+                    index[child] = low[child] = len(index)
+                    stack.append(child)
+                    on_stack.add(child)
+                    work.append((child, iter(sorted(graph.get(child, ())))))
+                elif child in on_stack:
+                    low[node] = min(low[node], index[child])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[node])
+            if low[node] == index[node]:
+                component = []
+                while True:
+                    member = stack.pop()
+                    on_stack.discard(member)
+                    component.append(member)
+                    if member == node:
+                        break
+                if len(component) > 1 or node in graph.get(node, ()):
+                    found.append(sorted(component))
+    return sorted(found)
+
+
+def test_circle_finder_finds_circles_and_only_circles():
+    graph = {"a": {"b"}, "b": {"c"}, "c": {"a", "d"}, "d": {"e"}, "e": set(), "f": {"f"}, "g": {"e", "d"}}
+    assert circles(graph) == [["a", "b", "c"], ["f"]]
+    assert circles({"x": {"y"}, "y": set()}) == []
+
+
+def test_package_imports_follow_the_package_rule(tmp_path):
+    """A submodule import is an edge to the submodule; a name re-exported by an ``__init__`` is
+    an edge to the ``__init__``; imports inside functions and TYPE_CHECKING blocks count."""
+    pkg = tmp_path / "bulletnav"
+    (pkg / "sub").mkdir(parents=True)
+    files = {
+        "__init__.py": "",
+        "sub/__init__.py": "from bulletnav.sub.a import A\n",
+        "sub/a.py": "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from bulletnav.sub.b import B\nA = 1\n",
+        "sub/b.py": "def f():\n    from . import a\n    from bulletnav.sub import A\n",
+        "c.py": "import bulletnav.sub.b\nfrom bulletnav.sub import a\nimport os\n",
+    }
+    for name, text in files.items():
+        (pkg / name).write_text(text)
+    modules = {_module_name(path, tmp_path): path for path in sorted(pkg.rglob("*.py"))}
+    graph = import_graph(modules, root=tmp_path)
+    assert graph["bulletnav.c"] == {"bulletnav.sub.b", "bulletnav.sub.a"}  # no edge to bulletnav.sub's __init__
+    assert graph["bulletnav.sub.a"] == {"bulletnav.sub.b"}
+    assert graph["bulletnav.sub.b"] == {"bulletnav.sub.a", "bulletnav.sub"}  # ``A`` through the __init__
+    # b -> sub (the re-export) -> a -> b: a real circle; c's submodule imports add none
+    assert circles(graph) == [["bulletnav.sub", "bulletnav.sub.a", "bulletnav.sub.b"]]
+
+
+def test_the_package_import_graph_has_no_circles():
+    graph = import_graph()
+    assert len(graph) >= 80 and graph["bulletnav.envs.scene"]  # the scan found the package and its imports
+    found = circles(graph)
+    assert not found, "import circles (each a set of modules that import each other):\n" + "\n".join(
+        " <-> ".join(c) for c in found)
+
+
+def layer_of(module: str) -> int:
+    """The index in :data:`LAYERS` of ``module`` (by its longest listed prefix).
+
+    Raises:
+        KeyError: the module is in no layer.
+    """
+    best, found = -1, None
+    for i, names in enumerate(LAYERS):
+        for name in names:
+            full = "bulletnav" if name == "bulletnav" else f"bulletnav.{name}"
+            if (module == full or (name != "bulletnav" and module.startswith(full + "."))) and len(full) > best:
+                best, found = len(full), i
+    if found is None:
+        raise KeyError(f"{module} is in no layer of LAYERS: add it to the layer it belongs to")
+    return found
+
+
+def test_every_module_has_a_layer_and_layers_are_disjoint():
+    names = [n for layer in LAYERS for n in layer]
+    assert len(names) == len(set(names))
+    assert layer_of("bulletnav.sim.layout") == layer_of("bulletnav.sim") < layer_of("bulletnav.viz.plots")
+    assert layer_of("bulletnav") == 0
+    missing = []
+    for module in MODULES:
+        try:
+            layer_of(module)
+        except KeyError as exc:
+            missing.append(str(exc))
+    assert not missing, "\n".join(missing)
+
+
+def test_no_module_imports_a_higher_layer():
+    upward = []
+    for module, imports in import_graph().items():
+        for target in sorted(imports):
+            if layer_of(target) > layer_of(module):
+                upward.append(f"{_rel(MODULES[module])}: imports {target} "
+                              f"(layer {LAYERS[layer_of(target)]} above {LAYERS[layer_of(module)]})")
+    assert not upward, "imports of a higher layer:\n" + "\n".join(upward)
+
+
+IMPORT_IN_LAYER_ORDER = r"""
+import importlib, json, sys
+order, layers = json.loads(sys.argv[1]), json.loads(sys.argv[2])
+for name in order:
+    before = {m for m in sys.modules if m == "bulletnav" or m.startswith("bulletnav.")}
+    importlib.import_module(name)
+    loaded = sorted(m for m in sys.modules if (m == "bulletnav" or m.startswith("bulletnav.")) and m not in before)
+    higher = [m for m in loaded if m in layers and layers[m] > layers[name]]
+    if higher:
+        sys.exit(f"importing {name} (layer {layers[name]}) loaded higher layers: {higher}")
+print(len(order))
+"""
+
+
+def test_every_module_imports_in_a_fresh_process_in_layer_order():
+    """One fresh interpreter imports every module, lowest layer first; each import must work
+    with only lower layers loaded and must load no module of a higher layer."""
+    import json
+    import subprocess
+    import sys
+
+    layers = {m: layer_of(m) for m in MODULES}
+    order = sorted(MODULES, key=lambda m: (layers[m], m))
+    done = subprocess.run([sys.executable, "-c", IMPORT_IN_LAYER_ORDER, json.dumps(order), json.dumps(layers)],
+                          capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert int(done.stdout.split()[-1]) == len(MODULES)
+
+
+def test_tasks_see_the_scene_through_the_protocol():
+    """Both scenes a task runs on satisfy :class:`~bulletnav.tasks.view.TaskScene`, and no task
+    module imports the env package."""
+    import gymnasium as gym
+
+    from bulletnav.fleet.scene import RobotSlot
+    from bulletnav.tasks.view import TaskScene
+
+    bad = _forbidden_imports("tasks", ("bulletnav.envs", "bulletnav.fleet"))
+    assert not bad, "tasks see the scene through bulletnav.tasks.view.TaskScene:\n" + "\n".join(bad)
+    env = gym.make("bulletnav/Warehouse-v0")
+    try:
+        env.reset(seed=0)
+        assert isinstance(env.unwrapped._scene, TaskScene)
+    finally:
+        env.close()
+    members = ("layout", "free_space", "geometry", "robot", "sensors", "place_robot", "in_collision", "nearest_mover")
+    init = ast.unparse(ast.parse((PKG / "fleet" / "scene.py").read_text()))
+    missing = [m for m in members if not hasattr(RobotSlot, m) and f"self.{m} =" not in init]
+    assert not missing, f"RobotSlot lacks {missing} of TaskScene"
+    assert not isinstance(object(), TaskScene)  # the check can fail
+
+
+# ---------------------------------------------------------------------------------------
+# (e) one module writes files
+
+WRITER = PKG / "files.py"
+
+RENAMES_AND_TEMP_FILES = {("os", "replace"), ("os", "rename"), ("os", "renames"), ("tempfile", "mkstemp"),
+                          ("tempfile", "mktemp"), ("tempfile", "NamedTemporaryFile")}
+"""``module.function`` pairs that make a temporary file or move one into place: only
+:mod:`bulletnav.files` calls them (scratch folders, ``tempfile.mkdtemp`` and
+``TemporaryDirectory``, are not output files and may be made anywhere)."""
+
+
+def temp_file_calls(source: str, filename: str) -> list[str]:
+    """``file:line: what`` for every call in ``source`` of :data:`RENAMES_AND_TEMP_FILES`, as
+    ``os.replace(...)``, through an alias (``import os as o``) or imported by name (``from os
+    import replace``)."""
+    tree = ast.parse(source, filename)
+    modules: dict[str, str] = {}   # local name -> module, for ``import os [as o]``
+    functions: dict[str, str] = {}  # local name -> "module.function", for ``from os import replace``
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            modules.update({alias.asname or alias.name: alias.name for alias in node.names})
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            functions.update({alias.asname or alias.name: f"{node.module}.{alias.name}" for alias in node.names
+                              if (node.module, alias.name) in RENAMES_AND_TEMP_FILES})
+    found = []
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.Call):
+            continue
+        func = node.func
+        if (isinstance(func, ast.Attribute) and isinstance(func.value, ast.Name)
+                and (modules.get(func.value.id), func.attr) in RENAMES_AND_TEMP_FILES):
+            found.append(f"{filename}:{node.lineno}: {modules[func.value.id]}.{func.attr}")
+        elif isinstance(func, ast.Name) and func.id in functions:
+            found.append(f"{filename}:{node.lineno}: {functions[func.id]}")
+    return found
+
+
+def test_temp_file_checker_flags_what_it_should():
+    snippet = ("import os\nimport os as o\nimport tempfile\nfrom os import replace as mv\nfrom tempfile import mkdtemp\n"
+               "os.replace(a, b)\n"                  # 6
+               "o.rename(a, b)\n"                    # 7
+               "tempfile.NamedTemporaryFile()\n"     # 8
+               "mv(a, b)\n"                          # 9
+               "mkdtemp()\n"                         # 10: a scratch folder, allowed
+               "'x'.replace('a', 'b')\n"             # 11: str.replace, allowed
+               "path.replace(b)\n"                   # 12: not the os module, allowed
+               "tempfile.TemporaryDirectory()\n")    # 13: allowed
+    found = temp_file_calls(snippet, "m.py")
+    assert [f.split(":")[1] for f in found] == ["6", "7", "8", "9"], found
+
+
+def test_only_the_files_module_makes_temp_files_and_renames():
+    scanned = sorted(PKG.rglob("*.py"))
+    assert WRITER in scanned and temp_file_calls(WRITER.read_text(), _rel(WRITER))  # the scan sees the writer's own
+    found = [f for path in scanned if path != WRITER for f in temp_file_calls(path.read_text(), _rel(path))]
+    assert not found, "files are written through bulletnav.files (temp file + os.replace, one permission rule):\n" + \
+        "\n".join(found)
+
+
+@pytest.fixture
+def umask_027():
+    """The process umask set to 027 (not the usual 022, so the rule is seen to follow it)."""
+    old = os.umask(0o027)
+    try:
+        yield 0o027
+    finally:
+        os.umask(old)
+
+
+class _Crash(Exception):
+    pass
+
+
+def test_a_write_that_fails_midway_leaves_the_old_file_whole_and_no_temp_file(tmp_path, umask_027):
+    from bulletnav import files
+
+    target = tmp_path / "out" / "data.bin"
+    files.write_bytes(target, b"old contents")
+    assert target.read_bytes() == b"old contents"
+    assert target.stat().st_mode & 0o777 == 0o666 & ~umask_027 == 0o640  # what open() gives a new file
+
+    def half_then_crash(f):
+        f.write(b"new cont")
+        raise _Crash
+
+    with pytest.raises(_Crash):
+        files.write_with(target, half_then_crash)
+    assert target.read_bytes() == b"old contents"
+    assert sorted(p.name for p in target.parent.iterdir()) == ["data.bin"]
+
+    # a streaming writer's temp file: created with the rule's mode, discarded or put in place
+    tmp = files.temp_path(target, ".mp4")
+    assert tmp.parent == target.parent and tmp.name.startswith(".data.bin.") and tmp.name.endswith(".tmp.mp4")
+    assert tmp.stat().st_mode & 0o777 == 0o640
+    files.discard(tmp)
+    assert sorted(p.name for p in target.parent.iterdir()) == ["data.bin"]
+    tmp = files.temp_path(target)
+    tmp.write_bytes(b"streamed")
+    os.chmod(target, 0o600)  # an existing file's mode is not kept: the new file follows the rule
+    files.finish(tmp, target)
+    assert target.read_bytes() == b"streamed" and target.stat().st_mode & 0o777 == 0o640
+    assert sorted(p.name for p in target.parent.iterdir()) == ["data.bin"]
+
+
+def test_a_failed_rename_removes_the_temp_file(tmp_path, monkeypatch):
+    from bulletnav import files
+
+    target = tmp_path / "data.json"
+    files.write_json(target, {"a": 1})
+
+    def refuse(src, dst):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(os, "replace", refuse)
+    with pytest.raises(OSError, match="disk full"):
+        files.write_json(target, {"a": 2})
+    tmp = files.temp_path(target)
+    with pytest.raises(OSError, match="disk full"):
+        files.finish(tmp, target)
+    monkeypatch.undo()
+    assert json.loads(target.read_text()) == {"a": 1}
+    assert [p.name for p in tmp_path.iterdir()] == ["data.json"]
+
+
+def test_the_writers_write_what_they_are_given(tmp_path):
+    """Bytes, text and JSON byte for byte as the standard library writes them; a PNG that
+    Pillow reads back pixel for pixel."""
+    import numpy as np
+    from PIL import Image
+
+    from bulletnav import files
+
+    assert files.write_bytes(tmp_path / "a.bin", b"\x00\xff").read_bytes() == b"\x00\xff"
+    assert files.write_text(tmp_path / "b.txt", "é\n").read_bytes() == "é\n".encode()
+    record = {"x": np.float32(0.5), "n": np.int64(3), "v": np.arange(3), "p": Path("/a"), "t": int}
+    files.write_json(tmp_path / "c.json", record)
+    assert (tmp_path / "c.json").read_text() == json.dumps(
+        {"x": 0.5, "n": 3, "v": [0, 1, 2], "p": "/a", "t": "builtins.int"}, indent=2) + "\n"
+    with pytest.raises(TypeError):
+        files.write_json(tmp_path / "d.json", {"s": {1, 2}})
+    assert not (tmp_path / "d.json").exists()
+    image = np.random.default_rng(0).integers(0, 256, (7, 5, 3), dtype=np.uint8)
+    files.save_image(image, tmp_path / "e.png", optimize=True)
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "e.png")), image)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.bin", "b.txt", "c.json", "e.png"]

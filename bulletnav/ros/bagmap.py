@@ -290,11 +290,11 @@ def write_map_png(bag_map: BagMap, out: str | Path, path: list[tuple[float, floa
     ax.set_ylabel("y (m)")
     ax.set_title(title or f"{bag_map.scans_used} scans, {m.resolution:g} m cells")
     ax.legend(loc="upper right", fontsize=8)
-    from bulletnav.viz.plots import save_figure_atomic
+    from bulletnav.files import save_figure
 
     try:
         fig.tight_layout()
-        save_figure_atomic(fig, Path(out), dpi=100)
+        save_figure(fig, out, format="png", dpi=100)
     finally:
         plt.close(fig)
 

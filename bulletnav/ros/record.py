@@ -49,7 +49,6 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -58,6 +57,7 @@ import gymnasium as gym
 import numpy as np
 
 from bulletnav.errors import BulletnavError
+from bulletnav.files import discard, finish, temp_path
 from bulletnav.ros.msgdefs import msgdef
 
 log = logging.getLogger(__name__)
@@ -238,8 +238,7 @@ class McapFile:
             raise BulletnavError(f"--record {self.path}: a recording is an .mcap file")
         if self.path.exists() and not overwrite:
             raise BulletnavError(f"--record {self.path}: the file already exists; pass --overwrite to replace it")
-        self._tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._tmp = temp_path(self.path)
         self._file = open(self._tmp, "wb")  # noqa: SIM115  (closed in close/abort)
         self.writer = Writer(self._file)
         self._schemas: dict[str, Any] = {}
@@ -261,13 +260,13 @@ class McapFile:
             self.closed = True
             self.writer.finish()
             self._file.close()
-            os.replace(self._tmp, self.path)
+            finish(self._tmp, self.path)
 
     def abort(self) -> None:
         if not self.closed:
             self.closed = True
             self._file.close()
-            self._tmp.unlink(missing_ok=True)
+            discard(self._tmp)
 
 
 class McapRecorder(gym.Wrapper):

@@ -274,11 +274,11 @@ def _plot(tracks: list[dict[str, Any]], out: str | Path) -> None:
         ax.axis("off")
     for ax in list(axes.flat)[n:]:
         ax.axis("off")
-    from bulletnav.viz.plots import save_figure_atomic
+    from bulletnav.files import save_figure
 
     try:
         fig.tight_layout()
-        save_figure_atomic(fig, Path(out), dpi=100)
+        save_figure(fig, out, format="png", dpi=100)
     finally:
         plt.close(fig)
 
@@ -298,8 +298,8 @@ def panel_view(path: str | Path, out: str | Path, at_s: float | None = None, epi
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle, Polygon
 
+    from bulletnav.files import save_figure
     from bulletnav.sim.movers import box_corners
-    from bulletnav.viz.plots import save_figure_atomic
 
     episodes = read_recording(path)
     if not 0 <= episode < len(episodes):
@@ -358,7 +358,7 @@ def panel_view(path: str | Path, out: str | Path, at_s: float | None = None, epi
     ax.legend(loc="upper right", fontsize=8, facecolor="#2a2c33", labelcolor="white")
     try:
         fig.tight_layout()
-        save_figure_atomic(fig, Path(out), dpi=100)
+        save_figure(fig, out, format="png", dpi=100)
     finally:
         plt.close(fig)
     return {"episode": episode, "step": k + 1, "time_s": (k + 1) * dt, "out": str(out)}

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from bulletnav.errors import RunError
-from bulletnav.viz.plots import save_figure_atomic
+from bulletnav.files import save_figure
 
 
 def plot_learning_curve(history: list[dict[str, Any]], path: Path, title: str = "") -> None:
@@ -33,7 +33,7 @@ def plot_learning_curve(history: list[dict[str, Any]], path: Path, title: str = 
     ax1.set_title(title)
     fig.tight_layout()
     try:
-        save_figure_atomic(fig, Path(path), fig.dpi)  # a unique temp file beside it, renamed; removed on failure
+        save_figure(fig, path, format="png", dpi=fig.dpi)  # a unique temp file beside it, renamed; removed on failure
     finally:
         plt.close(fig)
 
@@ -145,7 +145,7 @@ def compare_runs(run_dirs: list[Path], out_png: Path, group_by: str = "algo",
     ax1.legend(loc="lower right" if len(run_dirs) > 4 else "upper left", fontsize="small" if len(run_dirs) > 4 else None)
     fig.tight_layout()
     try:
-        save_figure_atomic(fig, out_png, fig.dpi)
+        save_figure(fig, out_png, format="png", dpi=fig.dpi)
     finally:
         plt.close(fig)
     return rows

@@ -41,8 +41,6 @@ from __future__ import annotations
 
 import logging
 import math
-import os
-import tempfile
 from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -51,13 +49,13 @@ from typing import Any
 import numpy as np
 from PIL import Image, ImageDraw
 
+from bulletnav.files import save_figure, save_image
 from bulletnav.viz.movers import event_text, hex_colour, mover_colour, mover_colours, movers_summary
 from bulletnav.viz.plots import (
     MoverTrack,
     draw_layout,
     draw_mover_tracks,
     dynamic_handles,
-    save_figure_atomic,
 )
 from bulletnav.viz.plots import draw_events as plot_events
 from bulletnav.viz.video import (
@@ -388,24 +386,6 @@ def _dashed(draw: ImageDraw.ImageDraw, a: tuple[float, float], b: tuple[float, f
         s += 2 * dash
 
 
-def save_png(frame: np.ndarray, path: str | Path) -> Path:
-    """Write an (H, W, 3) uint8 frame as a PNG, atomically (a temp file beside it, then renamed)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            Image.fromarray(frame).save(fh, format="PNG", optimize=True)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; a picture is meant to be shared
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
-
-
 # ---------------------------------------------------------------------------------- paths
 @dataclass
 class FleetTrack:
@@ -558,7 +538,7 @@ def fleet_figure(track: FleetTrack, title: str = "", dpi: int = 100) -> Any:
 
 def plot_fleet(track: FleetTrack, path: str | Path, title: str = "", dpi: int = 100) -> Path:
     """Write the PNG of :func:`fleet_figure` (atomically)."""
-    return save_figure_atomic(fleet_figure(track, title, dpi), Path(path), dpi)
+    return save_figure(fleet_figure(track, title, dpi), path, format="png", dpi=dpi)
 
 
 # ---------------------------------------------------------------------------------- the hook
@@ -633,7 +613,7 @@ class FleetVisuals:
             frame = self.frames.compose()
             self.video.append(frame)
         if self.frame_path is not None and self.frame_written_at is None and t >= self._frame_due - 1e-9:
-            save_png(frame if frame is not None else self.frames.compose(), self.frame_path)
+            save_image(frame if frame is not None else self.frames.compose(), self.frame_path, optimize=True)
             self.frame_written_at = t
         if not env.agents:
             self._finish_episode()
@@ -651,7 +631,7 @@ class FleetVisuals:
             self.video = VideoWriter(self.video_path, fps=fps)
             self.video.append(self.frames.compose())
         if self.frame_path is not None and self._frame_due <= 0.0:
-            save_png(self.frames.compose(), self.frame_path)
+            save_image(self.frames.compose(), self.frame_path, optimize=True)
             self.frame_written_at = 0.0
 
     def _finish_episode(self) -> None:
@@ -789,4 +769,4 @@ class FleetDashboard:
 
 
 __all__ = ["FLEET_FRAME_SIZE", "FLEET_MAP_PX", "ROBOT_PALETTE", "FleetDashboard", "FleetFrames", "FleetTrack",
-           "FleetTrackLog", "FleetVisuals", "fleet_figure", "plot_fleet", "robot_colour", "save_png"]
+           "FleetTrackLog", "FleetVisuals", "fleet_figure", "plot_fleet", "robot_colour"]

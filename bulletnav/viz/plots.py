@@ -30,12 +30,11 @@ from __future__ import annotations
 
 import logging
 import math
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from bulletnav.files import save_figure
 from bulletnav.sim.layout import WALL_THICKNESS, Layout
 from bulletnav.sim.world import COLOURS
 from bulletnav.viz.mission import mission_goals, visit_order, visit_text
@@ -243,7 +242,7 @@ def plot_trajectories(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory], 
         ValueError: nothing was logged.
     """
     fig = trajectory_figure(log_or_episodes, title, max_panels, dpi)
-    return save_figure_atomic(fig, Path(path), dpi)
+    return save_figure(fig, path, format="png", dpi=dpi)
 
 
 def trajectory_figure(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory], title: str = "",
@@ -476,21 +475,3 @@ def dynamic_handles(kinds: set[str], actions: set[str]) -> list[Any]:
         handles.append(Line2D([], [], ls="", marker="X", ms=8, mfc=EVENT_HEX, mec="white", mew=0.6,
                               label="obstacle removed"))
     return handles
-
-
-def save_figure_atomic(fig: Any, path: Path, dpi: int) -> Path:
-    """Write to a temp file in the target folder, then rename: readers never see half a PNG."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fig.savefig(fh, format="png", dpi=dpi)
-        os.chmod(tmp, 0o644)  # mkstemp makes it private; a plot is meant to be shared
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    return path

@@ -36,8 +36,6 @@ from __future__ import annotations
 
 import logging
 import math
-import os
-import tempfile
 from collections import OrderedDict
 from collections.abc import Sequence
 from pathlib import Path
@@ -46,6 +44,7 @@ from typing import Any
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
+from bulletnav.files import discard, finish, temp_path
 from bulletnav.sim.layout import WALL_THICKNESS, Layout
 from bulletnav.sim.specs import Obstacle
 from bulletnav.sim.world import COLOURS
@@ -233,10 +232,7 @@ class VideoWriter:
         suffix = self.path.suffix.lower()
         if suffix not in (".mp4", ".gif"):
             raise ValueError(f"{self.path}: videos are written as .mp4 or .gif, not {suffix or 'no suffix'!r}")
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=f".tmp{suffix}", dir=self.path.parent)
-        os.close(fd)
-        self._tmp = Path(tmp)
+        self._tmp = temp_path(self.path, suffix)  # imageio picks the format by the suffix
         try:
             if suffix == ".mp4":
                 self._writer = imageio.get_writer(
@@ -246,7 +242,7 @@ class VideoWriter:
             else:  # Pillow stores durations in ms, rounded to GIF's 10 ms resolution
                 self._writer = imageio.get_writer(self._tmp, mode="I", duration=1000.0 / fps, loop=0)
         except BaseException:
-            self._tmp.unlink(missing_ok=True)
+            discard(self._tmp)
             raise
         self.closed = False
 
@@ -263,13 +259,10 @@ class VideoWriter:
             self.closed = True
             try:
                 self._writer.close()
-                umask = os.umask(0)
-                os.umask(umask)
-                os.chmod(self._tmp, 0o666 & ~umask)  # mkstemp makes it private; a video is meant to be shared
-                os.replace(self._tmp, self.path)
             except BaseException:
-                self._tmp.unlink(missing_ok=True)
+                discard(self._tmp)
                 raise
+            finish(self._tmp, self.path)  # removes the temp file if it fails
 
     def abort(self) -> None:
         """Delete the unfinished file; :attr:`path` is left as it was (idempotent)."""
@@ -280,7 +273,7 @@ class VideoWriter:
             except Exception:  # an unfinished file is dropped whatever its writer says
                 log.debug("closing the writer of an aborted video failed", exc_info=True)
             finally:
-                self._tmp.unlink(missing_ok=True)
+                discard(self._tmp)
 
 
 class EpisodeRecorder:
