@@ -263,10 +263,10 @@ KINDS: dict[str, str] = {
     # ---- test_fleet_viz.py
     "test_fleet_viz.py::test_pictures_leave_the_episodes_unchanged": "self",
     "test_fleet_viz.py::test_video_of_episode_0_decodes_with_one_frame_per_step": "library",  # decoded by imageio/ffmpeg
-    "test_fleet_viz.py::test_each_robot_is_drawn_in_its_colour_where_it_is": "contract",
-    "test_fleet_viz.py::test_still_frame_and_plot": "contract",
-    "test_fleet_viz.py::test_plot_draws_every_robot_path_in_its_colour": "contract",
-    "test_fleet_viz.py::test_cli_pictures_do_not_change_the_json": "contract",
+    "test_fleet_viz.py::test_each_robot_is_drawn_in_its_colour_where_it_is": "hand",  # disc centres by the world->pixel transform written in the test
+    "test_fleet_viz.py::test_still_frame_and_plot": "hand",  # each robot's disc in its colour at the pixel of its 1 s pose, transform written in the test
+    "test_fleet_viz.py::test_plot_draws_every_robot_path_in_its_colour": "formula",  # min pairwise distance of the drawn paths, brute force, against the row's min_separation_m
+    "test_fleet_viz.py::test_cli_pictures_do_not_change_the_json": "library",  # video decoded by imageio: 1 + 24 frames by hand
     "test_fleet_viz.py::test_fleet_takes_the_world_arguments": "contract",
     "test_fleet_viz.py::test_view_robots_opens_the_gui_and_tints_every_robot": "contract",
     # ---- test_fuzz.py

@@ -44,6 +44,15 @@ def _disc(frame: np.ndarray, centre: tuple[float, float], radius: float) -> np.n
     return frame[inside].astype(int)
 
 
+def _hand_px(layout, xy: tuple[float, float]) -> tuple[float, float]:
+    """World (m) -> frame pixel, written out here from the documented frame: a 720 px square map at
+    the frame's top left, the floor plus its 0.2 m walls fitted inside an 8 px margin, x right and
+    y up (so pixel y runs down from the centre)."""
+    hx, hy = layout.half_extents
+    scale = (720 - 2 * 8) / (2 * max(hx + 0.2, hy + 0.2))  # px per m
+    return 360 + scale * xy[0], 360 - scale * xy[1]
+
+
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):
     """Two 2 s episodes of 3 robots, the first recorded (video, frame at 1 s, plot), and the
@@ -80,8 +89,11 @@ def test_each_robot_is_drawn_in_its_colour_where_it_is(recorded):
     exact = frames.last_frame
     video = _video(out / "fleet.mp4")[-1]
     r = frames.robot_radius_px()
+    track = visuals.log.track
     for i in range(ROBOTS):
-        centre = frames.robot_px(i)
+        # where robot i is, by the transform written in the test from its last recorded position
+        centre = _hand_px(track.layout, track.paths[i][-1])
+        assert frames.robot_px(i) == pytest.approx(centre, abs=1e-6)
         colour = np.array(robot_colour(i))
         disc = _disc(exact, centre, r)
         # the composed frame: most of the disc is exactly the robot's colour (the rest: outline, heading line)
@@ -100,6 +112,11 @@ def test_still_frame_and_plot(recorded):
     assert visuals.frame_written_at == pytest.approx(1.0, abs=1e-6)
     for i in range(ROBOTS):  # each robot's colour is in the frame
         assert (frame.reshape(-1, 3) == np.array(robot_colour(i))).all(axis=1).sum() > 20
+    track = visuals.log.track
+    r = visuals.frames.robot_radius_px()
+    for i in range(ROBOTS):  # ... and most of its disc is, where the robot stood at 1 s (after step 24)
+        disc = _disc(frame, _hand_px(track.layout, track.paths[i][24]), r)
+        assert (disc == np.array(robot_colour(i))).all(axis=1).mean() > 0.5, f"robot {i}"
     plot = Image.open(out / "paths.png")
     assert plot.size == (900, 700)
     assert any("frame.png" in w and "at 1.0 s" in w for w in written) and any("paths.png" in w for w in written)
@@ -113,15 +130,22 @@ def test_plot_draws_every_robot_path_in_its_colour(recorded):
 
     from bulletnav.viz.fleet import fleet_figure
 
-    _, visuals, _, _, _ = recorded
+    _, visuals, _, with_pictures, _ = recorded
     fig = fleet_figure(visuals.log.track)
     ax = fig.axes[0]
+    drawn = []
     for i in range(ROBOTS):
         (line,) = [a for a in ax.lines if a.get_gid() == f"robot_{i}_path"]
         assert np.allclose(to_rgb(line.get_color()), np.array(robot_colour(i)) / 255)
         xs, ys = line.get_data()
         assert len(xs) == 1 + STEPS
         assert math.isclose(xs[0], visuals.log.track.starts[i][0]) and math.isclose(ys[0], visuals.log.track.starts[i][1])
+        drawn.append(np.column_stack([xs, ys]))
+    # the drawn paths are the episode's: the smallest centre distance between two of them, step
+    # by step (brute force over pairs here), is episode 0's min_separation_m
+    closest = min(math.dist(drawn[i][k], drawn[j][k]) for k in range(1 + STEPS)
+                  for i in range(ROBOTS) for j in range(i))
+    assert closest == pytest.approx(with_pictures["episodes"][0]["min_separation_m"], abs=1e-9)
     assert [a for a in ax.lines if a.get_gid() == "pick_station"] and [a for a in ax.lines if a.get_gid() == "drop_station"]
 
 
@@ -139,6 +163,10 @@ def test_cli_pictures_do_not_change_the_json(tmp_path, capsys):
     assert plain == pictured
     assert video.is_file() and plot.is_file() and frame.is_file()
     assert "episode 0, 25 frames" in captured.err
+    # decoded by imageio/ffmpeg: the reset frame and 24 steps (1 s at 24 Hz), at the documented size
+    decoded = _video(video)
+    assert len(decoded) == 1 + 24 and decoded[0].shape == (768, 1024, 3)
+    assert Image.open(frame).size == (1024, 768)
     # an existing file is refused without --overwrite, before anything runs
     assert main([*argv, "--video", str(video)]) == 2
     assert "--video" in capsys.readouterr().err
