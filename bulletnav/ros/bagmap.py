@@ -184,6 +184,8 @@ def _held(series: list[tuple[int, tuple[float, float, float]]], t: int) -> tuple
 def pose_at(poses: list[tuple[int, tuple[float, float, float]]], t: int) -> tuple[float, float, float] | None:
     """The pose at ``t`` (ns), interpolated linearly between the two around it (yaw along the
     shorter turn); None outside the poses' time span by more than 0.1 s."""
+    if not poses:
+        return None
     stamps = [s for s, _ in poses]
     i = bisect.bisect_left(stamps, t)
     if i < len(stamps) and stamps[i] == t:
