@@ -361,10 +361,10 @@ KINDS: dict[str, str] = {
     "test_movers.py::test_mover_proximity_term_prices_the_outline_gap_and_is_off_by_default": "formula",
     # ---- test_navigation.py
     "test_navigation.py::test_shortest_path_matches_geometry": "formula",
-    "test_navigation.py::test_pid_astar_navigates_procedural_warehouses": "contract",
-    "test_navigation.py::test_other_planners_run_episodes": "contract",
-    "test_navigation.py::test_odometry_pose_source_navigates_an_empty_room": "contract",
-    "test_navigation.py::test_navigate_cli_json": "contract",
+    "test_navigation.py::test_pid_astar_navigates_procedural_warehouses": "formula",  # driven length as the sum of true step lengths; SPL by S*l/max(p,l) from the rows
+    "test_navigation.py::test_other_planners_run_episodes": "formula",  # driven length as the sum of true step lengths; SPL by its formula; A* episodes
+    "test_navigation.py::test_odometry_pose_source_navigates_an_empty_room": "formula",  # true last pose inside the goal disc; straight-line shortest path; step lengths summed
+    "test_navigation.py::test_navigate_cli_json": "formula",  # success rate, SPL and mean length recomputed from the per-episode rows
     "test_navigation.py::test_navigate_cli_bad_world": "contract",
     "test_navigation.py::test_navigator_drives_an_env_with_normalized_actions_the_same_way": "self",
     # ---- test_nothing_lost.py

@@ -27,11 +27,44 @@ def test_shortest_path_matches_geometry():
     assert shortest_path_length(wall, (-3.0, 0.0), (3.0, 0.0)) == pytest.approx(expected, rel=0.03)
 
 
+class _Driven:
+    """Hooks for :func:`run_episodes` that sum, here, each episode's driven length from the
+    true poses step by step, and keep its last pose (independent of the task's own count)."""
+
+    def __init__(self) -> None:
+        self.lengths: list[float] = []
+        self.last: list[tuple[float, float]] = []
+
+    def on_reset(self, env, info) -> None:
+        self.lengths.append(0.0)
+        self.last.append(tuple(info["pose"][:2]))
+
+    def on_step(self, env, info) -> None:
+        xy = tuple(info["pose"][:2])
+        self.lengths[-1] += math.dist(self.last[-1], xy)
+        self.last[-1] = xy
+
+
+def _check_spl_and_length(results, driven: _Driven) -> None:
+    """Each episode's driven length against the sum of its step lengths, and its SPL against
+    Anderson et al.'s formula S * l / max(p, l) computed here from the row."""
+    assert len(driven.lengths) == len(results)
+    for r, length in zip(results, driven.lengths):
+        assert r.path_length == pytest.approx(length, rel=1e-6, abs=1e-9)
+        spl = r.shortest_path / max(r.path_length, r.shortest_path) if r.success else 0.0
+        assert r.spl == pytest.approx(spl, rel=1e-12)
+
+
 def test_pid_astar_navigates_procedural_warehouses(report):
     env = gym.make("bulletnav/Warehouse-v0")
-    results = run_episodes(env, Navigator(env.unwrapped.scene, NavigatorConfig(planner="astar")), episodes=6, seed=1000)
+    driven = _Driven()
+    results = run_episodes(env, Navigator(env.unwrapped.scene, NavigatorConfig(planner="astar")), episodes=6, seed=1000,
+                           on_reset=driven.on_reset, on_step=driven.on_step)
     env.close()
+    _check_spl_and_length(results, driven)
     summary = summarize(results)
+    assert summary["spl"] == pytest.approx(sum(r.spl for r in results) / 6, rel=1e-12)
+    assert summary["mean_distance"] == pytest.approx(sum(driven.lengths) / 6, rel=1e-6)
     report("PID+A* on 6 episodes: success / collisions / SPL",
            f"{summary['success_rate']:.2f} / {summary['collision_rate']:.2f} / {summary['spl']:.3f}")
     assert summary["success_rate"] == 1.0 and summary["collision_rate"] == 0.0
@@ -64,13 +97,15 @@ def hall_astar():
 @pytest.mark.parametrize("planner", ["none", "rrt"])
 def test_other_planners_run_episodes(planner, hall_astar, report):
     env = gym.make("bulletnav/Warehouse-v0", world=HALL)
+    driven = _Driven()
     try:
         results = run_episodes(env, Navigator(env.unwrapped.scene, NavigatorConfig(planner=planner)),
-                               episodes=HALL_EPISODES, seed=HALL_SEED)
+                               episodes=HALL_EPISODES, seed=HALL_SEED, on_reset=driven.on_reset, on_step=driven.on_step)
         goal_radius = env.unwrapped.scene.goal_radius
     finally:
         env.close()
     assert len(results) == HALL_EPISODES
+    _check_spl_and_length(results, driven)
     # the same episodes as the A* reference: same seeds, same start-goal distance and shortest path
     assert [(r.seed, r.initial_distance, r.shortest_path) for r in results] == \
            [(a.seed, a.initial_distance, a.shortest_path) for a in hall_astar]
@@ -97,9 +132,18 @@ def test_other_planners_run_episodes(planner, hall_astar, report):
 def test_odometry_pose_source_navigates_an_empty_room():
     env = gym.make("bulletnav/Warehouse-v0", world=str(asset_path("worlds", "empty.yaml")))
     nav = Navigator(env.unwrapped.scene, NavigatorConfig(planner="astar", pose_source="odometry"))
-    results = run_episodes(env, nav, 2, seed=3)
+    driven = _Driven()
+    goals = []
+    results = run_episodes(env, nav, 2, seed=3, on_reset=lambda e, info: (driven.on_reset(e, info), goals.append(info["goal"])),
+                           on_step=driven.on_step)
     env.close()
     assert all(r.success for r in results)
+    _check_spl_and_length(results, driven)
+    for r, last, goal in zip(results, driven.last, goals):
+        # the room is empty: the shortest path is the straight line (to within the 0.1 m grid)
+        assert r.shortest_path == pytest.approx(r.initial_distance, abs=0.1)
+        # the true pose (not the odometry the navigator steered by) ends inside the 0.5 m goal disc
+        assert math.dist(last, goal) < 0.5
 
 
 def test_navigate_cli_json(capsys):
@@ -109,6 +153,11 @@ def test_navigate_cli_json(capsys):
                 "plan_ms_p95", "per_episode"):
         assert key in out
     assert out["episodes"] == 2 and len(out["per_episode"]) == 2
+    rows = out["per_episode"]  # the summary recomputed here from the rows, SPL by its formula
+    assert out["success_rate"] == pytest.approx(sum(r["success"] for r in rows) / 2)
+    spl = [r["shortest_path"] / max(r["path_length"], r["shortest_path"]) if r["success"] else 0.0 for r in rows]
+    assert out["spl"] == pytest.approx(sum(spl) / 2, rel=1e-9)
+    assert out["mean_length"] == pytest.approx(sum(r["steps"] for r in rows) / 2)
     assert main(["navigate", "--planner", "none", "--episodes", "1", "--world",
                  str(asset_path("worlds", "aisles.yaml"))]) == 0
     text = capsys.readouterr().out
