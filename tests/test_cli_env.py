@@ -168,7 +168,7 @@ def test_train_reads_the_env_ids_own_hyperparameters_and_records_it(monkeypatch,
         assert load_hyperparams("ppo", env_id=env_id)["env_kwargs"]["guidance"] == "floorplan"
     seen = {}
 
-    def fake_train(cfg):
+    def fake_train(cfg, plot_curve=None):  # the CLI passes the learning-curve plotter
         seen["env_id"] = cfg.env_id
         raise SystemExit(0)
 

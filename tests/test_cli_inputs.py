@@ -137,7 +137,7 @@ def test_rollout_note_reads_train_freq_from_the_hyperparameter_file(tmp_path):
 def test_train_prints_the_note_and_refuses_a_folder_holding_a_run(monkeypatch, tmp_path, capsys):
     from bulletnav.rl import train as train_module
 
-    def fake_train(cfg):
+    def fake_train(cfg, plot_curve=None):  # the CLI passes the learning-curve plotter
         raise SystemExit(0)
 
     monkeypatch.setattr(train_module, "train", fake_train)
