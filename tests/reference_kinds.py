@@ -86,8 +86,8 @@ KINDS: dict[str, str] = {
     "test_benchmark.py::test_pool_raises_a_jobs_error_without_starting_the_queued_jobs": "contract",
     # ---- test_cli_env.py
     "test_cli_env.py::test_every_env_subcommand_defaults_to_warehouse_v0_and_takes_env": "contract",
-    "test_cli_env.py::test_env_option_reaches_the_env": "contract",
-    "test_cli_env.py::test_navigate_json_on_the_aisles_env": "contract",
+    "test_cli_env.py::test_env_option_reaches_the_env": "library",  # start and goal clear of every rack footprint and inside the floor by Shapely
+    "test_cli_env.py::test_navigate_json_on_the_aisles_env": "formula",  # sim time = steps / 24 Hz, SPL by its formula from the row
     "test_cli_env.py::test_navigate_default_env_report_is_unchanged_but_for_the_safety_line": "contract",
     "test_cli_env.py::test_world_file_with_the_aisles_env": "contract",
     "test_cli_env.py::test_unknown_env_id_is_a_clear_error": "contract",
@@ -95,7 +95,7 @@ KINDS: dict[str, str] = {
     "test_cli_env.py::test_tracker_with_movers": "hand",
     "test_cli_env.py::test_summarize_safety_metrics_known_answers": "hand",
     "test_cli_env.py::test_summarize_safety_metrics_without_movers_or_episodes": "hand",
-    "test_cli_env.py::test_train_reads_the_env_ids_own_hyperparameters_and_records_it": "contract",
+    "test_cli_env.py::test_train_reads_the_env_ids_own_hyperparameters_and_records_it": "library",  # each id's entry as PyYAML reads the packaged file (RL Zoo's format)
     # ---- test_cli_help.py
     "test_cli_help.py::test_every_command_has_a_snapshot_and_every_snapshot_a_command": "contract",
     "test_cli_help.py::test_help_is_the_snapshot_byte_for_byte": "golden",  # snapshots taken before cli.py was split
@@ -154,21 +154,21 @@ KINDS: dict[str, str] = {
     "test_env.py::test_human_mode_on_a_display_that_refuses_the_connection_raises_clearly": "contract",
     "test_env.py::test_gui_connect_holds_its_own_x_connection_until_pybullet_has_opened_one": "contract",
     "test_env.py::test_a_held_x_connection_keeps_a_resetting_server_from_refusing_clients": "library",  # a real Xvfb server
-    "test_env.py::test_same_seed_is_bit_identical_across_resets": "self",
-    "test_env.py::test_seeded_reset_is_independent_of_history": "self",
-    "test_env.py::test_reward_terms_sum_to_the_reward": "self",
-    "test_env.py::test_every_observation_lies_in_the_observation_space": "contract",
+    "test_env.py::test_same_seed_is_bit_identical_across_resets": "formula",  # path length = sum of pose segments; initial distance = hypot
+    "test_env.py::test_seeded_reset_is_independent_of_history": "library",  # the reset scan against a Shapely ray cast
+    "test_env.py::test_reward_terms_sum_to_the_reward": "formula",  # each term from the article's weights and formulas
+    "test_env.py::test_every_observation_lies_in_the_observation_space": "formula",  # goal distance and bearing from the true pose
     "test_env.py::test_same_seed_gives_the_same_trajectory_in_two_processes": "self",
     "test_env.py::test_scripted_drive_to_a_nearby_goal_terminates_with_the_goal_term": "hand",
     "test_env.py::test_driving_into_a_wall_truncates_with_the_collision_term": "hand",
-    "test_env.py::test_driving_into_a_wall_terminates_with_collision_terminates": "contract",
+    "test_env.py::test_driving_into_a_wall_terminates_with_collision_terminates": "hand",  # stops with its front face at the wall
     "test_env.py::test_top_speed_into_a_wall_never_passes_through": "hand",
     "test_env.py::test_bad_actions_and_options": "hand",  # the clipped commands; the rest are errors
     "test_env.py::test_normalized_actions_map_onto_the_physical_range": "hand",
-    "test_env.py::test_options_place_start_and_goal_exactly": "contract",
+    "test_env.py::test_options_place_start_and_goal_exactly": "library",  # the placed pose's scan against Shapely
     "test_env.py::test_kwargs_reach_the_configs": "hand",
     "test_env.py::test_camera_observations": "library",
-    "test_env.py::test_disabled_camera_changes_no_observation": "self",
+    "test_env.py::test_disabled_camera_changes_no_observation": "library",  # first scan = Shapely ray cast + N(0, 0.02) noise
     "test_env.py::test_lidar_rate_holds_each_scan_for_its_period": "hand",  # the every-second-step pattern
     "test_env.py::test_navigation_task_refuses_a_missing_sensor": "contract",
     "test_env.py::test_unknown_task_and_world_style_list_the_registered_ones": "contract",

@@ -35,10 +35,25 @@ def test_env_option_reaches_the_env():
     env = _make_env(args)
     try:
         env.reset(seed=3)
-        layout = env.unwrapped.scene.layout
+        scene = env.unwrapped.scene
+        layout = scene.layout
         assert tuple(layout.size) == (20.0, 16.0)
         assert any(o.label == "rack" for o in layout.obstacles)
         assert env.spec.id == AISLES
+        # the episode's start and goal lie on free floor: by Shapely, each is farther than the
+        # robot's radius from every rack footprint and inside the 20 x 16 m floor
+        from shapely import affinity
+        from shapely.geometry import Point, box
+
+        racks = [affinity.rotate(box(o.center[0] - o.size[0] / 2, o.center[1] - o.size[1] / 2,
+                                     o.center[0] + o.size[0] / 2, o.center[1] + o.size[1] / 2),
+                                 o.yaw, origin=tuple(o.center), use_radians=True)
+                 for o in layout.obstacles if o.kind == "box"]
+        floor = box(-10.0, -8.0, 10.0, 8.0)
+        for xy in (scene.start[:2], scene.goal):
+            pt = Point(float(xy[0]), float(xy[1]))
+            assert floor.contains(pt.buffer(scene.geometry.radius))
+            assert min(pt.distance(r) for r in racks) > scene.geometry.radius, xy
     finally:
         env.close()
 
@@ -55,6 +70,11 @@ def test_navigate_json_on_the_aisles_env(capsys):
     assert out["near_miss_rate"] == 0.0
     ep = out["per_episode"][0]
     assert ep["collision_dynamic"] is False and ep["near_miss_steps"] == 0
+    # by hand and formula from the row: 24 control steps a second; SPL = S * l / max(p, l)
+    assert ep["sim_time"] == pytest.approx(ep["steps"] / 24) and out["episode_time_s"] == pytest.approx(ep["steps"] / 24)
+    assert ep["spl"] == pytest.approx(ep["shortest_path"] / max(ep["path_length"], ep["shortest_path"])
+                                      if ep["success"] else 0.0)
+    assert ep["shortest_path"] >= ep["initial_distance"] - 0.1  # never shorter than the straight line (0.1 m grid)
     assert ep["collision_static"] == ep["collision"] and ep["timeout"] == (not ep["success"] and not ep["collision"])
 
 
@@ -154,11 +174,19 @@ def test_summarize_safety_metrics_without_movers_or_episodes():
 
 
 def test_train_reads_the_env_ids_own_hyperparameters_and_records_it(monkeypatch, tmp_path):
+    import yaml
+
     from bulletnav.rl import train as train_module
     from bulletnav.rl.hyperparams import load_hyperparams
 
     for algo in ("ppo", "sac", "td3", "a2c"):  # every packaged file has the ids, as Warehouse-v0 plus guidance at most
         base = load_hyperparams(algo)
+        # what RL Zoo would read: the packaged file through PyYAML, entry by env id
+        with open(f"bulletnav/rl/hyperparams/{algo}.yml") as f:
+            zoo = yaml.safe_load(f)
+        assert base == zoo["bulletnav/Warehouse-v0"]
+        for env_id in ("bulletnav/WarehouseAisles-v0", "bulletnav/WarehouseDynamic-v0", "bulletnav/WarehouseMission-v0"):
+            assert load_hyperparams(algo, env_id=env_id) == zoo[env_id], (algo, env_id)
         for env_id in ("bulletnav/WarehouseAisles-v0", "bulletnav/WarehouseDynamic-v0", "bulletnav/WarehouseMission-v0"):
             hp = load_hyperparams(algo, env_id=env_id)
             kwargs = dict(hp["env_kwargs"])
