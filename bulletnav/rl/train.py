@@ -130,55 +130,21 @@ def train(cfg: TrainConfig, plot_curve: PlotCurve | None = None) -> dict[str, An
     import torch
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from bulletnav.rl.curriculum import Curriculum, CurriculumCallback
-
     torch.set_num_threads(1)  # 2 cores: more threads slow PPO down and starve the env workers
-    hp = apply_overrides(load_hyperparams(cfg.algo, env_id=cfg.env_id, path=cfg.hyperparams), cfg.overrides)
-    env_kwargs = {**hp.get("env_kwargs", {}), **(cfg.env_overrides or {})}
-    if hp.get("randomize"):  # domain randomization: the hyperparameter file's randomize: block
-        env_kwargs.setdefault("randomize", hp["randomize"])
-    shield = cfg.shield
-    recorded = cfg.out / "config.json"
-    if cfg.resume and recorded.is_file():  # a resumed run keeps the settings it started with
-        original = json.loads(recorded.read_text())
-        hp = upgrade_hyperparams(original["hyperparams"], str(recorded))
-        env_kwargs = {**hp.get("env_kwargs", {}), **original["env_kwargs"]}
-        shield = bool(original.get("shield", False))
+    hp, env_kwargs, shield = _run_settings(cfg)
     n_envs = int(cfg.n_envs or hp.get("n_envs", 4))
     timesteps = int(cfg.timesteps if cfg.timesteps is not None else hp.get("n_timesteps", 500_000))
     cfg.out.mkdir(parents=True, exist_ok=True)
     venv = _make_vec_env(cfg, env_kwargs, n_envs, shield)
     normalize = hp.get("normalize") or None
-    cls = algo_class(cfg.algo)
     ckpt = cfg.out / "checkpoints" / "last.zip"
     history: list[dict[str, Any]] = []
     start_steps = 0
     if cfg.resume:
-        finish_checkpoint(cfg.out)  # a run killed while writing its last checkpoint
-        if not ckpt.is_file():
-            raise ModelError(f"{ckpt}: no checkpoint to resume from")
-        if normalize:
-            venv = apply_stats(VecNormalize(venv, **normalize), _checkpoint_stats(ckpt, cfg.trust_pickle))
-        model = load_zip(ckpt, cls, env=venv, trust_pickle=cfg.trust_pickle)
+        model, venv, history = _resumed_model(cfg, ckpt, venv, normalize)
         start_steps = int(model.num_timesteps)
-        hist_file = cfg.out / "eval_history.json"
-        if hist_file.is_file():
-            history = [row for row in json.loads(hist_file.read_text()) if row["timesteps"] <= start_steps]
     else:
-        if cfg.init_from is not None:
-            _check_spaces(cfg.init_from, venv)
-        if normalize:
-            stats = load_stats(Path(cfg.init_from), read_sidecar(cfg.init_from), cfg.trust_pickle) if cfg.init_from else None
-            venv = VecNormalize(venv, **normalize)
-            if isinstance(stats, dict):
-                apply_stats(venv, stats)
-            elif stats is not None:  # a trusted, unpickled VecNormalize
-                venv.obs_rms, venv.ret_rms = stats.obs_rms, stats.ret_rms
-            venv.training, venv.norm_reward = True, bool(normalize.get("norm_reward", True))
-        model = cls(policy_class(hp), venv, seed=cfg.seed, device="cpu", verbose=0,
-                    tensorboard_log=str(cfg.out / "tb"), **model_kwargs(hp, venv.action_space.shape[0]))
-        if cfg.init_from is not None:
-            _load_weights(model, cfg.init_from)
+        model, venv = _new_model(cfg, hp, venv, normalize)
     vecnorm = venv if isinstance(venv, VecNormalize) else None
     # the training's wall clock runs on across resumes: from the checkpoint's record, or (older
     # checkpoints) from the last in-training evaluation's
@@ -190,16 +156,9 @@ def train(cfg: TrainConfig, plot_curve: PlotCurve | None = None) -> dict[str, An
                                     shield=shield, started=time.time() - prior, on_row=cfg.on_evaluation,
                                     stop_at_success=cfg.stop_at_success)
     throughput = ThroughputCallback(_timer(venv), evaluation)
-    callbacks = [evaluation, throughput]
-    curriculum = None
-    if hp.get("curriculum"):
-        curriculum = CurriculumCallback(Curriculum.from_spec(hp["curriculum"], where=f"{cfg.algo} {cfg.env_id} curriculum"))
-        if cfg.resume:
-            state = json.loads((cfg.out / "checkpoints" / "last.json").read_text()).get("curriculum")
-            if state:
-                curriculum.curriculum.restore(state)
-        curriculum.send_stage(venv)  # before the envs' first reset in learn()
-        callbacks.append(curriculum)
+    curriculum = _curriculum_callback(cfg, hp, venv)
+    callbacks = [evaluation, throughput] + ([curriculum] if curriculum is not None else [])
+
     def state() -> dict[str, Any]:
         extra: dict[str, Any] = {"wall_time": round(time.time() - evaluation.started, 1)}
         if curriculum:
@@ -226,17 +185,7 @@ def train(cfg: TrainConfig, plot_curve: PlotCurve | None = None) -> dict[str, An
     timing = throughput.summary() if remaining else None
     save_checkpoint(model, cfg.out, vecnorm, state())
     final_path = cfg.out / "model.zip"
-    atomic_save_model(model, final_path)
-    if vecnorm is not None:
-        atomic_save_vecnormalize(vecnorm, vecnormalize_path(final_path))
-    stopped = evaluation.reached is not None  # learn() stopped before updating on that rollout
-    if history and history[-1]["timesteps"] == model.num_timesteps and remaining and not stopped:
-        # that evaluation ran inside the last rollout, before the last update: evaluate the
-        # model that is saved instead, so the record and model.zip agree
-        history.pop()
-    if not stopped and (not history or history[-1]["timesteps"] != model.num_timesteps):
-        evaluation.evaluate(model)  # (a stopped run's weights are those of its last evaluation)
-    evaluation.close()
+    _save_and_evaluate(model, final_path, vecnorm, evaluation, history, bool(remaining))
     venv.close()
     if curriculum is not None:
         record["curriculum_final"] = curriculum.curriculum.state()
@@ -251,6 +200,100 @@ def train(cfg: TrainConfig, plot_curve: PlotCurve | None = None) -> dict[str, An
     if history and plot_curve is not None:
         plot_curve(history, cfg.out / "learning_curve.png", f"{cfg.algo.upper()} seed {cfg.seed}")
     return record
+
+
+def _run_settings(cfg: TrainConfig) -> tuple[dict[str, Any], dict[str, Any], bool]:
+    """The run's hyperparameters, env settings and shield: ``cfg``'s (the hyperparameter file
+    with its overrides), or the recorded ones of a resumed run (it keeps the settings it started with)."""
+    hp = apply_overrides(load_hyperparams(cfg.algo, env_id=cfg.env_id, path=cfg.hyperparams), cfg.overrides)
+    env_kwargs = {**hp.get("env_kwargs", {}), **(cfg.env_overrides or {})}
+    if hp.get("randomize"):  # domain randomization: the hyperparameter file's randomize: block
+        env_kwargs.setdefault("randomize", hp["randomize"])
+    shield = cfg.shield
+    recorded = cfg.out / "config.json"
+    if cfg.resume and recorded.is_file():
+        original = json.loads(recorded.read_text())
+        hp = upgrade_hyperparams(original["hyperparams"], str(recorded))
+        env_kwargs = {**hp.get("env_kwargs", {}), **original["env_kwargs"]}
+        shield = bool(original.get("shield", False))
+    return hp, env_kwargs, shield
+
+
+def _resumed_model(cfg: TrainConfig, ckpt: Path, venv: Any, normalize: dict[str, Any] | None) -> tuple[Any, Any, list[dict[str, Any]]]:
+    """The model of the last checkpoint on ``venv`` (normalized with the checkpoint's
+    statistics), the env it learns on, and the evaluations up to it.
+
+    Raises:
+        ModelError: no checkpoint to resume from.
+    """
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    finish_checkpoint(cfg.out)  # a run killed while writing its last checkpoint
+    if not ckpt.is_file():
+        raise ModelError(f"{ckpt}: no checkpoint to resume from")
+    if normalize:
+        venv = apply_stats(VecNormalize(venv, **normalize), _checkpoint_stats(ckpt, cfg.trust_pickle))
+    model = load_zip(ckpt, algo_class(cfg.algo), env=venv, trust_pickle=cfg.trust_pickle)
+    history = []
+    hist_file = cfg.out / "eval_history.json"
+    if hist_file.is_file():
+        history = [row for row in json.loads(hist_file.read_text()) if row["timesteps"] <= int(model.num_timesteps)]
+    return model, venv, history
+
+
+def _new_model(cfg: TrainConfig, hp: dict[str, Any], venv: Any, normalize: dict[str, Any] | None) -> tuple[Any, Any]:
+    """A new model on ``venv`` (normalized with ``normalize``), started from ``cfg.init_from``'s
+    weights and normalization statistics where given, and the env it learns on."""
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    if cfg.init_from is not None:
+        _check_spaces(cfg.init_from, venv)
+    if normalize:
+        stats = load_stats(Path(cfg.init_from), read_sidecar(cfg.init_from), cfg.trust_pickle) if cfg.init_from else None
+        venv = VecNormalize(venv, **normalize)
+        if isinstance(stats, dict):
+            apply_stats(venv, stats)
+        elif stats is not None:  # a trusted, unpickled VecNormalize
+            venv.obs_rms, venv.ret_rms = stats.obs_rms, stats.ret_rms
+        venv.training, venv.norm_reward = True, bool(normalize.get("norm_reward", True))
+    model = algo_class(cfg.algo)(policy_class(hp), venv, seed=cfg.seed, device="cpu", verbose=0,
+                                 tensorboard_log=str(cfg.out / "tb"), **model_kwargs(hp, venv.action_space.shape[0]))
+    if cfg.init_from is not None:
+        _load_weights(model, cfg.init_from)
+    return model, venv
+
+
+def _curriculum_callback(cfg: TrainConfig, hp: dict[str, Any], venv: Any) -> Any:
+    """The curriculum of the hyperparameters (restored from the last checkpoint on a resume),
+    its first stage sent to the envs before their first reset; None without one."""
+    from bulletnav.rl.curriculum import Curriculum, CurriculumCallback
+
+    if not hp.get("curriculum"):
+        return None
+    curriculum = CurriculumCallback(Curriculum.from_spec(hp["curriculum"], where=f"{cfg.algo} {cfg.env_id} curriculum"))
+    if cfg.resume:
+        state = json.loads((cfg.out / "checkpoints" / "last.json").read_text()).get("curriculum")
+        if state:
+            curriculum.curriculum.restore(state)
+    curriculum.send_stage(venv)  # before the envs' first reset in learn()
+    return curriculum
+
+
+def _save_and_evaluate(model: Any, final_path: Path, vecnorm: Any, evaluation: Any, history: list[dict[str, Any]],
+                       learned: bool) -> None:
+    """Save ``model.zip`` (and its normalization statistics), then evaluate the saved model
+    unless the last evaluation already did (``learned``: this call trained)."""
+    atomic_save_model(model, final_path)
+    if vecnorm is not None:
+        atomic_save_vecnormalize(vecnorm, vecnormalize_path(final_path))
+    stopped = evaluation.reached is not None  # learn() stopped before updating on that rollout
+    if history and history[-1]["timesteps"] == model.num_timesteps and learned and not stopped:
+        # that evaluation ran inside the last rollout, before the last update: evaluate the
+        # model that is saved instead, so the record and model.zip agree
+        history.pop()
+    if not stopped and (not history or history[-1]["timesteps"] != model.num_timesteps):
+        evaluation.evaluate(model)  # (a stopped run's weights are those of its last evaluation)
+    evaluation.close()
 
 
 def _check_spaces(path: Path, venv) -> None:
