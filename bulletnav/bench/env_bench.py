@@ -117,37 +117,13 @@ def bench_env(steps: int = 6000, block: int = 100, seed: int = 0, config: EnvCon
     env_time = raw_time = lean_time = reset_time = 0.0
     episodes = exact = 0
     block_ratios, lean_ratios = [], []
-    clock = time.perf_counter
-    save, restore, remove = p.saveState, p.restoreState, p.removeState
     for b in range(0, steps, block):
         chunk = actions[b:b + block]
-        segments = [(0, save(physicsClientId=cid))]  # (first step, state before it)
-        t_env = 0.0
-        t0 = clock()  # the env is timed per segment between resets, like the raw loop
-        for i, a in enumerate(chunk):
-            _, _, terminated, truncated, _ = env.step(a)
-            if terminated or truncated:
-                t1 = clock()
-                t_env += t1 - t0
-                env.reset()
-                reset_time += clock() - t1
-                episodes += 1
-                segments.append((i + 1, save(physicsClientId=cid)))
-                t0 = clock()
-        t_env += clock() - t0
-        env_end = raw.base_pose()
-        after = save(physicsClientId=cid)
-        bounds = [s for s, _ in segments[1:]] + [len(chunk)]
-        t_raw = t_lean = 0.0
-        for queries in (True, False):
-            for (first, state), last in zip(segments, bounds):
-                restore(state, physicsClientId=cid)
-                t = raw.run(commands[b + first:b + last], state_queries=queries)
-                t_raw, t_lean = (t_raw + t, t_lean) if queries else (t_raw, t_lean + t)
-            exact += queries is False and raw.base_pose() == env_end
-        restore(after, physicsClientId=cid)
-        for state in [after, *(s for _, s in segments)]:
-            remove(state, physicsClientId=cid)
+        t_env, t_reset, segments = _time_env_block(env, chunk, cid)
+        reset_time += t_reset
+        episodes += len(segments) - 1
+        t_raw, t_lean, replayed = _time_raw_block(raw, commands[b:b + block], segments, cid)
+        exact += replayed
         env_time += t_env
         raw_time += t_raw
         lean_time += t_lean
@@ -176,6 +152,51 @@ def bench_env(steps: int = 6000, block: int = 100, seed: int = 0, config: EnvCon
         "solver_iterations": cfg.physics.solver_iterations,
         "lidar_rays": cfg.sensors.lidar.num_rays,
     }
+
+
+def _time_env_block(env: gym.Env, chunk: np.ndarray, cid: int) -> tuple[float, float, list[tuple[int, int]]]:
+    """Step ``env`` through the actions of ``chunk``, timed per segment between resets (as the
+    raw loop is), with the simulation state saved before each segment. Returns (seconds
+    stepping, seconds in ``reset()``, the segments' (first step, saved state))."""
+    clock, save = time.perf_counter, p.saveState
+    segments = [(0, save(physicsClientId=cid))]  # (first step, state before it)
+    t_env = reset_time = 0.0
+    t0 = clock()
+    for i, a in enumerate(chunk):
+        _, _, terminated, truncated, _ = env.step(a)
+        if terminated or truncated:
+            t1 = clock()
+            t_env += t1 - t0
+            env.reset()
+            reset_time += clock() - t1
+            segments.append((i + 1, save(physicsClientId=cid)))
+            t0 = clock()
+    t_env += clock() - t0
+    return t_env, reset_time, segments
+
+
+def _time_raw_block(raw: _RawLoop, commands: list[tuple[float, float]], segments: list[tuple[int, int]],
+                    cid: int) -> tuple[float, float, bool]:
+    """Replay ``commands`` on the raw loop from each segment's saved state, with and without the
+    state queries, then restore where the env ended and drop the saved states. Returns (seconds
+    with queries, seconds without, whether the lean replay ended where the env did)."""
+    restore, remove = p.restoreState, p.removeState
+    env_end = raw.base_pose()
+    after = p.saveState(physicsClientId=cid)
+    bounds = [s for s, _ in segments[1:]] + [len(commands)]
+    t_raw = t_lean = 0.0
+    exact = False
+    for queries in (True, False):
+        for (first, state), last in zip(segments, bounds):
+            restore(state, physicsClientId=cid)
+            t = raw.run(commands[first:last], state_queries=queries)
+            t_raw, t_lean = (t_raw + t, t_lean) if queries else (t_raw, t_lean + t)
+        exact = queries is False and raw.base_pose() == env_end
+    restore(after, physicsClientId=cid)
+    for state in [after, *(s for _, s in segments)]:
+        remove(state, physicsClientId=cid)
+    return t_raw, t_lean, exact
+
 
 
 def step_with_resets(env: gym.Env, actions: np.ndarray) -> tuple[float, float, int]:
