@@ -186,10 +186,24 @@ def render_report(results: dict[str, Any], results_name: str = "results.json",
     worlds = suite["worlds"]
     controllers = [c["name"] for c in suite["controllers"]]
     cells = {(c["world"], c["controller"]): c["summary"] for c in results["cells"]}
-    best = best_controllers(results)
     rows_by_world: dict[str, dict[tuple[str, int], dict]] = {w["name"]: {} for w in worlds}
     for row in results["episodes"]:
         rows_by_world[row["world"]][(row["controller"], row["episode"])] = row
+    out = _page_head(results, results_name, controllers)
+    out += _headline(worlds, controllers, cells, best_controllers(results))
+    for i, w in enumerate(worlds):  # one tab per world
+        out += _world_panel(i, w, controllers, cells, rows_by_world[w["name"]], results["metrics"], suite["seed"],
+                            draw_layout)
+    esc = html.escape
+    definitions = "".join(f"<dt><b>{esc(k)}</b></dt><dd>{esc(v)}</dd>" for k, v in results["metrics"].items())
+    out.append(f"<h2>Metrics</h2><dl>{definitions}</dl>")
+    out.append(f"<script>{SCRIPT}</script></body></html>")
+    return "\n".join(out)
+
+
+def _page_head(results: dict[str, Any], results_name: str, controllers: list[str]) -> list[str]:
+    """The page's lines up to its tab list: title, the run's provenance and one tab per view."""
+    suite, worlds = results["suite"], results["suite"]["worlds"]
     prov = results.get("provenance", {})
     esc = html.escape
     out = ["<!doctype html><html lang=en><head><meta charset=utf-8>",
@@ -209,10 +223,17 @@ def render_report(results: dict[str, Any], results_name: str = "results.json",
         out.append(f"<button role=tab id=tab-w{i} aria-controls=panel-w{i} aria-selected=false tabindex=-1>"
                    f"{esc(w['name'])}</button>")
     out.append("</div>")
-    # headline
-    out.append("<section role=tabpanel id=panel-headline aria-labelledby=tab-headline>"
-               "<h2>Headline: success, collisions and SPL (95 % bootstrap intervals)</h2>"
-               "<div class=scroll><table id=headline><thead><tr><th scope=col>world</th>")
+    return out
+
+
+def _headline(worlds: list[dict[str, Any]], controllers: list[str], cells: dict[tuple[str, str], Any],
+              best: dict[str, str]) -> list[str]:
+    """The headline tab's lines: success, collisions and SPL of every world and controller, the
+    best of each world starred."""
+    esc = html.escape
+    out = ["<section role=tabpanel id=panel-headline aria-labelledby=tab-headline>"
+           "<h2>Headline: success, collisions and SPL (95 % bootstrap intervals)</h2>"
+           "<div class=scroll><table id=headline><thead><tr><th scope=col>world</th>"]
     out += [f"<th scope=col>{esc(c)}</th>" for c in controllers]
     out.append("</tr></thead><tbody>")
     for w in worlds:
@@ -228,48 +249,59 @@ def render_report(results: dict[str, Any], results_name: str = "results.json",
         out.append("</tr>")
     out.append("</tbody></table></div><p class=note>&#9733; best: highest success, then fewest collisions, then "
                "highest SPL. Every world's tab has all the metrics.</p></section>")
-    # one tab per world
-    for i, w in enumerate(worlds):
-        rows = rows_by_world[w["name"]]
-        out.append(f"<section role=tabpanel id=panel-w{i} aria-labelledby=tab-w{i} hidden>"
-                   f"<h2>{esc(w['name'])} ({esc(w['env'])}, {w['episodes']} episodes)</h2>"
-                   f"<div class=scroll><table class=metrics><thead><tr><th scope=col>metric</th>")
-        out += [f"<th scope=col>{esc(c)}</th>" for c in controllers]
-        out.append("</tr></thead><tbody>")
-        for name, definition in results["metrics"].items():
-            out.append(f"<tr><th scope=row title='{esc(definition, quote=True)}'>{esc(name)}</th>")
-            out += [f"<td class=num>{_fmt((cells.get((w['name'], c)) or {}).get(name), name)}</td>" for c in controllers]
-            out.append("</tr>")
-        out.append("</tbody></table></div>")
-        out.append("<p class='note legend'>Paths: <span><i class=swatch style='background:#0072B2'></i>success</span>"
-                   "<span><i class=swatch style='background:#D55E00'></i>collision</span>"
-                   "<span><i class=swatch style='background:#E69F00'></i>timeout</span> green disc: goal, "
-                   "white dot: start.</p>")
-        out.append(f"<h3>The first episodes, every controller</h3><img alt='paths of the first episodes of "
-                   f"{esc(w['name'], quote=True)}' src='"
-                   f"{_paths_figure(w, controllers, rows, suite['seed'], w['episodes'], draw_layout)}'>")
-        out.append("<h3>Failure gallery</h3>")
-        failures = [r for r in sorted(rows.values(), key=lambda r: (controllers.index(r["controller"]), r["episode"]))
-                    if not r["success"]]
-        shown = []
-        for c in controllers:
-            shown += [r for r in failures if r["controller"] == c][:GALLERY]
-        if not shown:
-            out.append("<p class=note>No failures.</p>")
-        else:
-            out.append("<div class=gallery>")
-            for r in shown:
-                outcome = "collision" if r["collision"] else "timeout"
-                out.append(f"<figure><img alt='{esc(r['controller'], quote=True)} {outcome} seed {r['seed']}' "
-                           f"src='{_failure_thumb(w, r, draw_layout)}'><figcaption>{esc(r['controller'])}: {outcome} after "
-                           f"{r['time_s']:.1f} s (episode {r['episode']}). Replay: <code>{esc(r.get('replay', ''))}"
-                           f"</code></figcaption></figure>")
-            out.append("</div>")
-        out.append("</section>")
-    definitions = "".join(f"<dt><b>{esc(k)}</b></dt><dd>{esc(v)}</dd>" for k, v in results["metrics"].items())
-    out.append(f"<h2>Metrics</h2><dl>{definitions}</dl>")
-    out.append(f"<script>{SCRIPT}</script></body></html>")
-    return "\n".join(out)
+    return out
+
+
+def _world_panel(i: int, w: dict[str, Any], controllers: list[str], cells: dict[tuple[str, str], Any],
+                 rows: dict[tuple[str, int], dict], metrics: dict[str, str], seed: int,
+                 draw_layout: DrawLayout | None) -> list[str]:
+    """World ``i``'s tab: every metric of every controller, the first episodes' paths and the
+    failure gallery."""
+    esc = html.escape
+    out = [f"<section role=tabpanel id=panel-w{i} aria-labelledby=tab-w{i} hidden>"
+           f"<h2>{esc(w['name'])} ({esc(w['env'])}, {w['episodes']} episodes)</h2>"
+           f"<div class=scroll><table class=metrics><thead><tr><th scope=col>metric</th>"]
+    out += [f"<th scope=col>{esc(c)}</th>" for c in controllers]
+    out.append("</tr></thead><tbody>")
+    for name, definition in metrics.items():
+        out.append(f"<tr><th scope=row title='{esc(definition, quote=True)}'>{esc(name)}</th>")
+        out += [f"<td class=num>{_fmt((cells.get((w['name'], c)) or {}).get(name), name)}</td>" for c in controllers]
+        out.append("</tr>")
+    out.append("</tbody></table></div>")
+    out.append("<p class='note legend'>Paths: <span><i class=swatch style='background:#0072B2'></i>success</span>"
+               "<span><i class=swatch style='background:#D55E00'></i>collision</span>"
+               "<span><i class=swatch style='background:#E69F00'></i>timeout</span> green disc: goal, "
+               "white dot: start.</p>")
+    out.append(f"<h3>The first episodes, every controller</h3><img alt='paths of the first episodes of "
+               f"{esc(w['name'], quote=True)}' src='"
+               f"{_paths_figure(w, controllers, rows, seed, w['episodes'], draw_layout)}'>")
+    out.append("<h3>Failure gallery</h3>")
+    out += _failure_gallery(w, controllers, rows, draw_layout)
+    out.append("</section>")
+    return out
+
+
+def _failure_gallery(w: dict[str, Any], controllers: list[str], rows: dict[tuple[str, int], dict],
+                     draw_layout: DrawLayout | None) -> list[str]:
+    """The first :data:`GALLERY` failed episodes of each controller in world ``w``, each a
+    thumbnail with its outcome and replay command."""
+    esc = html.escape
+    failures = [r for r in sorted(rows.values(), key=lambda r: (controllers.index(r["controller"]), r["episode"]))
+                if not r["success"]]
+    shown = []
+    for c in controllers:
+        shown += [r for r in failures if r["controller"] == c][:GALLERY]
+    if not shown:
+        return ["<p class=note>No failures.</p>"]
+    out = ["<div class=gallery>"]
+    for r in shown:
+        outcome = "collision" if r["collision"] else "timeout"
+        out.append(f"<figure><img alt='{esc(r['controller'], quote=True)} {outcome} seed {r['seed']}' "
+                   f"src='{_failure_thumb(w, r, draw_layout)}'><figcaption>{esc(r['controller'])}: {outcome} after "
+                   f"{r['time_s']:.1f} s (episode {r['episode']}). Replay: <code>{esc(r.get('replay', ''))}"
+                   f"</code></figcaption></figure>")
+    out.append("</div>")
+    return out
 
 
 def write_report(results: dict[str, Any], path: Path, draw_layout: DrawLayout | None = None) -> Path:
