@@ -211,8 +211,8 @@ KINDS: dict[str, str] = {
     "test_fleet_bench.py::test_bench_fleet_rows_and_ratios_on_a_fake_clock": "hand",
     # ---- test_fleet_compare.py
     "test_fleet_compare.py::test_parse_entries_names_and_errors": "hand",
-    "test_fleet_compare.py::test_every_entry_meets_the_same_episodes_and_workers_do_not_change_rows": "self",
-    "test_fleet_compare.py::test_an_interrupted_run_resumes_to_the_same_rows": "self",
+    "test_fleet_compare.py::test_every_entry_meets_the_same_episodes_and_workers_do_not_change_rows": "formula",  # throughput per row by its formula; cells recomputed from the rows (statistics.stdev for the SE)
+    "test_fleet_compare.py::test_an_interrupted_run_resumes_to_the_same_rows": "hand",  # the (entry, episode, seed) rows by hand; cells recomputed from the rows
     "test_fleet_compare.py::test_rows_of_different_episodes_are_refused": "contract",
     "test_fleet_compare.py::test_bad_settings_name_the_argument": "contract",
     "test_fleet_compare.py::test_chunks_cover_every_entry_block_by_block": "hand",

@@ -13,6 +13,28 @@ from bulletnav.fleet.compare import Entry, build_comparison, parse_entries, plan
 ENV = {"duration_s": 4.0, "dynamic": True}
 
 
+def _check_cells_from_rows(results, duration_s: float) -> None:
+    """Each row's throughput by its formula (errands per simulated hour), and each cell
+    recomputed here from its rows: errands and collisions summed, throughput averaged, its
+    standard error by the statistics module (sample standard deviation / sqrt(n)), the
+    smallest separation the minimum."""
+    import math
+    import statistics
+
+    for row in results["episodes"]:
+        assert row["throughput_per_hour"] == pytest.approx(row["errands"] * 3600.0 / duration_s, rel=1e-12)
+        assert row["seed"] == results["settings"]["seed"] + row["episode"]
+    for cell in results["cells"]:
+        mine = [r for r in results["episodes"] if r["robots"] == cell["robots"] and r["entry"] == cell["entry"]]
+        assert cell["episodes"] == len(mine)
+        assert cell["errands"] == sum(r["errands"] for r in mine)
+        assert cell["collisions_robot_robot"] == sum(r["collisions_robot_robot"] for r in mine)
+        tput = [r["throughput_per_hour"] for r in mine]
+        assert cell["throughput_per_hour"] == pytest.approx(statistics.fmean(tput), rel=1e-12)
+        assert cell["throughput_se"] == pytest.approx(statistics.stdev(tput) / math.sqrt(len(tput)), rel=1e-9, abs=1e-12)
+        assert cell["min_separation_m"] == pytest.approx(min(r["min_separation_m"] for r in mine), rel=1e-12)
+
+
 def _rows(results):
     """Rows without their wall times, as JSON text (NaN equals NaN there)."""
     return [json.dumps({k: v for k, v in r.items() if k != "wall_s"}) for r in results["episodes"]]
@@ -48,6 +70,7 @@ def test_every_entry_meets_the_same_episodes_and_workers_do_not_change_rows(tmp_
     assert "## 2 robots" in md and "| coordinated |" in md
     saved = json.loads((tmp_path / "one" / "comparison.json").read_text())
     assert saved["settings"]["seed"] == 31 and len(saved["episodes"]) == 6
+    _check_cells_from_rows(one, ENV["duration_s"])
 
 
 def test_an_interrupted_run_resumes_to_the_same_rows(tmp_path):
@@ -64,6 +87,10 @@ def test_an_interrupted_run_resumes_to_the_same_rows(tmp_path):
     resumed = run_comparison(out, entries, robots=(2,), episodes=3, seed=7, env_kwargs=ENV, resume=True)
     assert _rows(resumed) == _rows(full)
     assert len((out / "episodes.jsonl").read_text().splitlines()) == 6
+    # by hand: 2 entries x 3 episodes, seeds 7-9, each once; the summary recomputed from the rows
+    assert sorted((r["entry"], r["episode"], r["seed"]) for r in resumed["episodes"]) == \
+           [(label, k, 7 + k) for label in ("independent", "independent + shield") for k in range(3)]
+    _check_cells_from_rows(resumed, ENV["duration_s"])
     # an entry added later runs alone; the earlier entries' rows are kept, not rerun
     more = run_comparison(out, entries + parse_entries(["coordinated"], "off"), robots=(2,), episodes=3, seed=7,
                           env_kwargs=ENV, resume=True)
