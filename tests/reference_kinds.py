@@ -504,8 +504,8 @@ KINDS: dict[str, str] = {
     "test_sensors.py::test_lidar_reads_a_wall_at_a_known_distance": "formula",
     "test_sensors.py::test_lidar_never_sees_the_robot_and_reads_max_range_in_the_open": "hand",
     "test_sensors.py::test_lidar_noise_has_the_configured_std": "formula",
-    "test_sensors.py::test_sensor_reads_are_idempotent_within_a_step": "contract",
-    "test_sensors.py::test_every_sensor_reading_lies_in_its_space": "contract",
+    "test_sensors.py::test_sensor_reads_are_idempotent_within_a_step": "hand",  # the room's wall distances, reads within 5 sigma
+    "test_sensors.py::test_every_sensor_reading_lies_in_its_space": "formula",  # ray ahead = 2 m - x - lidar offset while driving at the wall
     "test_sensors.py::test_depth_camera_centre_pixel_reads_the_wall_distance": "formula",
     "test_sensors.py::test_imu_noise_statistics_and_gravity_at_rest": "formula",
     "test_sensors.py::test_imu_bias_and_rotation_rate": "formula",

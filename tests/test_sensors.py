@@ -77,6 +77,14 @@ def test_sensor_reads_are_idempotent_within_a_step(make_scene, rng, wall_room):
     assert np.array_equal(a, b) and a is not b
     a[0] = -1.0  # callers get copies
     assert scene.sensors.lidar.read()[0] != -1.0
+    # What was read is the room's geometry plus noise: the noise-free cast reads the wall
+    # 2.0 - 0.1 m ahead and the side walls 3 m away, and each read ray lies within 5 sigma of it.
+    lidar = scene.sensors.lidar
+    exact = lidar.cast() * lidar.config.max_range
+    for angle, distance in ((0.0, 2.0 - LIDAR_X), (math.pi / 2, 3.0), (-math.pi / 2, 3.0)):
+        i = int(np.argmin(np.abs(lidar.angles - angle)))
+        assert exact[i] == pytest.approx(distance, abs=0.02)
+        assert abs(b[i] - distance) < 5 * 0.05
 
 
 def test_every_sensor_reading_lies_in_its_space(make_scene, wall_room):
@@ -92,9 +100,14 @@ def test_every_sensor_reading_lies_in_its_space(make_scene, wall_room):
     runs = [((1.5, 0.0, 0.0), (0.3, 0.0)),  # up to the wall: ranges near min_range
             ((-3.0, 1.0, math.pi - 0.05), (0.1, 1.5)),  # yaw crosses +pi
             ((0.0, -1.0, -math.pi + 0.05), (0.0, -1.5))]  # yaw crosses -pi
-    for start, (v, w) in runs:
+    for run, (start, (v, w)) in enumerate(runs):
         place(scene, wall_room, start, rng)
         for _ in range(30):
+            if run == 0:  # heading square at the wall's face (x = 2 m): the noise-free ray ahead by hand
+                x, _, yaw = scene.robot.pose()
+                assert abs(yaw) < 0.01
+                lidar = present["lidar"]
+                assert lidar.cast()[0] * 5.0 == pytest.approx(2.0 - x - LIDAR_X, abs=0.01)
             for name, sensor in present.items():
                 space, value = sensor.space(), sensor.read()
                 if name == "camera":
