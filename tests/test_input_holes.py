@@ -128,6 +128,8 @@ def test_output_folders_resolve_inside_their_base(tmp_path):
     spec = SweepSpec.from_dict({"algo": "ppo", "name": "s"})
     with pytest.raises(ConfigError, match="outside"):
         spec.results_dir(base)
+    with pytest.raises(ConfigError, match="outside"):  # the trials' storage folder likewise
+        spec.results_dir(tmp_path / "tables", storage=base)
     assert SweepSpec.from_dict({"algo": "ppo", "name": "t"}).results_dir(base) == base / "t"
 
 

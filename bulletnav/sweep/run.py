@@ -80,11 +80,9 @@ def run_sweep(spec: SweepSpec, opts: SweepOptions) -> dict[str, Any]:
     if opts.optimize is not None and opts.optimize < 1:
         raise ConfigError(f"sweep {spec.name!r}: --optimize needs N >= 1 trials (got {opts.optimize})")
     base = load_hyperparams(spec.algo, env_id=spec.env_id, path=spec.hyperparams)
-    results_dir = spec.results_dir(opts.out)  # refused when it resolves outside opts.out
     storage = opts.storage or str(Path(opts.out).resolve())
     local_storage = "://" not in storage
-    if local_storage:
-        spec.results_dir(storage)  # the trials' folder, likewise
+    results_dir = spec.results_dir(opts.out, storage if local_storage else None)  # refused if either leads out
     experiment = f"{storage.rstrip('/')}/{spec.name}"
     exists = tune.Tuner.can_restore(experiment) if local_storage or opts.resume else False
     if exists and not opts.resume:

@@ -156,60 +156,8 @@ class SweepSpec:
             if data["vec_env"] not in ("dummy", "subproc"):
                 raise bad("vec_env", "must be 'dummy' or 'subproc'")
             kw["vec_env"] = data["vec_env"]
-        if "seeds" in data:
-            seeds = data["seeds"]
-            if isinstance(seeds, int) and not isinstance(seeds, bool):
-                seeds = [seeds]
-            if not isinstance(seeds, list) or not seeds or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
-                raise bad("seeds", "must be a non-empty list of integers")
-            if len(set(seeds)) != len(seeds):
-                raise bad("seeds", "lists a seed twice")
-            kw["seeds"] = tuple(seeds)
-        if data.get("grid") is not None:
-            if not isinstance(data["grid"], dict):
-                raise bad("grid", "must map hyperparameter names to lists of values")
-            grid = {}
-            for key, values in data["grid"].items():
-                if not isinstance(values, list) or not values:
-                    raise ConfigError(f"{where}: field 'grid': {show(key)} must be a non-empty list of values (got {show(values)})")
-                grid[str(key)] = tuple(values)
-            kw["grid"] = grid
-        trials = math.prod(len(v) for v in kw.get("grid", {}).values()) * len(kw.get("seeds", (0,)))
-        try:  # before the grid is ever expanded: 20 keys of 10 values are 10^20 configurations
-            limits.check("sweep_trials", trials, "sweep trials (grid configurations x seeds)")
-        except LimitError as exc:
-            raise ConfigError(f"{where}: field 'grid': {exc}") from None
-        if data.get("search") is not None:
-            if not isinstance(data["search"], dict):
-                raise bad("search", f"must map hyperparameter names to distributions ({', '.join(DISTRIBUTIONS)})")
-            kw["search"] = {str(k): _distribution(v, f"{where}: field 'search': {show(k)}") for k, v in data["search"].items()}
-            clash = sorted(set(kw["search"]) & set(kw.get("grid", {})))
-            if clash:
-                raise bad("search", f"{', '.join(clash)} also in 'grid'")
-        if data.get("early_stopping") is not None:
-            es = data["early_stopping"]
-            if not isinstance(es, dict) or set(es) - {"scheduler", "grace_period", "reduction_factor"}:
-                raise bad("early_stopping", "must be a mapping of scheduler, grace_period, reduction_factor")
-            if es.get("scheduler", "asha") not in SCHEDULERS:
-                raise bad("early_stopping", f"scheduler must be one of {', '.join(SCHEDULERS)}")
-            kw["early_stopping"] = EarlyStopping(
-                scheduler=es.get("scheduler", "asha"),
-                grace_period=_int(es.get("grace_period", 50_000), 1, bad, "early_stopping"),
-                reduction_factor=_int(es.get("reduction_factor", 2), 2, bad, "early_stopping"))
-        if data.get("evaluation") is not None:
-            ev = data["evaluation"]
-            if not isinstance(ev, dict) or set(ev) - {"episodes", "seed"}:
-                raise bad("evaluation", "must be a mapping of episodes and seed")
-            kw["evaluation_episodes"] = _int(ev.get("episodes", 200), 1, bad, "evaluation")
-            kw["evaluation_seed"] = _int(ev.get("seed", 1000), 0, bad, "evaluation")
-        if "metric" in data:
-            if data["metric"] not in METRICS:
-                raise bad("metric", f"must be one of {', '.join(METRICS)}")
-            kw["metric"] = data["metric"]
-        if "mode" in data:
-            if data["mode"] not in ("max", "min"):
-                raise bad("mode", "must be 'max' or 'min'")
-            kw["mode"] = data["mode"]
+        _trials(data, kw, where, bad)  # seeds, grid and their product's limit
+        _scoring(data, kw, where, bad)  # search, early stopping, evaluation, metric, mode
         return cls(**kw)
 
     def configurations(self) -> list[dict[str, Any]]:
@@ -217,13 +165,16 @@ class SweepSpec:
         keys = list(self.grid)
         return [dict(zip(keys, values)) for values in itertools.product(*(self.grid[k] for k in keys))]
 
-    def results_dir(self, out: str | Path) -> Path:
-        """``out/<name>``, where the sweep's tables, plot and (local storage) trials go.
+    def results_dir(self, out: str | Path, storage: str | Path | None = None) -> Path:
+        """``out/<name>``, where the sweep's tables and plot go (and the trials, unless a local
+        ``storage`` folder is given: ``storage/<name>`` is checked too).
 
         Raises:
-            ConfigError: it resolves outside ``out`` (a link inside ``out`` leading out).
+            ConfigError: either resolves outside its folder (a link inside it leading out).
         """
         try:
+            if storage is not None:
+                limits.inside(storage, self.name)
             return limits.inside(out, self.name)
         except ValueError as exc:
             raise ConfigError(f"sweep {self.name!r}: the results folder {exc}") from None
@@ -243,6 +194,70 @@ class SweepSpec:
         d["grid"] = {k: tuple(v) for k, v in d["grid"].items()}
         d["seeds"] = tuple(d["seeds"])
         return cls(**d)
+
+
+def _trials(data: dict[str, Any], kw: dict[str, Any], where: str, bad) -> None:
+    """:meth:`SweepSpec.from_dict`'s ``seeds`` and ``grid`` into ``kw``, and their product
+    (the trials) checked against the limit before the grid is ever expanded."""
+    if "seeds" in data:
+        seeds = data["seeds"]
+        if isinstance(seeds, int) and not isinstance(seeds, bool):
+            seeds = [seeds]
+        if not isinstance(seeds, list) or not seeds or not all(isinstance(s, int) and not isinstance(s, bool) for s in seeds):
+            raise bad("seeds", "must be a non-empty list of integers")
+        if len(set(seeds)) != len(seeds):
+            raise bad("seeds", "lists a seed twice")
+        kw["seeds"] = tuple(seeds)
+    if data.get("grid") is not None:
+        if not isinstance(data["grid"], dict):
+            raise bad("grid", "must map hyperparameter names to lists of values")
+        grid = {}
+        for key, values in data["grid"].items():
+            if not isinstance(values, list) or not values:
+                raise ConfigError(f"{where}: field 'grid': {show(key)} must be a non-empty list of values (got {show(values)})")
+            grid[str(key)] = tuple(values)
+        kw["grid"] = grid
+    trials = math.prod(len(v) for v in kw.get("grid", {}).values()) * len(kw.get("seeds", (0,)))
+    try:  # before the grid is ever expanded: 20 keys of 10 values are 10^20 configurations
+        limits.check("sweep_trials", trials, "sweep trials (grid configurations x seeds)")
+    except LimitError as exc:
+        raise ConfigError(f"{where}: field 'grid': {exc}") from None
+
+
+def _scoring(data: dict[str, Any], kw: dict[str, Any], where: str, bad) -> None:
+    """:meth:`SweepSpec.from_dict`'s ``search``, ``early_stopping``, ``evaluation``, ``metric``
+    and ``mode`` into ``kw``."""
+    if data.get("search") is not None:
+        if not isinstance(data["search"], dict):
+            raise bad("search", f"must map hyperparameter names to distributions ({', '.join(DISTRIBUTIONS)})")
+        kw["search"] = {str(k): _distribution(v, f"{where}: field 'search': {show(k)}") for k, v in data["search"].items()}
+        clash = sorted(set(kw["search"]) & set(kw.get("grid", {})))
+        if clash:
+            raise bad("search", f"{', '.join(clash)} also in 'grid'")
+    if data.get("early_stopping") is not None:
+        es = data["early_stopping"]
+        if not isinstance(es, dict) or set(es) - {"scheduler", "grace_period", "reduction_factor"}:
+            raise bad("early_stopping", "must be a mapping of scheduler, grace_period, reduction_factor")
+        if es.get("scheduler", "asha") not in SCHEDULERS:
+            raise bad("early_stopping", f"scheduler must be one of {', '.join(SCHEDULERS)}")
+        kw["early_stopping"] = EarlyStopping(
+            scheduler=es.get("scheduler", "asha"),
+            grace_period=_int(es.get("grace_period", 50_000), 1, bad, "early_stopping"),
+            reduction_factor=_int(es.get("reduction_factor", 2), 2, bad, "early_stopping"))
+    if data.get("evaluation") is not None:
+        ev = data["evaluation"]
+        if not isinstance(ev, dict) or set(ev) - {"episodes", "seed"}:
+            raise bad("evaluation", "must be a mapping of episodes and seed")
+        kw["evaluation_episodes"] = _int(ev.get("episodes", 200), 1, bad, "evaluation")
+        kw["evaluation_seed"] = _int(ev.get("seed", 1000), 0, bad, "evaluation")
+    if "metric" in data:
+        if data["metric"] not in METRICS:
+            raise bad("metric", f"must be one of {', '.join(METRICS)}")
+        kw["metric"] = data["metric"]
+    if "mode" in data:
+        if data["mode"] not in ("max", "min"):
+            raise bad("mode", "must be 'max' or 'min'")
+        kw["mode"] = data["mode"]
 
 
 def _int(value: Any, low: int, bad, name: str) -> int:
