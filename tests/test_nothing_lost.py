@@ -97,6 +97,11 @@ def test_a_killed_training_leaves_whole_files_and_resumes(tmp_path):
     assert _check_whole(out) >= 5
     assert json.loads((out / "run.json").read_text())["total_timesteps"] >= 4096
     assert (out / "model.zip").is_file()
+    # the final model read with zipfile and json (SB3's zip layout, no bulletnav code): it was
+    # trained through the whole budget of 4096 steps
+    with zipfile.ZipFile(out / "model.zip") as zf:
+        trained = json.loads(zf.read("data"))["num_timesteps"]
+    assert trained >= 4096
     assert killed == [True, True]  # both resumed runs were killed while running
 
 
@@ -140,6 +145,38 @@ def _checkpoint_set(out: Path) -> tuple[int, int, float]:
     return int(model.num_timesteps), json.loads((folder / "last.json").read_text())["timesteps"], stats["obs"]["mean"][0]
 
 
+def _read_set_with_other_readers(out: Path) -> tuple[int, int, float, dict]:
+    """The same set read without bulletnav: ``last.zip`` through zipfile and json (SB3's zip
+    layout: a ``data`` JSON, ``policy.pth`` a torch state dict, read with ``weights_only``), the
+    JSON files through json. Returns (weights' step, last.json's step, first mean, weights)."""
+    import io
+
+    import torch
+
+    folder = out / "checkpoints"
+    with zipfile.ZipFile(folder / "last.zip") as zf:
+        steps = json.loads(zf.read("data"))["num_timesteps"]
+        weights = torch.load(io.BytesIO(zf.read("policy.pth")), weights_only=True, map_location="cpu")
+    stats = json.loads((folder / "last_vecnormalize.json").read_text())
+    return steps, json.loads((folder / "last.json").read_text())["timesteps"], stats["obs"]["mean"][0], weights
+
+
+def _shift_weights(model, by: float) -> None:
+    """Make the next checkpoint's weights differ from the previous one's."""
+    import torch
+
+    with torch.no_grad():
+        for param in model.policy.parameters():
+            param.add_(by)
+
+
+def _same_weights(read: dict, model) -> bool:
+    import torch
+
+    mine = model.policy.state_dict()
+    return read.keys() == mine.keys() and all(torch.equal(read[k], mine[k]) for k in mine)
+
+
 class _Killed(BaseException):
     """Stands for a SIGKILL: nothing after it runs."""
 
@@ -156,6 +193,7 @@ def test_a_checkpoint_interrupted_after_its_commit_is_completed_whole(tmp_path, 
     callbacks.save_checkpoint(model, tmp_path, venv, {"wall_time": 1.0})
     assert _checkpoint_set(tmp_path) == (0, 0, 1.5)
     model.num_timesteps, venv.obs_rms.mean[0] = 512, 2.5  # the next checkpoint: other weights and statistics
+    _shift_weights(model, 0.25)
     real, done = os.replace, []
 
     def replace(src, dst):
@@ -171,6 +209,10 @@ def test_a_checkpoint_interrupted_after_its_commit_is_completed_whole(tmp_path, 
     monkeypatch.setattr(os, "replace", real)
     assert callbacks.finish_checkpoint(tmp_path) is True
     assert _checkpoint_set(tmp_path) == (512, 512, 2.5)
+    # read back with zipfile, json and torch (no bulletnav code): the hand-set step, statistics
+    # and the shifted weights, all of the second set
+    *figures, weights = _read_set_with_other_readers(tmp_path)
+    assert tuple(figures) == (512, 512, 2.5) and _same_weights(weights, model)
     assert not (tmp_path / "checkpoints" / ".pending").exists()
     assert callbacks.finish_checkpoint(tmp_path) is False  # nothing left to do
 
@@ -181,7 +223,9 @@ def test_a_checkpoint_interrupted_before_its_commit_leaves_the_previous_set(tmp_
     model, venv = _tiny_model_and_stats()
     venv.obs_rms.mean[0] = 1.5
     callbacks.save_checkpoint(model, tmp_path, venv)
+    first = {k: v.clone() for k, v in model.policy.state_dict().items()}
     model.num_timesteps, venv.obs_rms.mean[0] = 512, 2.5
+    _shift_weights(model, 0.25)
     real = callbacks.write_json
 
     def write_json(path, data):
@@ -196,6 +240,11 @@ def test_a_checkpoint_interrupted_before_its_commit_leaves_the_previous_set(tmp_
     assert callbacks.finish_checkpoint(tmp_path) is False
     assert _checkpoint_set(tmp_path) == (0, 0, 1.5)
     assert not (tmp_path / "checkpoints" / ".pending").exists()
+    # read back with zipfile, json and torch: the first set whole, its weights the unshifted ones
+    *figures, weights = _read_set_with_other_readers(tmp_path)
+    assert tuple(figures) == (0, 0, 1.5)
+    assert weights.keys() == first.keys() and all(bool((weights[k] == first[k]).all()) for k in first)
+    assert not _same_weights(weights, model)
 
 
 def test_a_checkpoint_without_statistics_removes_the_older_sets(tmp_path):
