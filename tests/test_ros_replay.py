@@ -68,6 +68,23 @@ def test_recording_holds_what_replay_needs(recorded):
         assert ep["meta"]["end_reason"] == "timeout"
         assert ep["mover_routes"] and all(len(r) >= 2 for r in ep["mover_routes"])
         assert any(st["movers"] for st in ep["steps"])
+    # the file itself through mcap's reader (no bulletnav code, no message decoding): by hand,
+    # 200 control steps of 1/24 s per episode, one /clock, /scan and /reward message each,
+    # stamped 1e9 / 24 ns apart within an episode
+    from mcap.reader import make_reader
+
+    with open(recorded / "run.mcap", "rb") as f:
+        reader = make_reader(f)
+        stamps: dict[str, list[int]] = {"/clock": [], "/scan": [], "/reward": []}
+        for _, channel, message in reader.iter_messages(topics=list(stamps)):
+            stamps[channel.topic].append(message.log_time)
+    for topic, times in stamps.items():
+        assert len(times) == 2 * 200, topic
+    clock = sorted(stamps["/clock"])
+    for k in (0, 1):
+        steps = np.diff(clock[200 * k:200 * (k + 1)])
+        assert np.abs(steps - 1e9 / 24).max() <= 1.0, (k, steps.min(), steps.max())
+    assert clock[200] > clock[199]  # the second episode follows the first
 
 
 def test_replay_refuses_what_is_no_recording(tmp_path, capsys):
