@@ -47,7 +47,7 @@ def _rel(path: Path) -> str:
 # (a) consumers use obs, info and env.unwrapped.scene only
 
 CONSUMERS = sorted({
-    *PKG.glob("control/*.py"), PKG / "evaluation.py", PKG / "policy.py", *PKG.glob("viz/*.py"), PKG / "cli.py",
+    *PKG.glob("control/*.py"), PKG / "evaluation.py", PKG / "policy.py", *PKG.glob("viz/*.py"), *PKG.glob("cli/*.py"),
     *PKG.glob("rl/*.py"), *PKG.glob("bench/*.py"), *PKG.glob("sweep/*.py"), *PKG.glob("benchmark/*.py"),
 })
 """Every module that drives or reads an env from outside it."""
@@ -58,7 +58,8 @@ SIM_INTERNALS = frozenset({"sim", "task", "robot", "world", "_scene"})
 REFLECTION = frozenset({"getattr", "setattr", "hasattr"})
 
 NOT_ENV_INTERNALS = {
-    ("bulletnav/cli.py", "args.world"): "the --world option (a layout file path) on argparse's namespace",
+    ("bulletnav/cli/envs.py", "args.world"): "the --world option (a layout file path) on argparse's namespace",
+    ("bulletnav/cli/fleet.py", "args.world"): "the --world option (a layout file path) on argparse's namespace",
     ("bulletnav/bench/env_bench.py", "cfg.robot"): "EnvConfig.robot, the robot's configuration (RobotConfig)",
     ("bulletnav/bench/physics_bench.py", "sim.robot"): "the physics benchmark drives a bare Simulation, no env",
     ("bulletnav/bench/reset_bench.py", "config.robot"): "EnvConfig.robot: the URDF the raw rebuild loads (RobotConfig)",
@@ -132,13 +133,13 @@ def test_private_access_checker_flags_what_it_should():
     assert any("getattr(x, '_p')" in f for f in found)
     assert not any("self._x" in f or "__class__" in f or "cls._cache" in f for f in found)
     # the configuration/CLI exceptions are exact: the same name elsewhere is still reported
-    assert private_access("def f(args):\n    return args.world\n", "bulletnav/cli.py") == []
+    assert private_access("def f(args):\n    return args.world\n", "bulletnav/cli/envs.py") == []
     assert private_access("def f(args):\n    return args.world\n", "bulletnav/viz/video.py") != []
-    assert private_access("def f(env):\n    return env.world\n", "bulletnav/cli.py") != []
+    assert private_access("def f(env):\n    return env.world\n", "bulletnav/cli/envs.py") != []
 
 
 def test_consumers_use_only_obs_info_and_the_scene_view():
-    assert len(CONSUMERS) >= 20 and PKG / "cli.py" in CONSUMERS  # the globs found the modules
+    assert len(CONSUMERS) >= 20 and PKG / "cli" / "envs.py" in CONSUMERS  # the globs found the modules
     violations = [v for path in CONSUMERS for v in private_access(path.read_text(), _rel(path))]
     assert not violations, f"{len(violations)} private or internal accesses in consumer modules:\n" + "\n".join(violations)
 

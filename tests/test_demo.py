@@ -99,7 +99,9 @@ def test_demo_runs_the_shipped_dynamic_policy_and_reproduces_its_card(tmp_path, 
     out = tmp_path / "demo"
     assert main(["demo", "--env", "bulletnav/WarehouseDynamic-v0", "--episodes", "1", "--seed", "1000", "--json",
                  "--out", str(out)]) == 0
-    got = json.loads(capsys.readouterr().out.split("\ndemo finished")[0])
+    captured = capsys.readouterr()
+    got = json.loads(captured.out)  # stdout is the one JSON document; the closing note goes to stderr
+    assert "demo finished" in captured.err
     assert got["model"].endswith("models/ppo_dynamic.zip") and got["env_id"] == "bulletnav/WarehouseDynamic-v0"
     want = json.loads(card.read_text())["per_episode"][:1]
     for g, w in zip(got["per_episode"], want, strict=True):

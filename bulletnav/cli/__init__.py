@@ -1,0 +1,61 @@
+"""The ``bulletnav`` command: thin subcommands over the library. Only this package prints.
+
+One module per command group, each adding its own subcommands (``register``) with their options
+and handlers; :func:`build_parser` only assembles them, in the order ``--help`` lists them.
+Shared pieces: :mod:`~bulletnav.cli.args` (argument types and option groups),
+:mod:`~bulletnav.cli.envs` (the env a command runs on), :mod:`~bulletnav.cli.output` (``--json``'s
+one document, report figures, output files) and :mod:`~bulletnav.cli.episodes` (single-robot
+episodes with their video, plot and recordings).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import sys
+from collections.abc import Sequence
+
+from bulletnav.cli import bench, benchmark, evaluate, fleet, models, navigate, ros, sweep, train, view
+from bulletnav.cli.args import DEFAULT_ENV_ID, Parser
+from bulletnav.cli.envs import bulletnav_env_ids, check_env_id, make_env, world_kwargs
+from bulletnav.cli.evaluate import DEFAULT_MODEL, SHIPPED_MODELS, demo_folder
+from bulletnav.cli.output import json_mode
+from bulletnav.cli.train import rollout_note
+from bulletnav.errors import BulletnavError
+
+__all__ = ["DEFAULT_ENV_ID", "DEFAULT_MODEL", "SHIPPED_MODELS", "build_parser", "bulletnav_env_ids", "check_env_id",
+           "main"]
+
+COMMAND_GROUPS = (navigate, train, sweep, evaluate, models, view, benchmark, fleet, ros, bench)
+"""The command modules, in the order their commands appear in ``bulletnav --help``."""
+
+# the names the tests have imported from the single-module cli.py
+_make_env, _world_kwargs, _demo_folder, _rollout_note = make_env, world_kwargs, demo_folder, rollout_note
+
+
+def build_parser() -> Parser:
+    """The ``bulletnav`` parser: ``-v`` and one subcommand from each of :data:`COMMAND_GROUPS`."""
+    parser = Parser(
+        prog="bulletnav",
+        description="PyBullet warehouse navigation: classical and learned controllers on the same episodes.")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log debug messages")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for group in COMMAND_GROUPS:
+        group.register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``bulletnav`` with ``argv`` (default ``sys.argv[1:]``); the exit status: 0, 2 on a
+    library error (one line on stderr), or the command's own (130: interrupted)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        if getattr(args, "env_id", None) is not None:
+            check_env_id(args.env_id)
+        with json_mode() if getattr(args, "json", False) else contextlib.nullcontext():
+            return int(args.func(args) or 0)
+    except BulletnavError as exc:
+        print(f"bulletnav {args.command}: error: {' '.join(str(exc).split())}", file=sys.stderr)  # one line
+        return 2

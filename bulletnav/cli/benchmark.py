@@ -1,0 +1,120 @@
+"""``bulletnav benchmark``: every controller of a suite on the same seeded episodes of every world."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from bulletnav.cli.args import COUNT, NON_NEGATIVE, add_command
+from bulletnav.cli.output import print_json
+from bulletnav.errors import BulletnavError
+
+
+def register(sub) -> None:
+    """Add ``benchmark`` to ``sub`` (``build_parser``'s subparsers)."""
+    bm = add_command(sub, "benchmark", "every controller of a suite on the same seeded episodes of every world: "
+                                       "results.json + report.html")
+    bm.add_argument("suite", nargs="?", default="quick", metavar="SUITE",
+                    help="a shipped suite (quick, standard) or a suite YAML file (default quick)")
+    bm.add_argument("--out", metavar="DIR", help="output directory (default runs/benchmark/<suite name>)")
+    bm.add_argument("--workers", type=COUNT, default=1, help="local worker processes (default 1); rows are the same for any count")
+    bm.add_argument("--address", metavar="HOST:PORT", help="run the episodes as tasks on this Ray cluster")
+    bm.add_argument("--resume", action="store_true", help="go on with an interrupted run in DIR (finished episodes are kept)")
+    bm.add_argument("--json", action="store_true", help="print the results record as JSON")
+    bm.add_argument("--report-only", action="store_true", help="rebuild DIR/report.html from DIR/results.json, run nothing")
+    bm.add_argument("--screenshots", action="store_true",
+                    help="also save DIR/headline.png and DIR/world.png, the report in Chromium (needs playwright and chromium)")
+    bm.add_argument("--screenshot-tab", type=NON_NEGATIVE, default=0, metavar="K", help="the world tab of world.png (default 0)")
+    bm.set_defaults(func=cmd_benchmark)
+
+
+def cmd_benchmark(args: argparse.Namespace) -> int:
+    """Every controller of a suite on the same seeded episodes of every world: results.json + report.html."""
+    from pathlib import Path
+
+    from bulletnav.benchmark.suite import load_suite
+
+    suite = load_suite(args.suite)
+    out = Path(args.out or f"runs/benchmark/{suite.name}")
+    if args.report_only:  # the report (and screenshots) again from DIR/results.json
+        return _report_only(args, out)
+    results, report = _run(args, suite, out)
+    if args.json:
+        print_json(results)
+    else:
+        _print_table(args, suite, results, out, report)
+    _screenshots(args, report, out)
+    return 0
+
+
+def _report_only(args: argparse.Namespace, out) -> int:
+    from bulletnav.benchmark.report import write_report
+    from bulletnav.viz.plots import draw_layout
+
+    results_file = out / "results.json"
+    if not results_file.is_file():
+        raise BulletnavError(f"{results_file}: no results to report (run the suite first)")
+    results = json.loads(results_file.read_text())
+    report = write_report(results, out / "report.html", draw_layout)
+    if args.json:
+        print_json(results)
+    else:
+        print(f"report:  {report}")
+    _screenshots(args, report, out)
+    return 0
+
+
+def _screenshots(args: argparse.Namespace, report, out) -> None:
+    """``--screenshots``: the report in Chromium; their paths on stdout (on stderr with ``--json``)."""
+    from bulletnav.benchmark.report import screenshots
+
+    for shot in (screenshots(report, out, tab=args.screenshot_tab) if args.screenshots else []):
+        print(f"screenshot: {shot}", file=sys.stderr if args.json else sys.stdout)
+
+
+def _run(args: argparse.Namespace, suite, out):
+    """Run the suite (a progress bar on stderr, none with ``--json``); ``(results, report path)``."""
+    from tqdm import tqdm
+
+    from bulletnav.benchmark.report import write_report
+    from bulletnav.benchmark.runner import run_suite
+    from bulletnav.viz.plots import draw_layout
+
+    bar = None
+
+    def progress(done: int, total: int) -> None:
+        nonlocal bar
+        if args.json:
+            return
+        if bar is None:
+            bar = tqdm(total=total, initial=done, unit="episode", desc=f"benchmark {suite.name}", file=sys.stderr)
+        bar.update(done - bar.n)
+
+    try:
+        results = run_suite(suite, out, workers=args.workers, address=args.address, resume=args.resume, progress=progress)
+    finally:
+        if bar is not None:
+            bar.close()
+    return results, write_report(results, out / "report.html", draw_layout)
+
+
+def _print_table(args: argparse.Namespace, suite, results: dict, out, report) -> None:
+    from bulletnav.benchmark.report import best_controllers
+
+    controllers = [c["name"] for c in results["suite"]["controllers"]]
+    cells = {(c["world"], c["controller"]): c["summary"] for c in results["cells"]}
+    best = best_controllers(results)
+    print(f"\nbenchmark {suite.name}: {suite.total} episodes in {results['provenance']['wall_time_s']:.0f} s "
+          f"({args.workers} workers); success / collisions / SPL per world and controller")
+    print("| world | " + " | ".join(controllers) + " |")
+    print("|---" * (len(controllers) + 1) + "|")
+    for w in results["suite"]["worlds"]:
+        row = []
+        for c in controllers:
+            s = cells[(w["name"], c)]
+            mark = " **best**" if best.get(w["name"]) == c else ""
+            row.append(f"{s['success']['mean'] * 100:.1f} % / {s['collision']['mean'] * 100:.1f} % / "
+                       f"{s['spl']['mean']:.3f}{mark}")
+        print(f"| {w['name']} | " + " | ".join(row) + " |")
+    print(f"results: {out / 'results.json'}\nreport:  {report}")

@@ -1,0 +1,230 @@
+"""Single-robot episodes as ``navigate``, ``evaluate`` and ``demo`` run them: optional video, plot,
+GUI dashboard, ROS 2 recording and Minari dataset around the library's ``run_episodes``, and the
+evaluation report of a trained model."""
+
+from __future__ import annotations
+
+import argparse
+
+from bulletnav.cli.args import DEFAULT_ENV_ID
+from bulletnav.cli.envs import check_env_id, shielded, world_kwargs, world_label
+from bulletnav.cli.output import print_json, safety_line, shield_line
+from bulletnav.rl.envs import EVALUATE_OBSTACLES
+
+
+class Visuals:
+    """Optional episode video, trajectory plot and GUI dashboard, fed by run_episodes' hooks.
+
+    They only read the simulation, so switching them on leaves the episodes unchanged."""
+
+    def __init__(self, env, policy, video: str | None, plot: str | None, gui: bool, shield: bool = False) -> None:
+        from bulletnav.viz import Dashboard, EpisodeRecorder, TrajectoryLog
+
+        self.policy = policy
+        self.recorder = EpisodeRecorder(video, shield=shield) if video else None
+        self.log = TrajectoryLog() if plot else None
+        self.plot = plot
+        self.dashboard = Dashboard(env) if gui else None
+
+    def _path(self):
+        return getattr(self.policy, "path", None)
+
+    def on_reset(self, env, info) -> None:
+        if self.recorder is not None:
+            self.recorder.on_reset(env, info, path=self._path())
+        if self.log is not None:
+            self.log.on_reset(env, info)
+        if self.dashboard is not None:
+            self.dashboard.on_reset()
+
+    def on_step(self, env, info) -> None:
+        if self.recorder is not None:
+            self.recorder.on_step(env, info, self._path())
+        if self.log is not None:
+            self.log.on_step(env, info)
+        if self.dashboard is not None:
+            self.dashboard.on_step(self._path(), info)
+
+    def on_episode(self, result) -> None:
+        if self.log is not None:
+            self.log.on_episode(result)
+
+    def close(self, title: str = "", ok: bool = True) -> list[str]:
+        """Finish the video and write the plot; when the episodes did not finish (``ok`` off),
+        drop the unfinished video and write nothing."""
+        from bulletnav.viz import plot_trajectories
+
+        if not ok:
+            if self.recorder is not None:
+                self.recorder.abort()
+            return []
+        written = []
+        if self.recorder is not None:
+            self.recorder.close()
+            written.append(f"video:      {self.recorder.path} ({self.recorder.frames_written} frames)")
+        if self.log is not None and self.plot:
+            plot_trajectories(self.log, self.plot, title=title)
+            written.append(f"trajectory: {self.plot}")
+        return written
+
+
+def run_with_visuals(args, env, policy, line, title: str):
+    """``args.episodes`` episodes of ``policy`` on ``env`` from ``args.seed``, ``line(result)`` after
+    each, with the outputs ``args`` ask for. Returns ``(results, written, layout size)``, where
+    ``written`` lists the files written, one report line each."""
+    from bulletnav.evaluation import run_episodes
+
+    visuals = Visuals(env, policy, getattr(args, "video", None), getattr(args, "plot", None), getattr(args, "gui", False),
+                      getattr(args, "shield", False))
+    sizes: list[list[float]] = []
+
+    def on_reset(env, info) -> None:
+        if not sizes:
+            sizes.append([float(x) for x in env.unwrapped.scene.layout.size])
+        visuals.on_reset(env, info)
+
+    def on_episode(r) -> None:
+        visuals.on_episode(r)
+        line(r)
+
+    recorder = dataset = None
+    if getattr(args, "dataset", None):
+        from bulletnav.datasets import DatasetRecorder
+
+        env = dataset = DatasetRecorder(env, args.dataset)
+    if getattr(args, "record", None):
+        from bulletnav.ros.record import McapRecorder
+
+        env = recorder = McapRecorder(env, args.record, plan=lambda: planned_path(policy), overwrite=True)
+    ok = False
+    try:
+        results = run_episodes(env, policy, args.episodes, args.seed, on_episode=on_episode,
+                               on_step=visuals.on_step, on_reset=on_reset)
+        if dataset is not None:
+            dataset.save(algorithm=title)
+        ok = True
+    finally:
+        try:
+            written = visuals.close(title, ok)
+            if recorder is not None and not ok:
+                recorder.abort()
+        finally:
+            env.close()
+    if recorder is not None:
+        written = [*written, f"recording: {args.record} (ROS 2 MCAP, {recorder.episodes} episodes)"]
+    if dataset is not None:
+        written = [*written, f"dataset: {args.dataset} (Minari, {len(dataset.buffers)} episodes)"]
+    return results, written, (sizes[0] if sizes else None)
+
+
+def planned_path(policy):
+    """The classical planner's current path under ``policy`` (a Navigator, or one behind a shield), or None."""
+    for _ in range(3):
+        if hasattr(policy, "path"):
+            return policy.path
+        policy = getattr(policy, "policy", None) or getattr(policy, "inner", None)
+        if policy is None:
+            return None
+    return None
+
+
+def load_for_evaluation(args: argparse.Namespace, model_path: str) -> tuple:
+    """The model at ``model_path`` and the env to evaluate it on, checked to fit each other.
+
+    The env is ``--env``, else the one the model's sidecar records (``env_id``), with the
+    model's env settings on top. Returns ``(model, meta, vecnorm, env, env_kwargs, default_obstacles)``.
+
+    Raises:
+        ModelError: the model cannot be loaded, or its spaces are not the env's.
+    """
+    import gymnasium as gym
+
+    import bulletnav  # noqa: F401
+    from bulletnav.rl.compat import check_model_fits
+    from bulletnav.rl.envs import evaluation_env_kwargs
+    from bulletnav.rl.io import load_model
+
+    model, meta, vecnorm = load_model(model_path, algo=getattr(args, "algo", None),
+                                      trust_pickle=getattr(args, "trust_pickle", False))
+    recorded = meta.get("env_id")
+    if not getattr(args, "env_given", True) and isinstance(recorded, str) and recorded != args.env_id:
+        check_env_id(recorded)  # the model's own env, unless --env names another
+        args.env_id = recorded
+    # the model's env settings on top of the chosen env; on Warehouse-v0 the benchmark's obstacle count
+    default_obstacles = EVALUATE_OBSTACLES if args.env_id == DEFAULT_ENV_ID else None
+    env_kwargs = evaluation_env_kwargs(meta.get("env_kwargs", {}))
+    env_kwargs.update(world_kwargs(args, default_obstacles))
+    env = shielded(args, gym.make(args.env_id, render_mode="human" if args.gui else None, **env_kwargs))
+    try:
+        check_model_fits(model, env, model_path, args.env_id)
+    except BaseException:
+        env.close()
+        raise
+    return model, meta, vecnorm, env, env_kwargs, default_obstacles
+
+
+REPORT_KEYS = ("episodes", "success_rate", "mean_reward", "std_reward", "mean_length", "std_length", "mean_distance",
+               "std_distance", "collision_rate", "spl")
+"""The evaluation report's summary keys before the safety and shield ones."""
+BAR = "=" * 60
+
+
+def _episode_line(args: argparse.Namespace):
+    """The report's lines of one episode (nothing with ``--json``)."""
+
+    def line(r) -> None:
+        if args.json:
+            return
+        mark = "\u2713 SUCCESS" if r.success else ("\u2717 COLLISION" if r.collision else "\u2717 TIMEOUT")
+        print(f"--- Episode {r.episode}/{args.episodes} (seed {r.seed}) ---")
+        print(f"Initial distance to goal: {r.initial_distance:.2f}m")
+        print(f"{mark} | Steps: {r.steps} | Reward: {r.reward:.1f} | Final distance: {r.final_distance:.2f}m | "
+              f"Distance traveled: {r.path_length:.2f}m")
+
+    return line
+
+
+def _print_results(args: argparse.Namespace, s: dict, results, written: list[str]) -> None:
+    n_success = round(s["success_rate"] * s["episodes"])
+    print(f"\n{BAR}\nEVALUATION RESULTS\n"
+          f"Success rate: {n_success}/{s['episodes']} ({s['success_rate'] * 100:.1f}%)\n"
+          f"Average reward:         {s['mean_reward']:.2f} \u00b1 {s['std_reward']:.2f}\n"
+          f"Average episode length: {s['mean_length']:.1f} \u00b1 {s['std_length']:.1f} steps\n"
+          f"Average distance:        {s['mean_distance']:.2f}m \u00b1 {s['std_distance']:.2f}m\n"
+          f"Collision rate: {s['collision_rate'] * 100:.1f}%   SPL: {s['spl']:.3f}\n"
+          f"Safety: {safety_line(s)}")
+    if args.shield:
+        print(f"Shield: {shield_line(s)}")
+    if any(r.goals_total > 1 for r in results):
+        print(f"Mission: progress {s['progress'] * 100:.1f} %   PPL {s['ppl']:.3f}   "
+              f"goals per minute {s['goals_per_minute']:.2f}")
+    print(BAR)
+    for w in written:
+        print(w)
+
+
+def evaluate_report(args: argparse.Namespace, model_path: str, loaded: tuple | None = None) -> dict:
+    """Evaluate ``model_path`` as ``args`` say (``loaded``: :func:`load_for_evaluation`'s, if done
+    already); print the article's report (or JSON)."""
+    from bulletnav.evaluation import SAFETY_KEYS, SHIELD_KEYS, summarize
+    from bulletnav.rl.policy import SB3Policy
+
+    model, meta, vecnorm, env, env_kwargs, default_obstacles = loaded or load_for_evaluation(args, model_path)
+    algo = str(meta.get("algo", getattr(args, "algo", None) or "?")).upper()
+    if not args.json:
+        env_name = "" if args.env_id == DEFAULT_ENV_ID else f", {args.env_id}"
+        shift = (f", perturb {args.perturb}" if args.perturb else "") + (", shield" if args.shield else "")
+        print(f"{BAR}\nRunning {args.episodes} evaluation episodes ({algo} {model_path}, seed {args.seed}{env_name}{shift})\n{BAR}")
+    results, written, layout_size = run_with_visuals(args, env, SB3Policy(model, vecnorm), _episode_line(args),
+                                                     f"{algo} (seed {args.seed})")
+    s = summarize(results)
+    keys = (*REPORT_KEYS, *SAFETY_KEYS, *SHIELD_KEYS, "progress", "ppl", "goals_per_minute", "per_episode")
+    out = {k: s[k] for k in keys}
+    out.update(model=str(model_path), seed=args.seed, env_id=args.env_id,
+               world=world_label(args, default_obstacles), world_size=layout_size, perturb=args.perturb, shield=args.shield,
+               physics=env_kwargs.get("physics", "default"), physics_hz=env.unwrapped.config.physics.physics_hz)
+    if args.json:
+        print_json(out)
+        return out
+    _print_results(args, s, results, written)
+    return out

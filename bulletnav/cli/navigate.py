@@ -1,0 +1,97 @@
+"""``bulletnav navigate``: classical navigation (PID, A*, RRT) scored on env episodes."""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from bulletnav.cli.args import (
+    COUNT,
+    DATASET_HELP,
+    DEFAULT_ENV_ID,
+    MCAP_FILE,
+    PNG_FILE,
+    RECORD_HELP,
+    VIDEO_FILE,
+    add_command,
+    add_mission_args,
+    add_overwrite_arg,
+    add_physics_arg,
+    add_shield_arg,
+    add_world_args,
+)
+from bulletnav.cli.envs import make_env, shielded, world_label
+from bulletnav.cli.episodes import run_with_visuals
+from bulletnav.cli.output import fmt, outcome, print_json, refuse_existing_files, safety_line, shield_line
+
+
+def register(sub) -> None:
+    """Add ``navigate`` to ``sub`` (``build_parser``'s subparsers)."""
+    nav = add_command(sub, "navigate", "classical navigation (PID, A*, RRT) scored on env episodes")
+    nav.add_argument("--planner", choices=["none", "astar", "rrt"], default="astar",
+                     help="planner on the lidar map: none (PID at the goal), astar or rrt (default astar)")
+    nav.add_argument("--episodes", type=COUNT, default=10, help="episodes to run (default 10)")
+    add_world_args(nav)
+    add_mission_args(nav)
+    nav.add_argument("--pose", choices=["truth", "odometry"], default="truth",
+                     help="pose for mapping and steering (default truth)")
+    nav.add_argument("--gui", action="store_true", help="watch in the PyBullet GUI (needs a display)")
+    nav.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
+    add_shield_arg(nav)
+    add_physics_arg(nav)
+    nav.add_argument("--video", type=VIDEO_FILE, metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
+    nav.add_argument("--plot", type=PNG_FILE, metavar="PNG", help="write all episodes' paths over their maps")
+    nav.add_argument("--record", type=MCAP_FILE, metavar="PATH", help=RECORD_HELP)
+    nav.add_argument("--dataset", metavar="NAME", help=DATASET_HELP)
+    add_overwrite_arg(nav, "--video, --plot and --record files")
+    nav.set_defaults(func=cmd_navigate)
+
+
+def cmd_navigate(args: argparse.Namespace) -> int:
+    """Classical navigation (PID, optionally with A* or RRT) scored on env episodes."""
+    from bulletnav.control.navigator import Navigator, NavigatorConfig
+    from bulletnav.evaluation import summarize
+
+    refuse_existing_files(args, "video", "plot", "record")
+    env = shielded(args, make_env(args))
+    nav = Navigator(env.unwrapped.scene, NavigatorConfig(planner=args.planner, pose_source=args.pose))
+
+    def line(r) -> None:
+        if not args.json:
+            plans = f"plan {fmt(float(np.median(r.plan_ms)), '.3f')} ms x{len(r.plan_ms)}" if r.plan_ms else "no planner"
+            print(f"episode {r.episode:3d}/{args.episodes} seed {r.seed}: {outcome(r):9s} steps {r.steps:4d} "
+                  f"sim {r.sim_time:5.1f} s  driven {r.path_length:5.2f} m  shortest {r.shortest_path:5.2f} m  "
+                  f"SPL {r.spl:.2f}  {plans}  replans {r.replans}")
+
+    results, written, layout_size = run_with_visuals(args, env, nav, line, f"PID + {args.planner} (seed {args.seed})")
+    summary = summarize(results)
+    summary.update(planner=args.planner, seed=args.seed, pose_source=args.pose, env_id=args.env_id,
+                   world=world_label(args), world_size=layout_size, perturb=args.perturb, shield=args.shield,
+                   physics=args.physics or "default")
+    if args.json:
+        print_json(summary)
+        return 0
+    _print_report(args, summary, results, written)
+    return 0
+
+
+def _print_report(args: argparse.Namespace, summary: dict, results, written: list[str]) -> None:
+    env_name = "" if args.env_id == DEFAULT_ENV_ID else f"{args.env_id} | "
+    shift = (f" | perturb {args.perturb}" if args.perturb else "") + (" | shield" if args.shield else "")
+    print(f"\nplanner {args.planner} | {env_name}{summary['world']} | episodes {summary['episodes']} | seed {args.seed}{shift}")
+    print(f"success rate   {summary['success_rate'] * 100:5.1f} %   collisions {summary['collision_rate'] * 100:5.1f} %   "
+          f"SPL {summary['spl']:.3f}")
+    print(f"steps          {summary['mean_length']:.1f} +/- {summary['std_length']:.1f}   "
+          f"sim time to goal {fmt(summary['mean_sim_time_success'])} s   "
+          f"path length {fmt(summary['mean_path_length_success'])} m (successes)")
+    print(f"planning       median {fmt(summary['plan_ms_median'], '.3f')} ms  p95 {fmt(summary['plan_ms_p95'], '.3f')} ms  "
+          f"calls {summary['plan_calls']}  replans/episode {summary['replans_mean']:.1f}")
+    print(f"safety         {safety_line(summary)}")
+    if args.shield:
+        print(f"shield         {shield_line(summary)}")
+    if any(r.goals_total > 1 for r in results):
+        print(f"mission        progress {summary['progress'] * 100:.1f} %   PPL {summary['ppl']:.3f}   "
+              f"goals per minute {summary['goals_per_minute']:.2f}")
+    for w in written:
+        print(w)

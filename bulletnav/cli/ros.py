@@ -1,0 +1,137 @@
+"""ROS 2 recordings: ``map`` (bulletnav's lidar mapper on a bag) and ``replay`` (a ``--record``
+file drawn from the file alone)."""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from bulletnav.cli.args import COUNT, PNG_FILE, VIDEO_FILE, add_command, add_overwrite_arg, positive_seconds
+from bulletnav.cli.output import print_json, refuse_existing_files
+
+
+def register(sub) -> None:
+    """Add ``map`` and ``replay`` to ``sub`` (``build_parser``'s subparsers)."""
+    _register_map(sub)
+    _register_replay(sub)
+
+
+def _register_map(sub) -> None:
+    mp = add_command(sub, "map", "bulletnav's lidar mapper (and A*) on a ROS 2 bag's LaserScan and Odometry (or TF)")
+    mp.add_argument("bag", metavar="BAG.mcap", help="an MCAP file of ROS 2 messages (CDR)")
+    mp.add_argument("--scan-topic", default="/scan", help="sensor_msgs/msg/LaserScan topic (default /scan)")
+    mp.add_argument("--odom-topic", default="/odom",
+                    help="nav_msgs/msg/Odometry topic (default /odom; without it the /tf chain to the scan's frame)")
+    mp.add_argument("--resolution", type=positive_seconds, default=0.1, metavar="M", help="cell size in m (default 0.1)")
+    mp.add_argument("--out", type=PNG_FILE, default=None, metavar="PNG", help="write the map (and path) as a PNG")
+    mp.add_argument("--plan-to", type=float, nargs=2, metavar=("X", "Y"), default=None,
+                    help="plan an A* path on the map from the last scan's position to (X, Y) m")
+    mp.add_argument("--json", action="store_true", help="print one JSON object")
+    add_overwrite_arg(mp, "an --out file")
+    mp.set_defaults(func=cmd_map)
+
+
+def _register_replay(sub) -> None:
+    rp = add_command(sub, "replay", "draw a recorded episode (a --record MCAP file) from the file alone: the live video and plot")
+    rp.add_argument("recording", metavar="PATH.mcap", help="a recording written by --record")
+    rp.add_argument("--video", type=VIDEO_FILE, metavar="PATH", help="write the episodes' video (.mp4 or .gif)")
+    rp.add_argument("--plot", type=PNG_FILE, metavar="PNG", help="write every episode's path over its map")
+    rp.add_argument("--frame", type=PNG_FILE, metavar="PNG", help="write one frame of the video (see --frame-at)")
+    rp.add_argument("--frame-at", type=COUNT, default=None, metavar="N",
+                    help="the video frame --frame writes (default: the middle one)")
+    rp.add_argument("--panel", type=PNG_FILE, metavar="PNG",
+                    help="draw what docs/foxglove_layout.json's 3D panel shows (top-down, from the messages) at --panel-at")
+    rp.add_argument("--panel-at", type=positive_seconds, default=None, metavar="S",
+                    help="simulated seconds into the first episode for --panel (default: its middle)")
+    rp.add_argument("--json", action="store_true", help="print one JSON object")
+    add_overwrite_arg(rp, "--video, --plot, --frame and --panel files")
+    rp.set_defaults(func=cmd_replay)
+
+
+def cmd_map(args: argparse.Namespace) -> int:
+    """Map a ROS 2 bag with bulletnav's lidar mapper; optionally plan on it."""
+    from bulletnav.ros.bagmap import build_map, plan_path, read_bag, write_map_png
+
+    refuse_existing_files(args, "out")
+    data = read_bag(args.bag, scan_topic=args.scan_topic, odom_topic=args.odom_topic)
+    bag_map = build_map(data, resolution=args.resolution)
+    goal = tuple(args.plan_to) if args.plan_to else None
+    path = plan_path(bag_map, goal) if goal else None
+    if args.out:
+        write_map_png(bag_map, args.out, path, goal, title=f"{args.bag}: {bag_map.scans_used} scans")
+    state = bag_map.mapper.state()
+    summary = {"bag": str(args.bag), "scan_topic": args.scan_topic, "pose_source": data.pose_source,
+               "fixed_frame": data.fixed_frame, "scans": bag_map.scans_used, "scans_without_pose": bag_map.scans_skipped,
+               "resolution_m": args.resolution, "cells": list(state.shape),
+               "occupied_cells": int((state > 0).sum()), "free_cells": int((state == 0).sum()),
+               "plan_to": list(goal) if goal else None, "path_found": None if goal is None else path is not None,
+               "path_length_m": (None if not path else float(sum(np.hypot(b[0] - a[0], b[1] - a[1]) for a, b in zip(path, path[1:])))),
+               "out": args.out}
+    if args.json:
+        print_json(summary)
+        return 0
+    print(f"{args.bag}: {bag_map.scans_used} scans on {args.scan_topic} placed by {data.pose_source} "
+          f"({data.fixed_frame} frame), {summary['occupied_cells']} occupied and {summary['free_cells']} free cells "
+          f"of {args.resolution:g} m")
+    if goal:
+        print(f"A* to ({goal[0]:g}, {goal[1]:g}): " + (f"{summary['path_length_m']:.2f} m" if path else "no path"))
+    if args.out:
+        print(f"map: {args.out}")
+    return 0
+
+
+def _write_frame(args: argparse.Namespace, video: str, summary: dict) -> None:
+    """``--frame``: one frame of the replay's video as a PNG (written atomically)."""
+    import imageio.v3 as iio
+
+    from bulletnav.files import save_image
+
+    frames = summary["frames"]
+    at = frames // 2 if args.frame_at is None else min(args.frame_at, frames) - 1
+    image = iio.imread(video, index=at)
+    save_image(image, args.frame)  # a PNG whatever the name's suffix
+    summary["frame"], summary["frame_index"] = args.frame, at
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    """Draw a recording's episodes from the file alone."""
+    import tempfile
+    from pathlib import Path
+
+    from bulletnav.ros.replay import panel_view, replay
+
+    refuse_existing_files(args, "video", "plot", "frame", "panel")
+    if args.panel and not (args.video or args.plot or args.frame):
+        summary = {"recording": args.recording, "panel": panel_view(args.recording, args.panel, at_s=args.panel_at)}
+        if args.json:
+            print_json(summary)
+        else:
+            print(f"panel: {args.panel} (t = {summary['panel']['time_s']:.2f} s)")
+        return 0
+    video = args.video
+    scratch = None
+    if args.frame and not video:
+        scratch = tempfile.mkdtemp(prefix="bulletnav-replay-")
+        video = str(Path(scratch) / "replay.mp4")
+    try:
+        summary = replay(args.recording, video=video, plot=args.plot)
+        if args.frame:
+            _write_frame(args, video, summary)
+    finally:
+        if scratch is not None:
+            import shutil
+
+            shutil.rmtree(scratch, ignore_errors=True)
+    if args.panel:
+        summary["panel"] = panel_view(args.recording, args.panel, at_s=args.panel_at)["out"]
+    if not args.video:
+        summary["video"] = None
+    if args.json:
+        print_json(summary)
+        return 0
+    print(f"{args.recording}: {summary['episodes']} episodes, steps {summary['steps']}, outcomes {summary['outcomes']}")
+    for key in ("video", "plot", "frame", "panel"):
+        if summary.get(key):
+            print(f"{key}: {summary[key]}")
+    return 0
