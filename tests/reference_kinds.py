@@ -548,9 +548,9 @@ KINDS: dict[str, str] = {
     # ---- test_simulation.py
     # the obstacle counts; the poses against a third client
     "test_simulation.py::test_two_worlds_in_one_process_stay_independent": "hand",
-    "test_simulation.py::test_robot_snapshot_equals_live_state_after_every_step_and_reset": "self",
+    "test_simulation.py::test_robot_snapshot_equals_live_state_after_every_step_and_reset": "formula",  # no sideways slide, v = r (wl + wr) / 2
     "test_simulation.py::test_same_layout_reset_teleports_without_rebuilding": "hand",
-    "test_simulation.py::test_seeded_rollouts_are_bit_identical": "self",
+    "test_simulation.py::test_seeded_rollouts_are_bit_identical": "formula",  # path = v t less start-up; no sideways step
     "test_simulation.py::test_thousand_resets_do_not_grow_memory": "contract",
     # ---- test_sweep.py
     "test_sweep.py::test_sweep_file_errors_name_the_file_and_field": "contract",

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import psutil
+import pybullet as p
 import pytest
 
 from bulletnav.config import WorldConfig
+from bulletnav.geometry import robot_geometry
 from bulletnav.sim.layout import generate_warehouse
 from conftest import drive, place
 
@@ -47,17 +51,27 @@ def test_robot_snapshot_equals_live_state_after_every_step_and_reset(make_sim):
         s, robot = sim.robot.state, sim.robot
         assert (s.x, s.y, s.yaw) == robot.planar_pose()
         assert (s.linear_velocity, s.angular_velocity, s.rotation) == robot.kinematics()
-        assert (s.wheel_angles, s.wheel_rates) == robot.wheel_states()
+        left, right = p.getJointStates(robot.body, [robot.left_joint, robot.right_joint], physicsClientId=robot.cid)
+        assert (s.wheel_angles, s.wheel_rates) == ((left[0], right[0]), (left[1], right[1]))
 
     sim.reset(layout, (0.0, 0.0, 0.3))
     assert_fresh()
+    radius = robot_geometry().wheel_radius
     for k in range(30):
         sim.step(0.4, 1.2 if k % 10 < 5 else -0.8)
         assert_fresh()
+        # The snapshot obeys the differential drive's kinematics: no sideways slide (the
+        # nonholonomic constraint) and a forward speed of r (w_left + w_right) / 2, up to slip.
+        s = sim.robot.state
+        vx, vy, _ = s.linear_velocity
+        c, sn = math.cos(s.yaw), math.sin(s.yaw)
+        assert abs(-vx * sn + vy * c) < 0.01
+        assert vx * c + vy * sn == pytest.approx(radius * sum(s.wheel_rates) / 2, abs=0.04)
     assert sim.robot.state.linear_velocity != (0.0, 0.0, 0.0)
     sim.reset(layout, (1.0, -1.0, -2.0))  # teleport without rebuilding
     assert sim.rebuilds == 1
     assert_fresh()
+    np.testing.assert_allclose((sim.robot.state.x, sim.robot.state.y, sim.robot.state.yaw), (1.0, -1.0, -2.0), atol=1e-9)
     assert sim.robot.state.wheel_rates == (0.0, 0.0)
 
 
@@ -87,6 +101,14 @@ def test_seeded_rollouts_are_bit_identical(make_scene):
             trace.append(np.concatenate([scene.robot.pose(), scene.sensors.imu.read(), scene.sensors.odometry.read()]))
         runs.append(np.array(trace))
     np.testing.assert_array_equal(runs[0], runs[1])
+    # Against the drive's physics: the path is 0.3 m/s x 2.5 s less the start-up from rest
+    # (under 0.04 m), and no step slides sideways of the heading half-way through it.
+    xy = np.vstack([[0.5, 0.5], runs[0][:, :2]])
+    yaw = np.concatenate([[1.0], runs[0][:, 2]])
+    steps = np.diff(xy, axis=0)
+    assert 0.3 * 60 / 24 - 0.04 < np.hypot(*steps.T).sum() <= 0.3 * 60 / 24 + 0.005
+    mid = yaw[:-1] + np.diff(yaw) / 2
+    assert np.abs(-steps[:, 0] * np.sin(mid) + steps[:, 1] * np.cos(mid)).max() < 1e-3
 
 
 @pytest.mark.slow
