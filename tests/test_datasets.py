@@ -65,6 +65,14 @@ def test_navigate_dataset_round_trip(store, capsys):
 def test_names_are_checked_before_running(store, capsys):
     with pytest.raises(BulletnavError, match="name-vN"):
         check_name("no version")
+    # by hand from Minari's documented id form [namespace/]name-vN (a namespace of 2 or more
+    # letters, digits, '_', '-' or '/'): no dots, no spaces, a version number at the end
+    for good in ("bulletnav/a-v0", "x-v12", "ns/sub/name_1-v3"):
+        assert check_name(good) == good
+    for bad in ("../x-v0", "bulletnav/../x-v0", "bulletnav/x-v", "bulletnav/x", "x y-v0", "a/x-v0", "/x-v0",
+                "bulletnav/x-v-1"):
+        with pytest.raises(BulletnavError, match="name-vN"):
+            check_name(bad)
     env = gym.make("bulletnav/WarehouseAisles-v0", max_episode_steps=5)
     try:
         rec = DatasetRecorder(env, "bulletnav/short-test-v0")
