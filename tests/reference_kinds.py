@@ -523,9 +523,7 @@ KINDS: dict[str, str] = {
     # the unshielded ram's collision rate 1.0; the rest: one wrapper against the other
     "test_shield.py::test_the_policy_wrapper_and_the_env_wrapper_run_the_same_episodes_and_evaluation_counts_them": "hand",
     "test_shield.py::test_navigate_and_evaluate_take_shield_and_report_it": "contract",
-    "test_shield.py::test_train_with_the_shield_in_the_loop_records_it": "contract",  # the recorded flag only
     "test_shield.py::test_video_tints_the_robot_on_shielded_steps": "contract",
-    "test_shield.py::test_bench_shield_prints_json_with_the_decision_time": "contract",  # plausibility only
     "test_shield.py::test_bench_shield_drives_with_a_trained_model_and_times_its_creeps_apart": "contract",
     "test_shield.py::test_dashboard_shows_the_shields_share_of_steps_in_a_static_world": "contract",
     "test_shield.py::test_a_stop_always_passes_and_a_blocked_command_held_for_long_gets_turns_not_a_deadlock": "hand",
@@ -536,6 +534,10 @@ KINDS: dict[str, str] = {
     "test_shield.py::test_a_shielded_episode_among_movers_reproduces_the_committed_result_to_the_bit": "golden",
     "test_shield.py::test_with_a_creep_floor_it_does_not_creep_along_a_gap_narrower_than_the_floor": "formula",
     "test_shield.py::test_nearer_than_the_floor_it_still_creeps_away_from_what_it_is_near": "formula",
+    # 512 training steps by hand (one rollout), each a ShieldWrapper decision (was the recorded flag only)
+    "test_shield.py::test_train_with_the_shield_in_the_loop_steps_every_training_step_through_it": "hand",
+    # Shapely's clearance after every step; a fake clock with hand-set costs for the timings (was plausibility only)
+    "test_shield.py::test_bench_shield_times_each_decision_and_its_drive_keeps_clear_by_shapely": "library",
     # ---- test_shifts.py
     "test_shifts.py::test_a_slippery_floor_brakes_no_harder_than_coulomb_friction_allows": "formula",
     "test_shifts.py::test_mass_and_motor_force_change_the_acceleration_as_newton_says": "formula",

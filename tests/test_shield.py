@@ -236,12 +236,29 @@ def test_navigate_and_evaluate_take_shield_and_report_it(capsys):
     assert plain["shield"] is False and plain["shield_rate"] == 0.0
 
 
-def test_train_with_the_shield_in_the_loop_records_it(tmp_path, capsys):
+def test_train_with_the_shield_in_the_loop_steps_every_training_step_through_it(tmp_path, capsys, monkeypatch):
+    """``train --shield``: every step the learner takes goes through a ShieldWrapper, and the run
+    records it. One env, --timesteps 256 and ppo.yml's n_steps of 512: one whole rollout, so
+    512 training steps by hand, each a shield decision. (At 052a810 only the flag was checked.)"""
+    stepped: dict[int, int] = {}  # steps per ShieldWrapper, in the order they were made
+    real_step = ShieldWrapper.step
+
+    def counting_step(self, action):
+        stepped[id(self)] = stepped.get(id(self), 0) + 1
+        obs, reward, terminated, truncated, info = real_step(self, action)
+        assert {"intervened", "v", "w"} <= set(info["shield"])  # the decision reached the learner's info
+        return obs, reward, terminated, truncated, info
+
+    monkeypatch.setattr(ShieldWrapper, "step", counting_step)
     out = tmp_path / "run"
     assert main(["train", "--timesteps", "256", "--n-envs", "1", "--vec-env", "dummy", "--out", str(out),
                  "--eval-freq", "256", "--eval-episodes", "1", "--no-progress", "--shield"]) == 0
-    assert json.loads((out / "run.json").read_text())["shield"] is True
-    assert json.loads((out / "model.json").read_text())["shield"] is True
+    record = json.loads((out / "run.json").read_text())
+    assert record["shield"] is True and json.loads((out / "model.json").read_text())["shield"] is True
+    assert record["total_timesteps"] == 512
+    training, *evaluation = stepped.values()  # the training env is made before the evaluation env
+    assert training == 512
+    assert evaluation and all(n > 0 for n in evaluation)  # evaluated behind the shield too
 
 
 def test_video_tints_the_robot_on_shielded_steps(tmp_path):
@@ -265,12 +282,100 @@ def test_video_tints_the_robot_on_shielded_steps(tmp_path):
         env.close()
 
 
-def test_bench_shield_prints_json_with_the_decision_time(capsys):
+def _outline(scene):
+    """The robot's collision rectangles at its pose, as one Shapely geometry."""
+    from shapely import box, union_all
+    from shapely.affinity import rotate, translate
+
+    x, y, yaw = scene.pose
+    return union_all([translate(rotate(box(r.cx - r.half_x, r.cy - r.half_y, r.cx + r.half_x, r.cy + r.half_y), yaw,
+                                       origin=(0, 0), use_radians=True), x, y) for r in scene.geometry.rectangles])
+
+
+def _clearance(scene) -> float:
+    """Shapely's distance (m) from the robot's outline to the nearest wall face, obstacle
+    footprint, pallet added by an event and mover; 0 in contact."""
+    from shapely import Point, box
+    from shapely.affinity import rotate, translate
+
+    def turned(cx, cy, sx, sy, yaw):
+        return translate(rotate(box(-sx / 2, -sy / 2, sx / 2, sy / 2), yaw, origin=(0, 0), use_radians=True), cx, cy)
+
+    robot = _outline(scene)
+    hx, hy = scene.layout.size[0] / 2, scene.layout.size[1] / 2
+    floor = box(-hx, -hy, hx, hy)
+    if not floor.contains(robot):
+        return 0.0
+    gaps = [floor.exterior.distance(robot)]
+    for o in scene.layout.obstacles:
+        gaps.append(turned(*o.center, o.size[0], o.size[1], o.yaw).distance(robot) if o.kind == "box"
+                    else max(0.0, Point(o.center).distance(robot) - o.radius))
+    pallets = {}
+    for e in scene.events:
+        if e["action"] == "add":
+            pallets[e["label"]] = turned(*e["center"], e["size"][0], e["size"][1], 0.0)
+        else:
+            pallets.pop(e["label"], None)
+    gaps += [pallet.distance(robot) for pallet in pallets.values()]
+    for m in scene.movers:
+        gaps.append(turned(*m.pose[:2], m.size[0], m.size[1], m.pose[2]).distance(robot) if m.kind == "forklift"
+                    else max(0.0, Point(m.pose[:2]).distance(robot) - m.size[0] / 2))
+    return min(gaps)
+
+
+def test_bench_shield_times_each_decision_and_its_drive_keeps_clear_by_shapely(capsys, monkeypatch):
+    """``bench shield`` on a fake clock: a decision that passes the command costs 0.1 ms, one that
+    replaces it 0.3 ms, an env step 2 ms; the figures must be those costs' statistics over the
+    decisions the benchmark timed. Its ramming driver's "0 collisions" is checked with Shapely:
+    after every step the robot's outline keeps clear of every wall, obstacle, added pallet and
+    mover. (At 052a810 only plausibility: n, a positive mean, 0 collisions as reported.)"""
+    import statistics
+    import types
+
+    from bulletnav.bench import shield_bench
+
+    now = [0.0]
+    decisions: list[bool] = []
+    clearances: list[float] = []
+    ends: list[bool] = []
+
+    class CostedVeto(shield_bench.Veto):
+        def __call__(self, action):
+            action, decision = super().__call__(action)
+            now[0] += 0.3e-3 if decision.intervened else 0.1e-3
+            decisions.append(decision.intervened)
+            return action, decision
+
+    class Watched(gym.Wrapper):
+        def step(self, action):
+            now[0] += 2e-3
+            obs, reward, terminated, truncated, info = self.env.step(action)
+            clearances.append(_clearance(self.env.unwrapped.scene))
+            if terminated or truncated:
+                ends.append(bool(info["collision"]))
+            return obs, reward, terminated, truncated, info
+
+    monkeypatch.setattr(shield_bench, "time", types.SimpleNamespace(perf_counter=lambda: now[0]))
+    monkeypatch.setattr(shield_bench, "Veto", CostedVeto)
+    monkeypatch.setattr(shield_bench, "gym", types.SimpleNamespace(make=lambda *a, **k: Watched(gym.make(*a, **k))))
     assert main(["bench", "shield", "--steps", "150", "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
-    assert result["benchmark"] == "shield" and result["env_id"] == "bulletnav/WarehouseDynamic-v0"
-    assert result["decision_ms"]["n"] == 150 and result["decision_ms"]["mean"] > 0
-    assert result["ratio_decision_to_env_step"] > 0 and result["collisions"] == 0
+    timed = decisions[10:]  # the first ten calls are the benchmark's untimed warm-up
+    assert len(timed) == 150 and len(clearances) == 150
+    vetoed = sum(timed)
+    assert vetoed > 0  # the ramming driver did make the shield act
+    costs = [0.3 if v else 0.1 for v in timed]
+    d = result["decision_ms"]
+    assert d["n"] == 150 and d["mean"] == pytest.approx(statistics.fmean(costs))
+    assert d["median"] == pytest.approx(statistics.median(costs)) and d["max"] == pytest.approx(max(costs))
+    assert d["p99"] == pytest.approx(statistics.quantiles(costs, n=100, method="inclusive")[-1])
+    assert result["decision_vetoed_ms"]["n"] == vetoed and result["decision_vetoed_ms"]["mean"] == pytest.approx(0.3)
+    assert result["decision_passed_ms"]["n"] == 150 - vetoed and result["decision_passed_ms"]["mean"] == pytest.approx(0.1)
+    assert result["env_step_ms"]["mean"] == pytest.approx(2.0)
+    assert result["ratio_decision_to_env_step"] == pytest.approx(statistics.fmean(costs) / 2.0)
+    assert result["intervention_rate"] == pytest.approx(vetoed / 150)
+    assert result["collisions"] == sum(ends) == 0 and result["episodes"] == 1 + len(ends)
+    assert min(clearances) > 0.0, min(clearances)
 
 
 def test_bench_shield_drives_with_a_trained_model_and_times_its_creeps_apart(capsys):
