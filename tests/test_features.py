@@ -12,9 +12,20 @@ from gymnasium import spaces
 
 from bulletnav.config import EnvConfig
 from bulletnav.envs.scene import Scene
-from bulletnav.rl.features import ClearanceFeatures, footprint_distances, outline_clearance
+from bulletnav.geometry import robot_geometry
+from bulletnav.rl.features import ClearanceFeatures, footprint_distances
 from bulletnav.sensors.lidar import ray_angles
 from bulletnav.sim.layout import Layout
+
+
+def outline_distance(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Shapely's distance (m) from body-frame points to the robot's outline seen from above (the
+    union of its centred collision rectangles from the URDF; 0 inside)."""
+    from shapely.geometry import Point, box
+    from shapely.ops import unary_union
+
+    outline = unary_union([box(-hx, -hy, hx, hy) for hx, hy in robot_geometry().centred_rectangles])
+    return np.array([outline.distance(Point(float(a), float(b))) for a, b in zip(np.ravel(x), np.ravel(y))])
 
 
 @pytest.fixture
@@ -82,7 +93,7 @@ def test_point_clearance_matches_pybullet_closest_distance(scene_at_origin, rng,
                               basePosition=[5.0, 5.0, wheel_z], physicsClientId=cid)
     bx = rng.uniform(-0.35, 0.35, 200)
     by = rng.uniform(-0.35, 0.35, 200)
-    expected = outline_clearance(bx, by)
+    expected = outline_distance(bx, by)
     keep = expected > 0.003  # outside the outline (inside, PyBullet reports penetration instead)
     measured = []
     for x, y in zip(bx[keep], by[keep]):
@@ -113,7 +124,7 @@ def test_point_metric_sees_an_edge_between_rays():
     to_outline = point.clearance(torch.as_tensor(obs)).numpy()[0, i]
     assert along_ray > 0.025
     assert to_outline < 0.01
-    np.testing.assert_allclose(to_outline, outline_clearance(np.array([0.10 + r * math.cos(angles[i])]),
+    np.testing.assert_allclose(to_outline, outline_distance(np.array([0.10 + r * math.cos(angles[i])]),
                                                             np.array([r * math.sin(angles[i])]))[0], atol=1e-5)
     with pytest.raises(ValueError, match="metric"):
         ClearanceFeatures(obs_space, metric="nearest")

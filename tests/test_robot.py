@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pybullet as p
 import pytest
 
 from bulletnav.config import RobotConfig
@@ -26,7 +27,11 @@ def test_geometry_is_read_from_the_urdf(make_sim):
     assert geometry.wheelbase == pytest.approx(sim.robot.wheelbase, abs=1e-9)
     # Resting on wheels and caster, level, body origin 7 cm up.
     drive(sim, 0.0, 0.0, 1.0)
-    pos, orn = sim.robot.pose3d()
+    # the base link frame's origin from PyBullet: its centre of mass less the inertial offset, turned
+    robot = sim.robot
+    com, orn = p.getBasePositionAndOrientation(robot.body, physicsClientId=robot.cid)
+    inertial = p.getDynamicsInfo(robot.body, -1, physicsClientId=robot.cid)[3]
+    pos = np.array(com) - np.array(p.getMatrixFromQuaternion(orn)).reshape(3, 3) @ np.array(inertial)
     assert pos[2] == pytest.approx(0.07, abs=2e-3)
     assert np.allclose(sim.robot.pose(), [0.0, 0.0, 0.0], atol=2e-3)
 

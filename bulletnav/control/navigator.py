@@ -207,8 +207,6 @@ class Navigator:
         self._since_plan = 0
         self._inflated: list[OccupancyGrid] = []
         self._waited = 0
-        self.waits = 0
-        """Control steps spent waiting for movers this episode."""
         # missions: visit the goals in the best order on the true static map (free order), or as given
         self.order: tuple[int, ...] | None = None
         """Mission goal indices in the order this navigator visits them (None: one goal)."""
@@ -258,7 +256,6 @@ class Navigator:
             if self._mover_ahead(pose):
                 if self._waited < cfg.max_wait / self.dt:
                     self._waited += 1
-                    self.waits += 1
                     return self._action(0.0, 0.0)
                 if self._waited == int(math.ceil(cfg.max_wait / self.dt)) and cfg.planner != "none":
                     self.path = None  # waited long enough: plan around it

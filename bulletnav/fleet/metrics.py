@@ -25,7 +25,7 @@ DEADLOCK_RADIUS_M = 2.0
 """Stalled robots this close (m, centre to centre) to each other are deadlocked together."""
 PROGRESS_M = 0.1
 """Progress: the distance to the current goal falls this much (m) below its best so far this leg."""
-NEAR_MISS_M = 0.6
+NEAR_MISS_CENTRES_M = 0.6
 """Two robots closer than this (m, centre to centre: their 0.2 m discs 0.2 m apart) are a near miss."""
 
 METRICS: dict[str, str] = {
@@ -47,7 +47,7 @@ METRICS: dict[str, str] = {
     "errand_time_s": "Mean simulated seconds from an errand's assignment (episode start or the previous errand's "
                      "drop) to its drop; NaN when no errand was completed.",
     "min_separation_m": "Smallest distance between two robots' centres over the episode (m); NaN with one robot.",
-    "near_misses": f"Times two robots came closer than {NEAR_MISS_M} m (centre to centre): entries into that range, "
+    "near_misses": f"Times two robots came closer than {NEAR_MISS_CENTRES_M} m (centre to centre): entries into that range, "
                    "per pair.",
     "intimate_s": f"Robot-seconds within {INTIMATE_M} m of a worker (HuNavSim's intimate zone, centre to centre), "
                   "summed over robots.",
@@ -193,7 +193,7 @@ def errand_times(errands: np.ndarray, dt: float) -> list[float]:
     return out
 
 
-def separation(xy: np.ndarray, threshold: float = NEAR_MISS_M) -> tuple[float, int]:
+def separation(xy: np.ndarray, threshold: float = NEAR_MISS_CENTRES_M) -> tuple[float, int]:
     """(smallest centre distance over steps and pairs m, entries of pairs into ``threshold``)
     of positions (T, N, 2); (NaN, 0) with fewer than 2 robots. A pair closer than the threshold
     at the first step counts as one entry."""
@@ -312,6 +312,6 @@ def _workers(view: Any) -> list[tuple[float, float]]:
     return [(m.pose[0], m.pose[1]) for m in view.movers if m.kind == "worker"]
 
 
-__all__ = ["COUNT_METRICS", "DEADLOCK_RADIUS_M", "DEADLOCK_WINDOW_S", "METRICS", "NEAR_MISS_M", "PROGRESS_M",
+__all__ = ["COUNT_METRICS", "DEADLOCK_RADIUS_M", "DEADLOCK_WINDOW_S", "METRICS", "NEAR_MISS_CENTRES_M", "PROGRESS_M",
            "FleetTrace", "RouteDistance", "deadlock_events", "episode_metrics", "errand_times", "run_fleet_episodes", "separation",
            "summarize"]

@@ -12,7 +12,7 @@ and wheels. :class:`ClearanceFeatures` appends, for every ray, the closeness
   8 mm off the outer front corner of a wheel reads as 3 cm clear on the nearest ray
   (-110 deg).
 - ``"point"``: the distance from the point the ray hit to the nearest part of the outline
-  (:func:`outline_clearance`), whatever direction that is in.
+  (the body rectangle and the wheel guards), whatever direction that is in.
 
 It is part of the policy (saved in the model, applied in ``predict``), so the env and its
 observation stay as specified.
@@ -73,13 +73,6 @@ def footprint_distances(num_rays: int, fov_deg: float = 360.0, lidar_x: float = 
                     t, grown = t_out, True
         out[i] = t
     return out
-
-
-def outline_clearance(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Distance (m) from body-frame points ``(x, y)`` to the robot's collision outline seen
-    from above (0 inside it): the body rectangle and the wheel guards."""
-    x, y = np.abs(np.asarray(x, dtype=float)), np.abs(np.asarray(y, dtype=float))
-    return np.minimum.reduce([np.hypot(np.maximum(x - hx, 0.0), np.maximum(y - hy, 0.0)) for hx, hy in _RECTANGLES])
 
 
 class ClearanceFeatures(BaseFeaturesExtractor):

@@ -28,7 +28,6 @@ import base64
 import hashlib
 import importlib
 import inspect
-import io
 import json
 import logging
 import math
@@ -651,15 +650,6 @@ def load_safe(model_path: Path, meta: dict[str, Any]) -> Any:
         raise ModelError(f"{weights_path(model_path)}: cannot rebuild the {p['algo'].upper()} policy "
                          f"({type(exc).__name__}: {str(exc)[:300]})") from None
     return model
-
-
-def npz_bytes(stats: dict[str, Any]) -> bytes:
-    """Statistics as an ``.npz`` (arrays, no pickles)."""
-    buf = io.BytesIO()
-    arrays = {f"{n}_{k}": np.asarray(stats[n][k]) for n in ("obs", "ret") if stats[n] is not None for k in ("mean", "var", "count")}
-    np.savez(buf, **arrays, **{k: np.asarray(stats[k]) for k in ("clip_obs", "clip_reward", "epsilon", "gamma", "norm_obs",
-                                                                 "norm_reward")})
-    return buf.getvalue()
 
 
 def convert_model(path: Path, trust_pickle: bool = False) -> dict[str, Any]:

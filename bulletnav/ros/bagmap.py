@@ -26,7 +26,7 @@ import numpy as np
 
 from bulletnav.errors import BulletnavError
 from bulletnav.planning.mapping import LidarMapper
-from bulletnav.ros.record import compose
+from bulletnav.ros.record import compose, message_yaw
 
 log = logging.getLogger(__name__)
 
@@ -59,10 +59,6 @@ class BagData:
     base_frame: str = "base_link"
     fixed_frame: str = "odom"
     pose_source: str = "odometry"
-
-
-def _yaw(q: Any) -> float:
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
 
 
 def _stamp_ns(header: Any) -> int:
@@ -114,12 +110,12 @@ def read_bag(path: str | Path, scan_topic: str = "/scan", odom_topic: str = "/od
                         raise BulletnavError(f"{path}: topic {odom_topic} holds {schema.name if schema else 'untyped'} "
                                              f"messages, not {ODOM_TYPE}")
                     p = msg.pose.pose
-                    odom.append((_stamp_ns(msg.header), (float(p.position.x), float(p.position.y), _yaw(p.orientation))))
+                    odom.append((_stamp_ns(msg.header), (float(p.position.x), float(p.position.y), message_yaw(p.orientation))))
                     odom_frames = (msg.header.frame_id, msg.child_frame_id)
                 elif topic in ("/tf", "/tf_static") and schema is not None and schema.name == TF_TYPE:
                     for t in msg.transforms:
                         tr = t.transform
-                        pose2d = (float(tr.translation.x), float(tr.translation.y), _yaw(tr.rotation))
+                        pose2d = (float(tr.translation.x), float(tr.translation.y), message_yaw(tr.rotation))
                         key = (t.header.frame_id, t.child_frame_id)
                         if topic == "/tf_static":
                             mounts[key] = pose2d

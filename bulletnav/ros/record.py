@@ -95,6 +95,12 @@ def quaternion(yaw: float) -> dict[str, float]:
     return {"x": 0.0, "y": 0.0, "z": math.sin(yaw / 2), "w": math.cos(yaw / 2)}
 
 
+def message_yaw(q: Any) -> float:
+    """The heading (rad) of a quaternion message (``x``, ``y``, ``z``, ``w`` attributes): the
+    inverse of :func:`quaternion` for a rotation about z."""
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
 def _pose(x: float, y: float, yaw: float, z: float = 0.0) -> dict[str, Any]:
     return {"position": {"x": x, "y": y, "z": z}, "orientation": quaternion(yaw)}
 
@@ -468,5 +474,5 @@ class McapRecorder(gym.Wrapper):
 
 
 __all__ = ["MAP_RESOLUTION", "McapFile", "McapRecorder", "TOPIC_TYPES", "goal_message", "movers_message", "robot_messages",
-           "static_mounts", "topic_type", "truth_map_message", "compose", "inverse", "occupancy_message", "quaternion",
+           "static_mounts", "topic_type", "truth_map_message", "compose", "inverse", "message_yaw", "occupancy_message", "quaternion",
            "stamp"]

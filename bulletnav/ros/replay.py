@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from bulletnav.errors import BulletnavError
-from bulletnav.ros.record import compose
+from bulletnav.ros.record import compose, message_yaw
 
 
 @dataclass(frozen=True)
@@ -116,14 +116,6 @@ class _Env:
         self.spec = _Spec(max_episode_steps)
 
 
-def _ns(stamp: Any) -> int:
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
-
-
-def _yaw(q: Any) -> float:
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
-
-
 def read_recording(path: str | Path) -> list[dict[str, Any]]:
     """The episodes of a bulletnav recording: each a dict of its attachment record, metadata
     and per-step messages (``steps``: list of dicts with ``pose``, ``ranges``, ``angles``,
@@ -181,7 +173,7 @@ def read_recording(path: str | Path) -> list[dict[str, Any]]:
                 raise BulletnavError(f"{path}: /tf at {t} ns lacks map -> odom -> base_link")
             pose = (0.0, 0.0, 0.0)
             for tr in links:
-                pose = compose(pose, (float(tr.translation.x), float(tr.translation.y), _yaw(tr.rotation)))
+                pose = compose(pose, (float(tr.translation.x), float(tr.translation.y), message_yaw(tr.rotation)))
             scan = msgs["/scan"]
             n = len(scan.ranges)
             movers = []
@@ -189,7 +181,7 @@ def read_recording(path: str | Path) -> list[dict[str, Any]]:
                 for m in msgs["/movers"].markers:
                     if m.action != 0:
                         continue
-                    movers.append(_Mover(m.ns, (float(m.pose.position.x), float(m.pose.position.y), _yaw(m.pose.orientation)),
+                    movers.append(_Mover(m.ns, (float(m.pose.position.x), float(m.pose.position.y), message_yaw(m.pose.orientation)),
                                          (float(m.scale.x), float(m.scale.y), float(m.scale.z))))
             steps.append({"pose": pose, "ranges": np.asarray(scan.ranges, dtype=np.float64),
                           "angles": float(scan.angle_min) + float(scan.angle_increment) * np.arange(n),

@@ -388,31 +388,6 @@ def _inside(px: float, py: float, poly: list[tuple[float, float]]) -> bool:
     return True
 
 
-def _segments_cross(a: tuple[float, float], b: tuple[float, float], c: tuple[float, float], d: tuple[float, float]) -> bool:
-    def orient(p0, p1, p2):
-        return (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p1[1] - p0[1]) * (p2[0] - p0[0])
-
-    return orient(a, b, c) * orient(a, b, d) < 0 and orient(c, d, a) * orient(c, d, b) < 0
-
-
-def polygon_gap(a: list[tuple[float, float]], b: list[tuple[float, float]]) -> float:
-    """Distance (m) between two convex counter-clockwise polygons; 0 when they overlap."""
-    if any(_inside(x, y, b) for x, y in a) or any(_inside(x, y, a) for x, y in b):
-        return 0.0
-    na, nb = len(a), len(b)
-    for i in range(na):
-        for j in range(nb):
-            if _segments_cross(a[i], a[(i + 1) % na], b[j], b[(j + 1) % nb]):
-                return 0.0
-    best = math.inf
-    for poly, other in ((a, b), (b, a)):
-        n = len(other)
-        for x, y in poly:
-            for i in range(n):
-                best = min(best, _point_segment(x, y, other[i], other[(i + 1) % n]))
-    return best
-
-
 def mover_gap(spec: MoverSpec, pose: tuple[float, float, float], outline: list[tuple[float, float]]) -> float:
     """Distance (m) between a mover at ``pose`` and the robot's convex outline polygon
     (world frame, counter-clockwise); 0 when they overlap."""

@@ -225,11 +225,6 @@ class Robot:
         pos, orn, _ = self._frame()
         return pos[0], pos[1], _yaw(orn)
 
-    def pose3d(self) -> tuple[np.ndarray, tuple[float, float, float, float]]:
-        """Position (m) of the base link frame (body centre) and its orientation quaternion (x, y, z, w)."""
-        pos, orn, _ = self._frame()
-        return np.array(pos), orn
-
     def kinematics(self) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
         """Body-centre linear velocity (m/s) and angular velocity (rad/s), world frame, and the
         row-major body-to-world rotation matrix."""
@@ -277,11 +272,6 @@ class Robot:
         lin, ang, m = self.kinematics()
         # heading = body x axis = first column of R
         return np.array([lin[0] * m[0] + lin[1] * m[3] + lin[2] * m[6], ang[2]])
-
-    def wheel_states(self) -> tuple[tuple[float, float], tuple[float, float]]:
-        """Wheel joint angles (rad) and rates (rad/s), each ordered (left, right)."""
-        left, right = p.getJointStates(self.body, [self.left_joint, self.right_joint], physicsClientId=self.cid)
-        return (left[0], right[0]), (left[1], right[1])
 
     def touching(self, bodies: Collection[int]) -> bool:
         """True when any robot link is in contact with one of ``bodies`` (pass a set: this

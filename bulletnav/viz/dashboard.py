@@ -53,6 +53,7 @@ from typing import Any
 import numpy as np
 import pybullet as p
 
+from bulletnav.evaluation import NEAR_MISS_M
 from bulletnav.viz.mission import mission_goals, progress_text
 from bulletnav.viz.movers import mover_colours
 
@@ -70,8 +71,6 @@ PATH_COLOUR = (0.9, 0.3, 0.9)
 EVENT_ADD_COLOUR = (0.0, 0.8, 0.75)
 EVENT_REMOVE_COLOUR = (1.0, 0.4, 0.15)
 HUD_COLOUR = (0.1, 0.1, 0.1)
-NEAR_MISS_M = 0.2
-"""A mover closer than this (m) to the robot's outline counts as a near miss (as in evaluation)."""
 EVENT_TEXTS = 4
 """Event messages shown at once in the GUI (the oldest is overwritten by a new event)."""
 ROUTE_Z = 0.04

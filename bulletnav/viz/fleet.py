@@ -224,12 +224,6 @@ class FleetFrames:
         self.last_frame = out
         return out
 
-    def robot_px(self, index: int) -> tuple[float, float]:
-        """Robot ``index``'s centre in frame pixels (x right, y down), as drawn in the last frame."""
-        agent = _sorted_agents(self._infos)[index]
-        (px, py), = self.view.to_px(_point(self._infos[agent]["pose"]))
-        return px, py
-
     def robot_radius_px(self) -> float:
         """A robot's disc radius on the map (px)."""
         return max(self.view.metres(self._fleet.geometry.radius), 3.0)
