@@ -572,8 +572,8 @@ KINDS: dict[str, str] = {
     "test_tour.py::test_free_order_beats_the_given_order_where_they_differ": "hand",
     "test_tour.py::test_tour_rejects_bad_input": "contract",
     # ---- test_vector.py
-    "test_vector.py::test_make_vec_sync_is_seeded_autoresets_and_batches_info": "self",
-    "test_vector.py::test_make_vec_async_gives_the_sync_batch": "self",
+    "test_vector.py::test_make_vec_sync_is_seeded_autoresets_and_batches_info": "formula",  # batched goal distances = hypot(goal - pose); autoreset reward 0
+    "test_vector.py::test_make_vec_async_gives_the_sync_batch": "formula",  # the async batch's goal distances = hypot(goal - pose)
     # ---- test_viz.py
     "test_viz.py::test_video_frames_are_composed_and_counted": "library",  # decoded by imageio; the documented frame count
     "test_viz.py::test_recording_leaves_the_episode_unchanged": "self",

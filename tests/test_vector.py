@@ -4,6 +4,8 @@ next-step rule, and ``info`` comes back as per-env arrays with their masks."""
 
 from __future__ import annotations
 
+import math
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -27,6 +29,19 @@ def _rollout(env_id: str, mode: str, seed: int = 5):
         return out
     finally:
         envs.close()
+
+
+def _check_distances(out) -> None:
+    """Every batched goal distance (and the reset's initial distance) is the Euclidean distance
+    from that env's true pose to its goal, computed here from the batch's own info."""
+    for entry in out:
+        info = entry[-1]
+        for i in range(2):
+            (x, y, _), (gx, gy) = info["pose"][i], info["goal"][i]
+            assert info["distance_to_goal"][i] == pytest.approx(math.hypot(gx - x, gy - y), abs=1e-9)
+    for i in range(2):
+        (x, y, _), (gx, gy) = out[0][1]["pose"][i], out[0][1]["goal"][i]
+        assert out[0][1]["initial_distance"][i] == pytest.approx(math.hypot(gx - x, gy - y), abs=1e-9)
 
 
 @pytest.mark.parametrize("env_id", REGISTERED)
@@ -53,11 +68,14 @@ def test_make_vec_sync_is_seeded_autoresets_and_batches_info(env_id):
     np.testing.assert_array_equal(reward, 0.0)
     assert not terminated.any() and not truncated.any()
     assert info["distance_to_goal"].shape == (2,) and info["_distance_to_goal"].all()
+    _check_distances(first)
 
 
 @pytest.mark.parametrize("env_id", ["bulletnav/Warehouse-v0", "bulletnav/WarehouseDynamic-v0"])
 def test_make_vec_async_gives_the_sync_batch(env_id):
-    for a, b in zip(_rollout(env_id, "sync"), _rollout(env_id, "async")):
+    sync, async_ = _rollout(env_id, "sync"), _rollout(env_id, "async")
+    for a, b in zip(sync, async_):
         np.testing.assert_array_equal(a[0], b[0])
         if len(a) == 5:
             np.testing.assert_array_equal(a[1], b[1])
+    _check_distances(async_)  # the async batch's info is the envs' own, entry for entry
