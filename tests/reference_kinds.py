@@ -295,8 +295,8 @@ KINDS: dict[str, str] = {
     # ---- test_guidance.py
     "test_guidance.py::test_in_open_floor_the_path_cost_is_the_straight_distance": "formula",
     "test_guidance.py::test_behind_a_rack_the_path_goes_around_it": "formula",  # a geometric lower bound and an unweighted Dijkstra
-    "test_guidance.py::test_progress_term_telescopes_to_the_drop_in_path_cost": "self",
-    "test_guidance.py::test_a_blind_guide_follower_completes_aisle_missions": "contract",
+    "test_guidance.py::test_progress_term_telescopes_to_the_drop_in_path_cost": "formula",  # the start's path cost against the two-leg bound around the rack's ends; end cost >= straight line
+    "test_guidance.py::test_a_blind_guide_follower_completes_aisle_missions": "library",  # Shapely: the robot outline at every true pose keeps off the rack footprints
     "test_guidance.py::test_guided_free_missions_follow_the_exact_tour_on_the_path_costs": "formula",  # brute force over every order
     "test_guidance.py::test_guidance_off_keeps_the_observation_and_checkers_pass_with_it_on": "library",
     "test_guidance.py::test_an_unknown_guidance_is_refused_by_name": "contract",
@@ -546,7 +546,7 @@ KINDS: dict[str, str] = {
     "test_shifts.py::test_lidar_dropout_and_imu_noise_scale_as_declared": "formula",
     "test_shifts.py::test_a_shift_keeps_the_episode_and_reports_itself": "hand",
     "test_shifts.py::test_unknown_names_and_bad_values_are_refused_clearly": "contract",
-    "test_shifts.py::test_every_named_shift_runs_a_controller": "smoke",
+    "test_shifts.py::test_every_named_shift_runs_a_controller": "formula",  # driven length as the sum of true step lengths, sim time = steps / 24
     # ---- test_simulation.py
     # the obstacle counts; the poses against a third client
     "test_simulation.py::test_two_worlds_in_one_process_stay_independent": "hand",

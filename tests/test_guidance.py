@@ -76,6 +76,11 @@ def test_progress_term_telescopes_to_the_drop_in_path_cost(wall_world):
     _, info = env.reset(seed=0, options={"start": [-1.0, -2.0, 0.0], "goal": [0.0, 2.0]})
     task = env.unwrapped.task
     first = task.path_cost
+    # by geometry: a path for the robot's disc from (-1, -2) to (0, 2) passes one end of the rack
+    # (|x| >= 3 + r on its line), so it is no shorter than the two legs via the nearer end
+    r = env.unwrapped.scene.geometry.radius
+    lower = min(math.dist((-1.0, -2.0), (e, 0.0)) + math.dist((e, 0.0), (0.0, 2.0)) for e in (-3.0 - r, 3.0 + r))
+    assert lower <= first <= 1.6 * lower
     weight = task.reward_weights.progress
     total = 0.0
     rng = np.random.default_rng(0)
@@ -86,6 +91,9 @@ def test_progress_term_telescopes_to_the_drop_in_path_cost(wall_world):
             break
     assert total / weight == pytest.approx(first - task.path_cost, abs=1e-9)
     assert first - task.path_cost != 0.0
+    # the remaining cost is never below the straight line from where the robot ended up
+    x, y, _ = info["pose"]
+    assert task.path_cost >= math.dist((x, y), (0.0, 2.0)) - 0.15
     env.close()
 
 
@@ -97,15 +105,33 @@ def _follow(obs):
 
 def test_a_blind_guide_follower_completes_aisle_missions():
     """Nothing but the guidance entries (no lidar): the path keeps clear of the racks by itself."""
+    from shapely import affinity
+    from shapely.geometry import box
+    from shapely.ops import unary_union
+
     env = gym.make("bulletnav/WarehouseMission-v0", guidance="floorplan")
+    rects = env.unwrapped.scene.geometry.rectangles
+    body = unary_union([box(r.cx - r.half_x, r.cy - r.half_y, r.cx + r.half_x, r.cy + r.half_y) for r in rects])
     done = 0
     for seed in range(4):
         obs, info = env.reset(seed=7000 + seed)
+        layout = env.unwrapped.scene.layout
+        racks = unary_union([affinity.rotate(box(o.center[0] - o.size[0] / 2, o.center[1] - o.size[1] / 2,
+                                                 o.center[0] + o.size[0] / 2, o.center[1] + o.size[1] / 2),
+                                             o.yaw, origin=tuple(o.center), use_radians=True)
+                             for o in layout.obstacles if o.kind == "box"])
+        closest = math.inf
         while True:
             obs, _, terminated, truncated, info = env.step(_follow(obs[:46]))
+            # Shapely: the robot's outline, placed at its true pose, against the racks' footprints
+            x, y, yaw = info["pose"]
+            outline = affinity.translate(affinity.rotate(body, yaw, origin=(0, 0), use_radians=True), x, y)
+            closest = min(closest, outline.distance(racks))
             if terminated or truncated:
                 break
         done += info["goals_reached"] == 3
+        if info["goals_reached"] == 3:  # a completed mission never touched a rack
+            assert closest > 0.0 and not info["collision"], (seed, closest)
     assert done >= 3
     env.close()
 

@@ -157,6 +157,16 @@ def test_every_named_shift_runs_a_controller(name):
     from bulletnav.evaluation import run_episodes
 
     env = gym.make("bulletnav/Warehouse-v0", perturb=name)
-    results = run_episodes(env, Navigator(env.unwrapped.scene), episodes=1, seed=1000)
+    poses = []
+    results = run_episodes(env, Navigator(env.unwrapped.scene), episodes=1, seed=1000,
+                           on_reset=lambda e, info: poses.append(info["pose"][:2].copy()),
+                           on_step=lambda e, info: poses.append(info["pose"][:2].copy()))
     assert results[0].steps > 0
     env.close()
+    # against values worked out here: one pose per 1/24 s step, the driven length their sum of
+    # segment lengths, and at least the straight line from the start to where the robot ended
+    r = results[0]
+    assert len(poses) == r.steps + 1 and r.sim_time == pytest.approx(r.steps / 24)
+    driven = sum(math.dist(a, b) for a, b in zip(poses, poses[1:]))
+    assert r.path_length == pytest.approx(driven, rel=1e-6, abs=1e-9)
+    assert r.path_length >= math.dist(poses[0], poses[-1]) - 1e-9 and r.path_length > 0.5
