@@ -75,8 +75,6 @@ KINDS: dict[str, str] = {
     "test_benchmark.py::test_straight_drive_metrics_against_hand_values": "hand",
     "test_benchmark.py::test_turning_and_a_slow_drive": "hand",
     "test_benchmark.py::test_person_zones_are_counted_both_ways_and_collisions_by_kind": "hand",
-    # the cell mean 0.75 and a constant sample; the interval itself only reproducibility and brackets
-    "test_benchmark.py::test_bootstrap_interval_is_reproducible_and_brackets_the_mean": "hand",
     "test_benchmark.py::test_tiny_results_are_the_committed_ones_at_1_and_2_workers": "golden",
     "test_benchmark.py::test_an_interrupted_run_resumes_without_rerunning": "contract",
     "test_benchmark.py::test_cli_prints_the_headline_and_writes_the_report": "contract",
@@ -84,6 +82,8 @@ KINDS: dict[str, str] = {
     "test_benchmark.py::test_tiny_suite_through_a_ray_cluster_gives_the_committed_rows": "golden",
     "test_benchmark.py::test_an_address_with_no_cluster_is_one_clear_error": "contract",
     "test_benchmark.py::test_pool_raises_a_jobs_error_without_starting_the_queued_jobs": "contract",
+    # SciPy's percentile bootstrap; two cases by hand (was reproducibility only)
+    "test_benchmark.py::test_bootstrap_interval_matches_scipys_percentile_bootstrap": "library",
     # ---- test_cli_env.py
     "test_cli_env.py::test_every_env_subcommand_defaults_to_warehouse_v0_and_takes_env": "contract",
     "test_cli_env.py::test_env_option_reaches_the_env": "library",  # start and goal clear of every rack footprint and inside the floor by Shapely
