@@ -590,10 +590,10 @@ KINDS: dict[str, str] = {
     "test_viz_mission.py::test_mission_video_numbers_goals_and_shows_progress": "contract",
     "test_viz_mission.py::test_dashboard_marks_every_goal_and_progress": "hand",
     # ---- test_viz_movers.py
-    "test_viz_movers.py::test_plot_draws_one_route_per_mover_with_trail_and_footprint": "contract",
+    "test_viz_movers.py::test_plot_draws_one_route_per_mover_with_trail_and_footprint": "library",  # each final footprint against its Shapely shape from the mover's last pose
     "test_viz_movers.py::test_scripted_events_are_marked_on_the_plot": "hand",
     "test_viz_movers.py::test_static_world_logs_and_plots_no_movers_or_events": "hand",
-    "test_viz_movers.py::test_video_map_shows_movers_events_and_a_text_line": "contract",
+    "test_viz_movers.py::test_video_map_shows_movers_events_and_a_text_line": "hand",  # pixels at positions from the map transform written in the test
     "test_viz_movers.py::test_recording_and_logging_leave_a_dynamic_episode_unchanged": "self",
     "test_viz_movers.py::test_dashboard_draws_routes_once_and_event_messages": "hand",
 }

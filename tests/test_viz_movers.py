@@ -106,6 +106,23 @@ def test_plot_draws_one_route_per_mover_with_trail_and_footprint(tmp_path):
         assert trails == colours  # the same shade for a mover's route and trail
     for line, track in zip(routes, ep.movers):
         np.testing.assert_allclose(np.column_stack(line.get_data()), np.asarray(track.path))
+    # each final footprint against its shape built here with Shapely from the mover's last pose:
+    # a forklift a size[0] (along its heading) x size[1] rectangle, a worker a disc of size[0] / 2
+    from matplotlib.patches import Circle
+    from shapely import affinity
+    from shapely.geometry import Polygon, box
+
+    for patch, track in zip(drawn[MOVER_GID["footprint"]], ep.movers):
+        x, y, yaw = track.poses[-1]
+        if track.kind == "forklift":
+            length, width = track.size[0], track.size[1]
+            want = affinity.translate(affinity.rotate(box(-length / 2, -width / 2, length / 2, width / 2), yaw,
+                                                      origin=(0, 0), use_radians=True), x, y)
+            got = Polygon(patch.get_xy())
+            assert got.symmetric_difference(want).area < 1e-9 * want.area, (track.kind, got.wkt, want.wkt)
+        else:
+            assert isinstance(patch, Circle)
+            assert patch.center == pytest.approx((x, y)) and patch.radius == pytest.approx(track.size[0] / 2)
     assert {"forklift route", "worker route"} <= set(legend_labels(fig))
     assert "event_add" not in drawn and "event_remove" not in drawn  # no event in these 24 steps
 
@@ -197,7 +214,12 @@ def test_video_map_shows_movers_events_and_a_text_line(tmp_path):
         env.close()
 
     def px(x, y):
-        (u, v), = view.to_px((x, y))
+        # the map transform written out here: the floor and its 0.2 m walls fitted into the
+        # 480 px map square inside an 8 px margin, x right, y up
+        hx, hy = scene.layout.half_extents
+        scale = (480 - 2 * 8) / (2 * max(hx + 0.2, hy + 0.2))
+        u, v = 240 + scale * x, 240 - scale * y
+        assert view.to_px((x, y))[0] == pytest.approx((u, v), abs=1e-9)
         return frame[int(round(v)), int(round(u))]
 
     x, y, yaw = forklift.pose  # behind its centre: off the heading tick
