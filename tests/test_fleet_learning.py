@@ -74,6 +74,18 @@ def test_adapter_follows_the_vecenv_api():
         wrapped = VecNormalize(VecMonitor(venv), norm_obs=False, norm_reward=True)
         assert wrapped.reset().shape == (4, *venv.observation_space.shape)
         wrapped.step(_actions(np.random.default_rng(1), 4))
+        # SB3's VecMonitor scores each robot's episode: 12 steps (0.5 s at 24 Hz, by hand) and the
+        # return summed here from the rewards the adapter handed out
+        monitor = VecMonitor(venv)
+        monitor.reset()
+        rng, returns = np.random.default_rng(2), np.zeros(4)
+        for step in range(1, STEPS_PER_EPISODE + 1):
+            _, rewards, dones, infos = monitor.step(_actions(rng, 4))
+            returns += rewards
+            assert dones.all() == (step == STEPS_PER_EPISODE) and dones.any() == dones.all()
+        for i in range(4):
+            assert infos[i]["episode"]["l"] == 12
+            assert infos[i]["episode"]["r"] == pytest.approx(returns[i], abs=1e-5)
     finally:
         venv.close()
 
