@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import shapely
 
 from bulletnav.bench.planner_bench import narrow_problem
 from bulletnav.planning import rrt
@@ -65,6 +66,18 @@ def problem_file(problems, tmp_path_factory) -> Path:
     return path
 
 
+def shapely_clear(grid, path) -> bool:
+    """Whether the polyline stays inside the grid and touches no occupied cell, by Shapely: each
+    occupied cell is the closed square of side ``resolution`` about its centre."""
+    ix, iy = np.nonzero(grid.occupied)
+    r, (ox, oy) = grid.resolution, grid.origin
+    cx, cy = ox + ix * r, oy + iy * r
+    cells = shapely.STRtree(shapely.box(cx - r / 2, cy - r / 2, cx + r / 2, cy + r / 2))
+    line = shapely.LineString(path)
+    x0, x1, y0, y1 = grid.bounds
+    return shapely.box(x0, y0, x1, y1).covers(line) and len(cells.query(line, predicate="intersects")) == 0
+
+
 def run_child(problem_file: Path, cache_dir: Path | None) -> dict:
     """Run :data:`SCRIPT` on ``problem_file`` in a new interpreter; ``cache_dir`` replaces numba's on-disk cache."""
     env = dict(os.environ)
@@ -98,6 +111,15 @@ def test_first_call_in_fresh_process_solves_narrow_passage(fresh, problems, repo
         if path is not None:
             assert path[0] == start and path[-1] == goal
             assert all(grid.segment_free(p, q) for p, q in zip(path[:-1], path[1:]))
+    # Against Shapely: every found path clears the occupied cells, where most straight lines
+    # from start to goal do not (the passage must be found); no path is shorter than that line.
+    blocked = 0
+    for (grid, start, goal), path in zip(problems, paths):
+        blocked += not shapely_clear(grid, [start, goal])
+        if path is not None:
+            assert shapely_clear(grid, path)
+            assert shapely.LineString(path).length >= np.hypot(goal[0] - start[0], goal[1] - start[1])
+    assert blocked > N_PROBLEMS // 2
     solved = sum(path is not None for path in paths)
     report("narrow-passage problems solved in a fresh process, first call included", f"{solved}/{N_PROBLEMS}")
     assert solved >= 0.995 * N_PROBLEMS
