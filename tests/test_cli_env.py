@@ -90,6 +90,15 @@ def test_world_file_with_the_aisles_env(capsys):
     assert main(["navigate", "--env", AISLES, "--world", world, "--planner", "none", "--episodes", "1", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["world"] == world and out["env_id"] == AISLES and out["world_size"] == [14.0, 12.0]
+    # the world file as PyYAML reads it gives that size; the episode's start and goal lie on its
+    # floor, so their distance is at most the floor's diagonal less the robot's clearance
+    import yaml
+
+    with open(world) as f:
+        assert [float(v) for v in yaml.safe_load(f)["size"]] == out["world_size"]
+    ep = out["per_episode"][0]
+    assert 0.0 < ep["initial_distance"] < math.hypot(14.0, 12.0)
+    assert ep["shortest_path"] >= ep["initial_distance"] - 0.1
 
 
 @pytest.mark.parametrize("argv", [

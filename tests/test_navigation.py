@@ -179,8 +179,11 @@ def test_navigator_drives_an_env_with_normalized_actions_the_same_way():
     runs = {}
     for norm in (False, True):
         env = gym.make("bulletnav/Warehouse-v0", normalize_actions=norm)
-        runs[norm] = run_episodes(env, Navigator(env.unwrapped.scene), episodes=2, seed=1000)
+        driven = _Driven()
+        runs[norm] = run_episodes(env, Navigator(env.unwrapped.scene), episodes=2, seed=1000,
+                                  on_reset=driven.on_reset, on_step=driven.on_step)
         env.close()
+        _check_spl_and_length(runs[norm], driven)  # each run against its own poses, summed here
     for a, b in zip(runs[False], runs[True]):
         assert a.success and b.success
         assert a.steps == b.steps and a.path_length == pytest.approx(b.path_length, abs=1e-3)
