@@ -165,31 +165,41 @@ def read_recording(path: str | Path) -> list[dict[str, Any]]:
                 goal = (float(p.x), float(p.y))
             if "/plan" in msgs:
                 plan = [(float(ps.pose.position.x), float(ps.pose.position.y)) for ps in msgs["/plan"].poses]
-            if "/tf" not in msgs or "/scan" not in msgs:
-                continue
-            tf = {(tr.header.frame_id, tr.child_frame_id): tr.transform for tr in msgs["/tf"].transforms}
-            links = [tf.get(("map", "odom")), tf.get(("odom", "base_link"))]
-            if any(x is None for x in links):
-                raise BulletnavError(f"{path}: /tf at {t} ns lacks map -> odom -> base_link")
-            pose = (0.0, 0.0, 0.0)
-            for tr in links:
-                pose = compose(pose, (float(tr.translation.x), float(tr.translation.y), message_yaw(tr.rotation)))
-            scan = msgs["/scan"]
-            n = len(scan.ranges)
-            movers = []
-            if "/movers" in msgs:
-                for m in msgs["/movers"].markers:
-                    if m.action != 0:
-                        continue
-                    movers.append(_Mover(m.ns, (float(m.pose.position.x), float(m.pose.position.y), message_yaw(m.pose.orientation)),
-                                         (float(m.scale.x), float(m.scale.y), float(m.scale.z))))
-            steps.append({"pose": pose, "ranges": np.asarray(scan.ranges, dtype=np.float64),
-                          "angles": float(scan.angle_min) + float(scan.angle_increment) * np.arange(n),
-                          "range_max": float(scan.range_max), "goal": goal, "plan": plan,
-                          "movers": tuple(movers), "dynamic": "/movers" in msgs,
-                          "reward": float(msgs["/reward"].data) if "/reward" in msgs else 0.0})
+            if "/tf" in msgs and "/scan" in msgs:
+                steps.append(_step(path, t, msgs, goal, plan))
         ep["steps"] = steps
     return episodes
+
+
+def _step(path: Path, t: int, msgs: dict[str, Any], goal: tuple[float, float] | None,
+          plan: list[tuple[float, float]] | None) -> dict[str, Any]:
+    """One step of a recording from its messages at ``t`` ns (``/tf`` and ``/scan``, the movers
+    and the reward where present) and the last goal and plan.
+
+    Raises:
+        BulletnavError: the ``/tf`` lacks the map -> odom -> base_link chain.
+    """
+    tf = {(tr.header.frame_id, tr.child_frame_id): tr.transform for tr in msgs["/tf"].transforms}
+    links = [tf.get(("map", "odom")), tf.get(("odom", "base_link"))]
+    if any(x is None for x in links):
+        raise BulletnavError(f"{path}: /tf at {t} ns lacks map -> odom -> base_link")
+    pose = (0.0, 0.0, 0.0)
+    for tr in links:
+        pose = compose(pose, (float(tr.translation.x), float(tr.translation.y), message_yaw(tr.rotation)))
+    scan = msgs["/scan"]
+    n = len(scan.ranges)
+    movers = []
+    if "/movers" in msgs:
+        for m in msgs["/movers"].markers:
+            if m.action != 0:
+                continue
+            movers.append(_Mover(m.ns, (float(m.pose.position.x), float(m.pose.position.y), message_yaw(m.pose.orientation)),
+                                 (float(m.scale.x), float(m.scale.y), float(m.scale.z))))
+    return {"pose": pose, "ranges": np.asarray(scan.ranges, dtype=np.float64),
+            "angles": float(scan.angle_min) + float(scan.angle_increment) * np.arange(n),
+            "range_max": float(scan.range_max), "goal": goal, "plan": plan,
+            "movers": tuple(movers), "dynamic": "/movers" in msgs,
+            "reward": float(msgs["/reward"].data) if "/reward" in msgs else 0.0}
 
 
 def replay(path: str | Path, video: str | Path | None = None, plot: str | Path | None = None,
@@ -288,10 +298,8 @@ def panel_view(path: str | Path, out: str | Path, at_s: float | None = None, epi
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.patches import Circle, Polygon
 
     from bulletnav.files import save_figure
-    from bulletnav.sim.movers import box_corners
 
     episodes = read_recording(path)
     if not 0 <= episode < len(episodes):
@@ -308,6 +316,27 @@ def panel_view(path: str | Path, out: str | Path, at_s: float | None = None, epi
     x, y, yaw = st["pose"]
     fig, ax = plt.subplots(figsize=(7, 7))
     ax.set_facecolor("#1e1f24")
+    _draw_maps(ax, maps)
+    _draw_step(ax, ep, steps, k)
+    ax.set_xlim(x - span_m / 2, x + span_m / 2)
+    ax.set_ylim(y - span_m / 2, y + span_m / 2)
+    ax.set_aspect("equal")
+    ax.set_xlabel("map x (m)")
+    ax.set_ylabel("map y (m)")
+    ax.set_title(f"3D panel, top-down, t = {(k + 1) * dt:.2f} s (episode {episode + 1})")
+    ax.legend(loc="upper right", fontsize=8, facecolor="#2a2c33", labelcolor="white")
+    try:
+        fig.tight_layout()
+        save_figure(fig, out, format="png", dpi=100)
+    finally:
+        plt.close(fig)
+    return {"episode": episode, "step": k + 1, "time_s": (k + 1) * dt, "out": str(out)}
+
+
+def _draw_maps(ax: Any, maps: dict[str, tuple[np.ndarray, float, tuple[float, float]]]) -> None:
+    """The true map under the lidar map (its seen-free cells tinted), as the panel draws them."""
+    import matplotlib
+
     for name, colour, alpha in (("/map_truth", "#8a8f99", 0.9), ("/map", "#e0e0e0", 0.5)):
         grid = maps.get(name)
         if grid is None:
@@ -320,6 +349,17 @@ def panel_view(path: str | Path, out: str | Path, at_s: float | None = None, epi
             rgba[cells == 0] = (0.35, 0.45, 0.6, 0.25)  # seen free
         ax.imshow(rgba, origin="lower", extent=(ox, ox + cells.shape[1] * res, oy, oy + cells.shape[0] * res),
                   interpolation="nearest", zorder=1 if name == "/map_truth" else 2)
+
+
+def _draw_step(ax: Any, ep: dict[str, Any], steps: list[dict[str, Any]], k: int) -> None:
+    """Step ``k`` of the episode: the trajectory so far, the plan, the scan through the lidar
+    mount, the movers' markers, the goal and the robot."""
+    from matplotlib.patches import Circle, Polygon
+
+    from bulletnav.sim.movers import box_corners
+
+    st = steps[k]
+    x, y, yaw = st["pose"]
     traj = np.array([s["pose"][:2] for s in steps[: k + 1]])
     ax.plot(traj[:, 0], traj[:, 1], color="#33b5ff", lw=1.5, zorder=3, label="trajectory (/tf)")
     if st["plan"]:
@@ -341,19 +381,6 @@ def panel_view(path: str | Path, out: str | Path, at_s: float | None = None, epi
     tri = [(x + 0.3 * math.cos(yaw), y + 0.3 * math.sin(yaw)), (x + 0.18 * math.cos(yaw + 2.4), y + 0.18 * math.sin(yaw + 2.4)),
            (x + 0.18 * math.cos(yaw - 2.4), y + 0.18 * math.sin(yaw - 2.4))]
     ax.add_patch(Polygon(tri, color="white", zorder=7))
-    ax.set_xlim(x - span_m / 2, x + span_m / 2)
-    ax.set_ylim(y - span_m / 2, y + span_m / 2)
-    ax.set_aspect("equal")
-    ax.set_xlabel("map x (m)")
-    ax.set_ylabel("map y (m)")
-    ax.set_title(f"3D panel, top-down, t = {(k + 1) * dt:.2f} s (episode {episode + 1})")
-    ax.legend(loc="upper right", fontsize=8, facecolor="#2a2c33", labelcolor="white")
-    try:
-        fig.tight_layout()
-        save_figure(fig, out, format="png", dpi=100)
-    finally:
-        plt.close(fig)
-    return {"episode": episode, "step": k + 1, "time_s": (k + 1) * dt, "out": str(out)}
 
 
 def _maps_until(path: str | Path, start_ns: int, t_ns: int) -> dict[str, tuple[np.ndarray, float, tuple[float, float]]]:
