@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from bulletnav.config import EnvConfig, ShiftConfig
+from bulletnav.envs.actions import ActionMap
 from bulletnav.geometry import RobotGeometry, robot_geometry
 from bulletnav.planning.grid import OccupancyGrid
 from bulletnav.sensors.suite import SensorSuite
@@ -378,11 +379,9 @@ class SceneReader:
 
     def action_for(self, v: float, w: float) -> np.ndarray:
         """The action (float32) that commands ``v`` m/s and ``w`` rad/s: the physical pair, or
-        with :attr:`normalized_actions` its linear image in [-1, 1] (not clipped)."""
-        if self.normalized_actions:
-            (v_lo, v_hi), (w_lo, w_hi) = self.command_limits
-            v, w = 2.0 * (v - v_lo) / (v_hi - v_lo) - 1.0, 2.0 * (w - w_lo) / (w_hi - w_lo) - 1.0
-        return np.array([v, w], dtype=np.float32)
+        with :attr:`normalized_actions` its linear image in [-1, 1] (not clipped;
+        :meth:`~bulletnav.envs.actions.ActionMap.action`)."""
+        return ActionMap.of(self._scene.config.task, self.normalized_actions).action(v, w)
 
     # ------------------------------------------------------------------ time
     @property

@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 import numbers
 import time
-import warnings
 from dataclasses import fields, replace
 from os import PathLike
 from types import UnionType
@@ -17,6 +16,7 @@ import pybullet as p
 from gymnasium import spaces
 
 from bulletnav.config import EnvConfig, RewardConfig, ShiftConfig, physics_profile
+from bulletnav.envs.actions import ActionMap
 from bulletnav.envs.randomization import STREAM as DR_STREAM
 from bulletnav.envs.randomization import Distribution, draw, draw_world, parse_randomize
 from bulletnav.envs.scene import Scene, SceneView
@@ -364,15 +364,8 @@ class WarehouseEnv(gym.Env):
         """Read-only view for controllers, evaluation and visualisation."""
         self.pace_gui = True
         """In human mode, hold each step to real time (one control period); benchmarks turn it off."""
-        t = cfg.task
-        self._action_low = np.array([0.0, -t.max_turn_rate])
-        self._action_high = np.array([t.max_speed, t.max_turn_rate])
-        self._bounds = (0.0, t.max_speed, -t.max_turn_rate, t.max_turn_rate)
-        if cfg.normalize_actions:
-            self.action_space = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
-        else:
-            self.action_space = spaces.Box(self._action_low.astype(np.float32), self._action_high.astype(np.float32),
-                                           dtype=np.float32)
+        self._actions = ActionMap.of(cfg.task, cfg.normalize_actions)
+        self.action_space = self._actions.space()
         state = self.task.observation_space()
         if cfg.camera_obs:
             cam = cfg.sensors.camera
@@ -462,12 +455,13 @@ class WarehouseEnv(gym.Env):
         return self._observation(), reward, terminated, truncated, self._info(terms, reason)
 
     def command(self, action: Any) -> tuple[float, float]:
-        """The (v m/s, w rad/s) an action commands, after scaling and clipping (:func:`action_command`).
+        """The (v m/s, w rad/s) an action commands, after scaling and clipping
+        (:meth:`~bulletnav.envs.actions.ActionMap.command`).
 
         Raises:
             ValueError: the action is not 2 finite numbers (a dict, a wrong shape, NaN).
         """
-        return action_command(action, self._bounds, self.config.normalize_actions)
+        return self._actions.command(action)
 
     def render(self):
         if self.render_mode == "rgb_array":
@@ -521,34 +515,3 @@ class WarehouseEnv(gym.Env):
         if wait > 0:
             time.sleep(wait)
         self._last_frame_time = time.perf_counter()
-
-
-def action_command(action: Any, bounds: tuple[float, float, float, float], normalize: bool) -> tuple[float, float]:
-    """The (v m/s, w rad/s) that ``action`` commands: with ``normalize``, [-1, 1] mapped
-    linearly onto ``bounds`` = (v min, v max, w min, w max), then clipped to them. The one
-    action map of the single-robot env and of every robot of a fleet.
-
-    Raises:
-        ValueError: the action is not 2 finite numbers (a dict, a wrong shape, NaN).
-    """
-    if type(action) is np.ndarray and action.shape == (2,) and action.dtype.kind == "f":
-        a0, a1 = action.tolist()  # the common case, fast
-    else:
-        try:
-            with warnings.catch_warnings():  # a complex number inside an object array: refused, not cast
-                warnings.simplefilter("error", np.exceptions.ComplexWarning)
-                arr = np.asarray(action, dtype=np.float64)
-        except (TypeError, ValueError, OverflowError, np.exceptions.ComplexWarning):  # Overflow: an int beyond float64
-            arr = None
-        if arr is None or arr.shape != (2,) or np.iscomplexobj(action):
-            raise ValueError(f"action must be 2 numbers (v, w), got {action!r} of type {type(action).__name__}"
-                             f"{'' if arr is None else f' and shape {arr.shape}'}")
-        a0, a1 = float(arr[0]), float(arr[1])
-    if not (math.isfinite(a0) and math.isfinite(a1)):
-        names = [n for n, x in (("v", a0), ("w", a1)) if not math.isfinite(x)]
-        raise ValueError(f"action {[a0, a1]} has non-finite entries: {', '.join(names)}")
-    v_lo, v_hi, w_lo, w_hi = bounds
-    if normalize:  # [-1, 1] -> physical range
-        a0 = v_lo + (a0 + 1.0) * 0.5 * (v_hi - v_lo)
-        a1 = w_lo + (a1 + 1.0) * 0.5 * (w_hi - w_lo)
-    return min(max(a0, v_lo), v_hi), min(max(a1, w_lo), w_hi)

@@ -13,7 +13,8 @@ from pettingzoo import ParallelEnv
 
 from bulletnav import AISLES_KWARGS, DYNAMIC_KWARGS
 from bulletnav.config import EnvConfig
-from bulletnav.envs.warehouse import action_command, make_config
+from bulletnav.envs.actions import ActionMap
+from bulletnav.envs.warehouse import make_config
 from bulletnav.errors import ConfigError, SamplingError
 from bulletnav.fleet.config import FleetConfig
 from bulletnav.fleet.scene import KINDS, FleetScene
@@ -136,13 +137,8 @@ class FleetEnv(ParallelEnv):
         except BaseException:
             self._scene.close()
             raise
-        t = cfg.task
-        self._bounds = (0.0, t.max_speed, -t.max_turn_rate, t.max_turn_rate)
-        if cfg.normalize_actions:
-            action = spaces.Box(-1.0, 1.0, (2,), dtype=np.float32)
-        else:
-            action = spaces.Box(np.array([0.0, -t.max_turn_rate], dtype=np.float32),
-                                np.array([t.max_speed, t.max_turn_rate], dtype=np.float32), dtype=np.float32)
+        self._actions = ActionMap.of(cfg.task, cfg.normalize_actions)
+        action = self._actions.space()
         self._action_spaces = {a: action if i == 0 else spaces.Box(action.low, action.high, dtype=np.float32)
                                for i, a in enumerate(self.possible_agents)}
         self._observation_spaces = {a: task.observation_space() for a, task in zip(self.possible_agents, self._tasks)}
@@ -272,12 +268,12 @@ class FleetEnv(ParallelEnv):
 
     def command(self, action: Any) -> tuple[float, float]:
         """The (v m/s, w rad/s) an action commands, after scaling and clipping: the single-robot
-        env's map (:func:`~bulletnav.envs.warehouse.action_command`).
+        env's map (:meth:`~bulletnav.envs.actions.ActionMap.command`).
 
         Raises:
             ValueError: the action is not 2 finite numbers.
         """
-        return action_command(action, self._bounds, self.config.normalize_actions)
+        return self._actions.command(action)
 
     def render(self) -> None:
         return None
