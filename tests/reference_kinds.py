@@ -576,7 +576,7 @@ KINDS: dict[str, str] = {
     "test_vector.py::test_make_vec_async_gives_the_sync_batch": "formula",  # the async batch's goal distances = hypot(goal - pose)
     # ---- test_viz.py
     "test_viz.py::test_video_frames_are_composed_and_counted": "library",  # decoded by imageio; the documented frame count
-    "test_viz.py::test_recording_leaves_the_episode_unchanged": "self",
+    "test_viz.py::test_recording_leaves_the_episode_unchanged": "library",  # the side video decoded by imageio: the documented frame count of each traced episode
     "test_viz.py::test_dashboard_needs_the_gui": "contract",
     "test_viz.py::test_simplify_path_keeps_corners_and_caps_segments": "hand",
     "test_viz.py::test_dashboard_throttles_and_replaces_in_place": "hand",

@@ -149,6 +149,18 @@ def test_recording_leaves_the_episode_unchanged(tmp_path):
         finally:
             env.close()
     _assert_identical(traces[0], traces[1])
+    # the side video, decoded by imageio: the documented count (a reset frame and every step,
+    # stride 1) of each episode the trace holds
+    lengths, n = [], 0
+    for entry in traces[1]:
+        if entry[0] == "reset" and n:
+            lengths.append(n)
+            n = 0
+        n += entry[0] == "step"
+    lengths.append(n)
+    with imageio.get_reader(tmp_path / "side.mp4") as reader:
+        decoded = sum(1 for _ in reader)
+    assert len(lengths) == 2 and decoded == sum(expected_frames(k, 1) for k in lengths)
 
 
 def test_dashboard_needs_the_gui():
