@@ -311,9 +311,11 @@ def _memory_growth(env, resets: int, warmup: int = 30) -> tuple[float, float, in
 
 @pytest.mark.slow
 def test_memory_does_not_grow_over_200_resets(report):
-    """A leak of 1 MiB per 100 resets would add 2 MiB to both figures here; measured on a quiet
-    run: 0.04 MiB of Python heap and 0.04 MiB of resident memory. (At 052a810 the test read
-    ``ru_maxrss``, the process's peak, which a leak under an earlier peak never moves.)"""
+    """A leak of 1 MiB per 100 resets adds 2 MiB to both figures here (one injected in a
+    monkeypatched reset measured 2.04 MiB of heap and 2.82 MiB resident); without it they were
+    0.015 and 0.98 MiB (resident memory also moves by an allocator's arena now and then, hence
+    its looser bound). (At 052a810 the test read ``ru_maxrss``, the process's peak, which a
+    leak under an earlier peak never moves.)"""
     env = gym.make("bulletnav/WarehouseDynamic-v0")
     try:
         heap, rss, bodies = _memory_growth(env, 200)
@@ -322,7 +324,7 @@ def test_memory_does_not_grow_over_200_resets(report):
     report("growth over 200 resets: Python heap / resident memory (MiB), bodies", f"{heap:.3f} / {rss:.2f}, {bodies}")
     assert bodies == 0
     assert heap < 0.5, heap
-    assert rss < 1.0, rss
+    assert rss < 1.5, rss
 
 
 def test_yaml_dynamic_errors_name_file_entry_and_field(tmp_path):
