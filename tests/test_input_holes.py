@@ -78,6 +78,23 @@ def test_the_cli_refuses_the_suite_in_one_line_with_status_2(tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+def test_trust_code_lets_the_cli_import_the_named_module(tmp_path, capsys, monkeypatch):
+    """With --trust-code the class outside the allow-list is imported and runs the suite."""
+    (tmp_path / "ram_policy.py").write_text(RAM)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    suite = tmp_path / "mine.yaml"
+    suite.write_text(yaml.safe_dump({"name": "mine", "episodes": 1, "seed": 7000,
+                                     "worlds": [{"name": "wall", "env": "bulletnav/WarehouseAisles-v0",
+                                                 "kwargs": {"world": "wall.yaml"}}],
+                                     "controllers": [{"name": "ram", "type": "policy", "class": "ram_policy:Ram"}]}))
+    (tmp_path / "wall.yaml").write_text(yaml.safe_dump(WALL))
+    assert main(["benchmark", str(suite), "--out", str(tmp_path / "out")]) == 2
+    assert "--trust-code" in capsys.readouterr().err
+    assert main(["benchmark", str(suite), "--out", str(tmp_path / "out"), "--trust-code", "--json"]) == 0
+    (row,) = json.loads(capsys.readouterr().out)["episodes"]
+    assert row["controller"] == "ram" and row["collision"] and not row["success"]
+
+
 # ------------------------------------------------------------------ names that become folders
 BAD_NAMES = ["..", "../escape", "a/../../b", "a..b", "...", "/etc", "x" * 65, " x", "-x", "a b", "a\\b", ".hidden"]
 
@@ -206,6 +223,15 @@ def test_a_lidar_mapper_refuses_bounds_that_are_not_numbers():
             LidarMapper(bounds, 0.1)
     with pytest.raises(ValueError, match="resolution must be a finite number"):
         LidarMapper((0.0, 0.0, 1.0, 1.0), math.inf)
+
+
+@pytest.mark.parametrize("value", ["0", "-0.1", "nan", "inf", "1e9", "0.0001", "ten"])
+def test_map_resolution_is_read_as_metres(value, tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["map", str(tmp_path / "bag.mcap"), "--resolution", value])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert "--resolution" in err and "cell size in metres" in err and "seconds" not in err
 
 
 # ------------------------------------------------------------------ saved models

@@ -26,6 +26,8 @@ def register(sub) -> None:
     bm.add_argument("--screenshots", action="store_true",
                     help="also save DIR/headline.png and DIR/world.png, the report in Chromium (needs playwright and chromium)")
     bm.add_argument("--screenshot-tab", type=NON_NEGATIVE, default=0, metavar="K", help="the world tab of world.png (default 0)")
+    bm.add_argument("--trust-code", action="store_true",
+                    help="import and run the module named by a suite's class: entries (it runs that module's code)")
     bm.set_defaults(func=cmd_benchmark)
 
 
@@ -35,8 +37,8 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
 
     from bulletnav.benchmark.suite import load_suite
 
-    suite = load_suite(args.suite)
-    out = Path(args.out or f"runs/benchmark/{suite.name}")
+    suite = load_suite(args.suite, trust_code=args.trust_code)
+    out = Path(args.out) if args.out else suite.out_dir("runs/benchmark")
     if args.report_only:  # the report (and screenshots) again from DIR/results.json
         return _report_only(args, out)
     results, report = _run(args, suite, out)

@@ -4,6 +4,7 @@ file drawn from the file alone)."""
 from __future__ import annotations
 
 import argparse
+import math
 
 import numpy as np
 
@@ -23,13 +24,30 @@ def _register_map(sub) -> None:
     mp.add_argument("--scan-topic", default="/scan", help="sensor_msgs/msg/LaserScan topic (default /scan)")
     mp.add_argument("--odom-topic", default="/odom",
                     help="nav_msgs/msg/Odometry topic (default /odom; without it the /tf chain to the scan's frame)")
-    mp.add_argument("--resolution", type=positive_seconds, default=0.1, metavar="M", help="cell size in m (default 0.1)")
+    mp.add_argument("--resolution", type=cell_metres, default=0.1, metavar="M", help="cell size in m (default 0.1)")
     mp.add_argument("--out", type=PNG_FILE, default=None, metavar="PNG", help="write the map (and path) as a PNG")
     mp.add_argument("--plan-to", type=float, nargs=2, metavar=("X", "Y"), default=None,
                     help="plan an A* path on the map from the last scan's position to (X, Y) m")
     mp.add_argument("--json", action="store_true", help="print one JSON object")
     add_overwrite_arg(mp, "an --out file")
     mp.set_defaults(func=cmd_map)
+
+
+CELL_METRES = (0.001, 10.0)
+"""The cell sizes ``map --resolution`` takes (m); the grid's size is bounded by the limits
+``map_extent`` and ``map_cells`` (:mod:`bulletnav.limits`)."""
+
+
+def cell_metres(text: str) -> float:
+    """``map --resolution``: a cell size in metres, a finite number in :data:`CELL_METRES`."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not CELL_METRES[0] <= value <= CELL_METRES[1]:  # NaN fails too
+        raise argparse.ArgumentTypeError(f"expected a cell size in metres from {CELL_METRES[0]:g} to {CELL_METRES[1]:g}, "
+                                         f"got {text!r}")
+    return value
 
 
 def _register_replay(sub) -> None:
@@ -63,6 +81,7 @@ def cmd_map(args: argparse.Namespace) -> int:
     state = bag_map.mapper.state()
     summary = {"bag": str(args.bag), "scan_topic": args.scan_topic, "pose_source": data.pose_source,
                "fixed_frame": data.fixed_frame, "scans": bag_map.scans_used, "scans_without_pose": bag_map.scans_skipped,
+               "poses_skipped": bag_map.poses_skipped,
                "resolution_m": args.resolution, "cells": list(state.shape),
                "occupied_cells": int((state > 0).sum()), "free_cells": int((state == 0).sum()),
                "plan_to": list(goal) if goal else None, "path_found": None if goal is None else path is not None,
@@ -74,6 +93,8 @@ def cmd_map(args: argparse.Namespace) -> int:
     print(f"{args.bag}: {bag_map.scans_used} scans on {args.scan_topic} placed by {data.pose_source} "
           f"({data.fixed_frame} frame), {summary['occupied_cells']} occupied and {summary['free_cells']} free cells "
           f"of {args.resolution:g} m")
+    if bag_map.poses_skipped:
+        print(f"{bag_map.poses_skipped} of the bag's poses have a NaN or infinite value: dropped")
     if goal:
         print(f"A* to ({goal[0]:g}, {goal[1]:g}): " + (f"{summary['path_length_m']:.2f} m" if path else "no path"))
     if args.out:
