@@ -19,9 +19,14 @@ A suite is a YAML file (shipped: ``quick`` and ``standard`` in ``bulletnav/bench
 
 Every controller runs on the same seeded episodes of a world. A ``policy`` class implements
 :class:`bulletnav.policy.Policy` (``reset(info)``, ``act(obs, info)``) and is built as
-``Class(scene, **kwargs)`` with the env's read-only scene view; any controller takes
-``shield: true``. World kwargs are limited to those the CLI can express, so that every
-episode of a report can be replayed by one ``bulletnav navigate`` / ``evaluate`` command.
+``Class(scene, **kwargs)`` with the env's read-only scene view, from the modules of
+bulletnav, stable_baselines3 or sb3_contrib only (:data:`IMPORTABLE`; any other module needs
+``--trust-code``, for it runs that module's code); any controller takes ``shield: true``. The
+suite's ``name`` names its output folder (``runs/benchmark/<name>``): a slug
+(:data:`bulletnav.limits.SLUG`). Its sizes are limits of :mod:`bulletnav.limits`
+(``suite_*``). World kwargs are limited to those the CLI can express, so that every episode
+of a report can be replayed by one ``bulletnav navigate`` / ``evaluate`` command, quoted
+for the shell (:func:`replay_command`).
 """
 
 from __future__ import annotations
