@@ -396,7 +396,7 @@ KINDS: dict[str, str] = {
     "test_planning.py::test_astar_none_cases": "hand",
     "test_planning.py::test_astar_on_inflated_grid_avoids_inflated_cells": "library",
     "test_planning.py::test_rrt_paths_are_valid": "formula",  # dense sampling of every segment
-    "test_planning.py::test_rrt_shortcut_never_lengthens": "contract",
+    "test_planning.py::test_rrt_shortcut_never_lengthens": "formula",  # the shortcut paths free by dense sampling
     "test_planning.py::test_rrt_deterministic_per_seed": "self",
     # the paths by dense sampling; below the bisected smallest budget None, from it on the full path (was `path is None or path ==
     # full`)
@@ -405,7 +405,7 @@ KINDS: dict[str, str] = {
     "test_planning.py::test_rrt_none_when_iterations_run_out": "hand",
     "test_planning.py::test_connected_matches_astar": "formula",
     "test_planning.py::test_narrow_cells_match_brute_force": "formula",
-    "test_planning.py::test_narrow_problems_are_narrow": "contract",
+    "test_planning.py::test_narrow_problems_are_narrow": "library",  # SciPy's components once the narrow cells are closed
     # a fake clock with hand-set costs per call; the solve rates recounted with dense sampling (was keys only)
     "test_planning.py::test_bench_planners_times_each_call_and_counts_only_valid_paths": "hand",
     # ---- test_randomization.py
