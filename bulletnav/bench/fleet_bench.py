@@ -18,13 +18,11 @@ from typing import Any
 
 import numpy as np
 
-from bulletnav.fleet.controllers import DEFAULT_MODEL, make_controller, model_env_kwargs
+from bulletnav.fleet.controllers import CONTROLLERS, DEFAULT_MODEL, make_controller, model_env_kwargs
 from bulletnav.fleet.env import FleetEnv
 
 SIZES = (1, 2, 4, 8, 16)
 """Fleet sizes timed."""
-CONTROLLERS = ("independent", "coordinated", "policy")
-"""Controllers timed (the policy: :data:`~bulletnav.fleet.controllers.DEFAULT_MODEL`)."""
 
 
 def time_fleet(controller_name: str, n: int, steps: int, warmup: int, seed: int) -> dict[str, Any]:
@@ -73,4 +71,4 @@ def bench_fleet(sizes: tuple[int, ...] = SIZES, steps: int = 480, warmup: int = 
             "sizes": rows}
 
 
-__all__ = ["CONTROLLERS", "SIZES", "bench_fleet", "time_fleet"]
+__all__ = ["SIZES", "bench_fleet", "time_fleet"]
