@@ -84,15 +84,13 @@ def _grow(occ: np.ndarray, res: float, ox: float, oy: float,
           count: np.ndarray, state: np.ndarray, bidirectional: bool) -> None:
     """Run one iteration per row of ``rand`` (four uniforms in [0, 1) each): RRT-Connect if
     ``bidirectional``, else one-tree RRT from the start that joins the goal within one step.
-
     ``narrow`` holds the flat indices (``ix * ny + iy``) of the narrow cells, or nothing.
 
     Tree 0 is rooted at the start, tree 1 at the goal: ``nodes[t, :count[t]]`` and
     ``parent[t, :count[t]]`` hold tree ``t`` and are extended in place (the caller leaves room
     for one node plus a full straight connect per row). ``state`` is (tree that extends next,
     join node in tree 0, join node in tree 1); the join entries stay -1 until the trees meet
-    through a free segment of length <= ``step``, and the kernel returns as soon as they do.
-    """
+    through a free segment of length <= ``step``, and the kernel returns as soon as they do."""
     step2 = step * step
     ny = occ.shape[1]
     t = state[0]
