@@ -50,8 +50,8 @@ KINDS: dict[str, str] = {
     "test_aisles.py::test_segment_box_test_is_right": "hand",
     "test_aisles.py::test_env_is_registered_with_its_settings": "contract",
     "test_aisles.py::test_check_env_passes": "library",
-    "test_aisles.py::test_env_is_deterministic_for_a_seed": "self",
-    "test_aisles.py::test_aisle_env_on_a_world_without_racks_draws_plain_episodes": "contract",
+    "test_aisles.py::test_env_is_deterministic_for_a_seed": "formula",  # goal distances = hypot(goal - pose); path length = sum of pose segments
+    "test_aisles.py::test_aisle_env_on_a_world_without_racks_draws_plain_episodes": "library",  # ends clear of the walls by Shapely; distance = hypot
     # ---- test_architecture.py
     "test_architecture.py::test_private_access_checker_flags_what_it_should": "hand",
     "test_architecture.py::test_consumers_use_only_obs_info_and_the_scene_view": "contract",
@@ -250,6 +250,7 @@ KINDS: dict[str, str] = {
     "test_fleet_controllers.py::test_unknot_commits_a_swapping_turn_to_one_side": "hand",
     "test_fleet_controllers.py::test_a_holding_robot_boxed_in_stands_rather_than_turn_in_place": "hand",
     "test_fleet_controllers.py::test_a_replan_keeps_the_next_move_of_a_robot_already_heading_into_it": "hand",
+    "test_fleet_controllers.py::test_the_action_map_against_hand_values": "hand",
     # ---- test_fleet_golden.py
     "test_fleet_golden.py::test_fleet_rollout_is_bit_identical_to_the_reference": "golden",
     "test_fleet_golden.py::test_the_references_exercise_what_they_claim": "contract",  # a check on the golden file itself

@@ -11,6 +11,7 @@ from dataclasses import replace
 import gymnasium as gym
 import numpy as np
 import pytest
+import shapely
 from gymnasium.utils.env_checker import check_env as gym_check_env
 from scipy import ndimage
 
@@ -322,6 +323,20 @@ def test_env_is_deterministic_for_a_seed():
     b, layout_b = _rollout(4)
     assert layout_a == layout_b and bit_equal(a, b)
     assert _rollout(5, steps=0)[1] != layout_a
+    # Every entry's goal distance is the Euclidean one from the true pose, and each episode's
+    # path length the sum of the straight pieces between its poses.
+    length = last = None
+    for entry in a:
+        info = entry[-1]
+        (x, y, _), (gx, gy) = info["pose"], info["goal"]
+        assert info["distance_to_goal"] == pytest.approx(math.hypot(gx - x, gy - y), abs=1e-9)
+        if len(entry) == 2:  # a reset
+            assert info["initial_distance"] == info["distance_to_goal"]
+            length, last = 0.0, (x, y)
+            continue
+        length += math.hypot(x - last[0], y - last[1])
+        last = (x, y)
+        assert info["path_length"] == pytest.approx(length, abs=1e-9)
 
 
 def test_aisle_env_on_a_world_without_racks_draws_plain_episodes():
@@ -331,4 +346,11 @@ def test_aisle_env_on_a_world_without_racks_draws_plain_episodes():
     env = gym.make("bulletnav/WarehouseAisles-v0", world=str(asset_path("worlds", "empty.yaml")))
     _, info = env.reset(seed=0)
     assert 3.0 <= info["initial_distance"] <= 10.0
+    # A plain pair: the straight distance, both ends on the floor clear of its walls (Shapely).
+    (x, y, _), (gx, gy) = info["pose"], info["goal"]
+    assert info["initial_distance"] == pytest.approx(math.hypot(gx - x, gy - y), abs=1e-9)
+    hx, hy = env.unwrapped.scene.layout.half_extents
+    floor = shapely.box(-hx, -hy, hx, hy)
+    for point in (shapely.Point(x, y), shapely.Point(gx, gy)):
+        assert floor.contains(point) and floor.exterior.distance(point) >= SamplerConfig().clearance - 0.05
     env.close()
