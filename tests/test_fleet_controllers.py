@@ -763,3 +763,25 @@ def test_a_replan_keeps_the_next_move_of_a_robot_already_heading_into_it():
         env.close()
     with pytest.raises(ConfigError, match="commit_cone"):
         CoordinatedConfig(commit_cone=-1.0)
+
+
+def test_the_action_map_against_hand_values():
+    """Hand values of the one action <-> command map (0.5 m/s, 1.5 rad/s limits): [-1, 1]
+    mapped linearly and clipped; the physical pair clipped; command -> action its inverse
+    (unclipped). The fleet env, the single-robot env and the scene view all use it."""
+    from bulletnav.config import TaskConfig
+    from bulletnav.envs.actions import ActionMap
+
+    norm, phys = ActionMap.of(TaskConfig(), True), ActionMap.of(TaskConfig(), False)
+    assert norm.command(np.array([-1.0, 0.0])) == (0.0, 0.0)
+    assert norm.command(np.array([1.0, -1.0])) == (0.5, -1.5)
+    assert norm.command(np.array([0.0, 0.5])) == (0.25, 0.75)
+    assert norm.command([3.0, -7.0]) == (0.5, -1.5)  # clipped
+    assert phys.command([0.3, 2.0]) == (0.3, 1.5)
+    assert phys.command([-0.1, -0.2]) == (0.0, -0.2)
+    np.testing.assert_array_equal(norm.action(0.25, 0.75), np.array([0.0, 0.5], dtype=np.float32))
+    np.testing.assert_array_equal(phys.action(0.25, 0.75), np.array([0.25, 0.75], dtype=np.float32))
+    assert (norm.space().low.tolist(), norm.space().high.tolist()) == ([-1.0, -1.0], [1.0, 1.0])
+    assert (phys.space().low.tolist(), phys.space().high.tolist()) == ([0.0, -1.5], [0.5, 1.5])
+    with pytest.raises(ValueError, match="non-finite"):
+        norm.command([math.nan, 0.0])
