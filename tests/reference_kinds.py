@@ -457,11 +457,11 @@ KINDS: dict[str, str] = {
     "test_robot.py::test_straight_line_covers_the_commanded_distance_without_drift": "formula",
     "test_robot.py::test_turn_in_place_reaches_the_commanded_yaw_rate": "formula",
     "test_robot.py::test_arc_matches_kinematics": "formula",
-    "test_robot.py::test_non_finite_command_is_refused": "contract",
+    "test_robot.py::test_non_finite_command_is_refused": "hand",  # the exact line; the robot still at (0, 0, 0) a second later
     "test_robot.py::test_obstacles_meet_the_wheels_true_width": "hand",
     "test_robot.py::test_a_stopped_robot_stands_still_with_the_park_brake": "hand",
     "test_robot.py::test_the_park_brake_waits_for_the_wheels_to_slow_and_lets_go_on_the_next_command": "formula",
-    "test_robot.py::test_park_brake_rate_must_not_be_negative": "contract",
+    "test_robot.py::test_park_brake_rate_must_not_be_negative": "hand",  # 0 allowed, -1e-9 and NaN refused with the exact line
     # ---- test_ros_bagmap.py
     "test_ros_bagmap.py::test_independent_bag_maps_the_known_room": "library",  # bag written by rosbags; walls by exact ray casts
     "test_ros_bagmap.py::test_bulletnav_bag_maps_onto_the_true_map": "formula",

@@ -80,6 +80,14 @@ def test_non_finite_command_is_refused(make_sim):
     sim.reset(FLAT, (0.0, 0.0, 0.0))
     with pytest.raises(ValueError, match="finite"):
         sim.robot.set_velocity(float("nan"), 0.0)
+    with pytest.raises(ValueError) as err:
+        sim.robot.set_velocity(0.3, float("inf"))
+    assert str(err.value) == "set_velocity needs finite values, got v=0.3, w=inf"
+    # The refused commands left nothing behind: stepped with no command, the robot stands where
+    # it was placed, at rest.
+    for _ in range(24):
+        sim.step(0.0, 0.0)
+    np.testing.assert_allclose(sim.robot.pose(), (0.0, 0.0, 0.0), atol=1e-3)
 
 
 @pytest.mark.parametrize("face_y, touching", [(-0.14, False), (-0.125, False), (-0.115, True), (-0.095, True)])
@@ -162,3 +170,9 @@ def test_the_park_brake_waits_for_the_wheels_to_slow_and_lets_go_on_the_next_com
 def test_park_brake_rate_must_not_be_negative():
     with pytest.raises(ValueError, match="park_brake_rate"):
         RobotConfig(park_brake_rate=-1.0)
+    # The boundary by hand: 0 rad/s is allowed, anything below it refused, NaN too, with the exact line.
+    assert RobotConfig(park_brake_rate=0.0).park_brake_rate == 0.0
+    for bad in (-1e-9, float("nan")):
+        with pytest.raises(ValueError) as err:
+            RobotConfig(park_brake_rate=bad)
+        assert str(err.value) == f"RobotConfig.park_brake_rate must be >= 0 rad/s, got {bad}"
