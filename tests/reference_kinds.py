@@ -22,7 +22,8 @@ kept true by tests/test_reference_kinds.py, which collects every test function b
 fails on one missing here, one named here that no longer exists, or an unknown kind.
 
 ``python tests/reference_kinds.py`` prints the counts by kind, overall and per module, as the
-Markdown tables of docs/testing.md.
+Markdown tables of docs/testing.md. A note on an entry says why where the call is not obvious;
+one longer than ruff's 135 columns goes on comment lines above its entry.
 """
 
 from __future__ import annotations
@@ -50,8 +51,10 @@ KINDS: dict[str, str] = {
     "test_aisles.py::test_segment_box_test_is_right": "hand",
     "test_aisles.py::test_env_is_registered_with_its_settings": "contract",
     "test_aisles.py::test_check_env_passes": "library",
-    "test_aisles.py::test_env_is_deterministic_for_a_seed": "formula",  # goal distances = hypot(goal - pose); path length = sum of pose segments
-    "test_aisles.py::test_aisle_env_on_a_world_without_racks_draws_plain_episodes": "library",  # ends clear of the walls by Shapely; distance = hypot
+    # goal distances = hypot(goal - pose); path length = sum of pose segments
+    "test_aisles.py::test_env_is_deterministic_for_a_seed": "formula",
+    # ends clear of the walls by Shapely; distance = hypot
+    "test_aisles.py::test_aisle_env_on_a_world_without_racks_draws_plain_episodes": "library",
     # ---- test_architecture.py
     "test_architecture.py::test_private_access_checker_flags_what_it_should": "hand",
     "test_architecture.py::test_consumers_use_only_obs_info_and_the_scene_view": "contract",
@@ -61,6 +64,19 @@ KINDS: dict[str, str] = {
     "test_architecture.py::test_robot_geometry_is_what_pybullet_loads": "library",  # PyBullet's loaded collision shapes
     "test_architecture.py::test_literal_checker_reads_code_not_comments_or_strings": "hand",
     "test_architecture.py::test_geometry_users_carry_no_outline_numbers": "contract",
+    "test_architecture.py::test_circle_finder_finds_circles_and_only_circles": "hand",
+    "test_architecture.py::test_package_imports_follow_the_package_rule": "hand",
+    "test_architecture.py::test_the_package_import_graph_has_no_circles": "contract",
+    "test_architecture.py::test_every_module_has_a_layer_and_layers_are_disjoint": "contract",
+    "test_architecture.py::test_no_module_imports_a_higher_layer": "contract",
+    "test_architecture.py::test_every_module_imports_in_a_fresh_process_in_layer_order": "contract",
+    "test_architecture.py::test_tasks_see_the_scene_through_the_protocol": "contract",
+    "test_architecture.py::test_temp_file_checker_flags_what_it_should": "hand",
+    "test_architecture.py::test_only_the_files_module_makes_temp_files_and_renames": "contract",
+    "test_architecture.py::test_a_write_that_fails_midway_leaves_the_old_file_whole_and_no_temp_file": "hand",
+    "test_architecture.py::test_a_failed_rename_removes_the_temp_file": "contract",
+    # the standard library's json.dumps and Pillow reading the PNG back
+    "test_architecture.py::test_the_writers_write_what_they_are_given": "library",
     # ---- test_bench_against.py
     "test_bench_against.py::test_a_bogus_commit_is_refused_in_one_line": "contract",
     "test_bench_against.py::test_an_option_is_not_taken_for_a_commit": "contract",
@@ -86,16 +102,19 @@ KINDS: dict[str, str] = {
     "test_benchmark.py::test_bootstrap_interval_matches_scipys_percentile_bootstrap": "library",
     # ---- test_cli_env.py
     "test_cli_env.py::test_every_env_subcommand_defaults_to_warehouse_v0_and_takes_env": "contract",
-    "test_cli_env.py::test_env_option_reaches_the_env": "library",  # start and goal clear of every rack footprint and inside the floor by Shapely
+    # start and goal clear of every rack footprint and inside the floor by Shapely
+    "test_cli_env.py::test_env_option_reaches_the_env": "library",
     "test_cli_env.py::test_navigate_json_on_the_aisles_env": "formula",  # sim time = steps / 24 Hz, SPL by its formula from the row
     "test_cli_env.py::test_navigate_default_env_report_is_unchanged_but_for_the_safety_line": "contract",
-    "test_cli_env.py::test_world_file_with_the_aisles_env": "library",  # the reported size against the world file as PyYAML reads it; distances bounded by its diagonal
+    # the reported size against the world file as PyYAML reads it; distances bounded by its diagonal
+    "test_cli_env.py::test_world_file_with_the_aisles_env": "library",
     "test_cli_env.py::test_unknown_env_id_is_a_clear_error": "contract",
     "test_cli_env.py::test_tracker_in_a_static_world": "hand",
     "test_cli_env.py::test_tracker_with_movers": "hand",
     "test_cli_env.py::test_summarize_safety_metrics_known_answers": "hand",
     "test_cli_env.py::test_summarize_safety_metrics_without_movers_or_episodes": "hand",
-    "test_cli_env.py::test_train_reads_the_env_ids_own_hyperparameters_and_records_it": "library",  # each id's entry as PyYAML reads the packaged file (RL Zoo's format)
+    # each id's entry as PyYAML reads the packaged file (RL Zoo's format)
+    "test_cli_env.py::test_train_reads_the_env_ids_own_hyperparameters_and_records_it": "library",
     # ---- test_cli_help.py
     "test_cli_help.py::test_every_command_has_a_snapshot_and_every_snapshot_a_command": "contract",
     "test_cli_help.py::test_help_is_the_snapshot_byte_for_byte": "golden",  # snapshots taken before cli.py was split
@@ -133,7 +152,8 @@ KINDS: dict[str, str] = {
     "test_curriculum.py::test_training_checkpoints_the_stage_and_resumes_in_it": "contract",
     # ---- test_datasets.py
     "test_datasets.py::test_navigate_dataset_round_trip": "library",  # minari.load_dataset, recover_environment, both check_envs
-    "test_datasets.py::test_names_are_checked_before_running": "hand",  # accepted and refused ids worked out from Minari's documented id form; Minari reads back 5 steps
+    # accepted and refused ids worked out from Minari's documented id form; Minari reads back 5 steps
+    "test_datasets.py::test_names_are_checked_before_running": "hand",
     "test_datasets.py::test_behaviour_cloning_from_a_dataset": "contract",
     "test_datasets.py::test_image_observations_are_refused": "contract",
     "test_datasets.py::test_shielded_episodes_store_the_executed_actions": "formula",  # the action-box mapping written in the test
@@ -154,7 +174,8 @@ KINDS: dict[str, str] = {
     "test_env.py::test_human_mode_on_a_display_that_refuses_the_connection_raises_clearly": "contract",
     "test_env.py::test_gui_connect_holds_its_own_x_connection_until_pybullet_has_opened_one": "contract",
     "test_env.py::test_a_held_x_connection_keeps_a_resetting_server_from_refusing_clients": "library",  # a real Xvfb server
-    "test_env.py::test_same_seed_is_bit_identical_across_resets": "formula",  # path length = sum of pose segments; initial distance = hypot
+    # path length = sum of pose segments; initial distance = hypot
+    "test_env.py::test_same_seed_is_bit_identical_across_resets": "formula",
     "test_env.py::test_seeded_reset_is_independent_of_history": "library",  # the reset scan against a Shapely ray cast
     "test_env.py::test_reward_terms_sum_to_the_reward": "formula",  # each term from the article's weights and formulas
     "test_env.py::test_every_observation_lies_in_the_observation_space": "formula",  # goal distance and bearing from the true pose
@@ -191,19 +212,24 @@ KINDS: dict[str, str] = {
     "test_fleet.py::test_parallel_api": "library",  # PettingZoo's parallel_api_test
     "test_fleet.py::test_aec_api": "library",  # PettingZoo's api_test
     "test_fleet.py::test_agents_and_truncation_together": "hand",
-    "test_fleet.py::test_spaces_equal_single_robot": "formula",  # shape by hand from the documented table; heading and distance entries from pose and goal
-    "test_fleet.py::test_each_robot_maps_actions_as_the_single_robot_env_does": "hand",  # (v, w) of each action worked out from the documented ranges
+    # shape by hand from the documented table; heading and distance entries from pose and goal
+    "test_fleet.py::test_spaces_equal_single_robot": "formula",
+    # (v, w) of each action worked out from the documented ranges
+    "test_fleet.py::test_each_robot_maps_actions_as_the_single_robot_env_does": "hand",
     "test_fleet.py::test_same_seed_same_episode_here_and_in_a_fresh_process": "self",
     "test_fleet.py::test_lidar_sees_other_robot_not_itself": "formula",  # range = robot face from its geometry
     "test_fleet.py::test_robot_robot_collision_stops_both_and_episode_goes_on": "hand",
     "test_fleet.py::test_errand_completes_pick_then_drop_and_next_is_assigned": "hand",
-    "test_fleet.py::test_stations_derived_from_an_aisle_warehouse": "library",  # station clearance by Shapely from the obstacle footprints
+    # station clearance by Shapely from the obstacle footprints
+    "test_fleet.py::test_stations_derived_from_an_aisle_warehouse": "library",
     "test_fleet.py::test_dock_moves_in_where_racks_line_every_wall": "hand",
-    "test_fleet.py::test_procedural_floor_with_racks_on_every_wall_gets_a_dock": "library",  # dock stations clear of racks and walls by Shapely
+    # dock stations clear of racks and walls by Shapely
+    "test_fleet.py::test_procedural_floor_with_racks_on_every_wall_gets_a_dock": "library",
     "test_fleet.py::test_num_robots_out_of_range": "contract",
     "test_fleet.py::test_more_robots_than_fit": "contract",
     "test_fleet.py::test_world_without_stations": "contract",
-    "test_fleet.py::test_shipped_dynamic_policy_runs_on_every_robot": "formula",  # path_length against the sum of step lengths of the true poses
+    # path_length against the sum of step lengths of the true poses
+    "test_fleet.py::test_shipped_dynamic_policy_runs_on_every_robot": "formula",
     # the planner's A* as a second algorithm
     "test_fleet.py::test_route_distance_follows_the_floor_plan_like_an_independent_a_star": "formula",
     # ---- test_fleet_bench.py
@@ -211,8 +237,10 @@ KINDS: dict[str, str] = {
     "test_fleet_bench.py::test_bench_fleet_rows_and_ratios_on_a_fake_clock": "hand",
     # ---- test_fleet_compare.py
     "test_fleet_compare.py::test_parse_entries_names_and_errors": "hand",
-    "test_fleet_compare.py::test_every_entry_meets_the_same_episodes_and_workers_do_not_change_rows": "formula",  # throughput per row by its formula; cells recomputed from the rows (statistics.stdev for the SE)
-    "test_fleet_compare.py::test_an_interrupted_run_resumes_to_the_same_rows": "hand",  # the (entry, episode, seed) rows by hand; cells recomputed from the rows
+    # throughput per row by its formula; cells recomputed from the rows (statistics.stdev for the SE)
+    "test_fleet_compare.py::test_every_entry_meets_the_same_episodes_and_workers_do_not_change_rows": "formula",
+    # the (entry, episode, seed) rows by hand; cells recomputed from the rows
+    "test_fleet_compare.py::test_an_interrupted_run_resumes_to_the_same_rows": "hand",
     "test_fleet_compare.py::test_rows_of_different_episodes_are_refused": "contract",
     "test_fleet_compare.py::test_bad_settings_name_the_argument": "contract",
     "test_fleet_compare.py::test_chunks_cover_every_entry_block_by_block": "hand",
@@ -255,7 +283,8 @@ KINDS: dict[str, str] = {
     "test_fleet_golden.py::test_fleet_rollout_is_bit_identical_to_the_reference": "golden",
     "test_fleet_golden.py::test_the_references_exercise_what_they_claim": "contract",  # a check on the golden file itself
     # ---- test_fleet_learning.py
-    "test_fleet_learning.py::test_adapter_follows_the_vecenv_api": "library",  # SB3's VecMonitor: episode length 12 by hand, return summed in the test
+    # SB3's VecMonitor: episode length 12 by hand, return summed in the test
+    "test_fleet_learning.py::test_adapter_follows_the_vecenv_api": "library",
     # the autoreset written out in the test on a plain fleet
     "test_fleet_learning.py::test_autoreset_matches_a_fleet_stepped_by_hand": "formula",
     "test_fleet_learning.py::test_seeded_runs_are_equal_step_for_step": "self",
@@ -264,9 +293,12 @@ KINDS: dict[str, str] = {
     # ---- test_fleet_viz.py
     "test_fleet_viz.py::test_pictures_leave_the_episodes_unchanged": "self",
     "test_fleet_viz.py::test_video_of_episode_0_decodes_with_one_frame_per_step": "library",  # decoded by imageio/ffmpeg
-    "test_fleet_viz.py::test_each_robot_is_drawn_in_its_colour_where_it_is": "hand",  # disc centres by the world->pixel transform written in the test
-    "test_fleet_viz.py::test_still_frame_and_plot": "hand",  # each robot's disc in its colour at the pixel of its 1 s pose, transform written in the test
-    "test_fleet_viz.py::test_plot_draws_every_robot_path_in_its_colour": "formula",  # min pairwise distance of the drawn paths, brute force, against the row's min_separation_m
+    # disc centres by the world->pixel transform written in the test
+    "test_fleet_viz.py::test_each_robot_is_drawn_in_its_colour_where_it_is": "hand",
+    # each robot's disc in its colour at the pixel of its 1 s pose, transform written in the test
+    "test_fleet_viz.py::test_still_frame_and_plot": "hand",
+    # min pairwise distance of the drawn paths, brute force, against the row's min_separation_m
+    "test_fleet_viz.py::test_plot_draws_every_robot_path_in_its_colour": "formula",
     "test_fleet_viz.py::test_cli_pictures_do_not_change_the_json": "library",  # video decoded by imageio: 1 + 24 frames by hand
     "test_fleet_viz.py::test_fleet_takes_the_world_arguments": "contract",
     "test_fleet_viz.py::test_view_robots_opens_the_gui_and_tints_every_robot": "contract",
@@ -296,11 +328,42 @@ KINDS: dict[str, str] = {
     # ---- test_guidance.py
     "test_guidance.py::test_in_open_floor_the_path_cost_is_the_straight_distance": "formula",
     "test_guidance.py::test_behind_a_rack_the_path_goes_around_it": "formula",  # a geometric lower bound and an unweighted Dijkstra
-    "test_guidance.py::test_progress_term_telescopes_to_the_drop_in_path_cost": "formula",  # the start's path cost against the two-leg bound around the rack's ends; end cost >= straight line
-    "test_guidance.py::test_a_blind_guide_follower_completes_aisle_missions": "library",  # Shapely: the robot outline at every true pose keeps off the rack footprints
+    # the start's path cost against the two-leg bound around the rack's ends; end cost >= straight line
+    "test_guidance.py::test_progress_term_telescopes_to_the_drop_in_path_cost": "formula",
+    # Shapely: the robot outline at every true pose keeps off the rack footprints
+    "test_guidance.py::test_a_blind_guide_follower_completes_aisle_missions": "library",
     "test_guidance.py::test_guided_free_missions_follow_the_exact_tour_on_the_path_costs": "formula",  # brute force over every order
     "test_guidance.py::test_guidance_off_keeps_the_observation_and_checkers_pass_with_it_on": "library",
     "test_guidance.py::test_an_unknown_guidance_is_refused_by_name": "contract",
+    # ---- test_input_holes.py
+    "test_input_holes.py::test_a_suite_policy_outside_the_allow_list_is_refused_naming_file_entry_and_value": "contract",
+    "test_input_holes.py::test_the_runner_imports_no_class_outside_the_allow_list_even_from_a_hand_made_suite": "contract",
+    "test_input_holes.py::test_the_cli_refuses_the_suite_in_one_line_with_status_2": "contract",
+    "test_input_holes.py::test_trust_code_lets_the_cli_import_the_named_module": "contract",
+    "test_input_holes.py::test_suite_names_are_slugs": "contract",
+    "test_input_holes.py::test_sweep_names_are_slugs": "contract",
+    "test_input_holes.py::test_default_names_from_the_file_are_slugs_too": "contract",
+    "test_input_holes.py::test_output_folders_resolve_inside_their_base": "contract",
+    "test_input_holes.py::test_a_run_never_writes_through_a_link_out_of_its_folder": "contract",
+    "test_input_holes.py::test_a_bag_spanning_kilometres_is_refused_before_the_grid_is_allocated": "hand",
+    "test_input_holes.py::test_map_cells_are_bounded_and_raisable": "hand",
+    # NumPy's interpolation over the good poses alone
+    "test_input_holes.py::test_nan_and_infinite_poses_are_dropped_and_counted": "library",
+    "test_input_holes.py::test_a_lidar_mapper_refuses_bounds_that_are_not_numbers": "contract",
+    "test_input_holes.py::test_map_resolution_is_read_as_metres": "contract",
+    "test_input_holes.py::test_a_sidecar_asking_for_huge_networks_or_buffers_is_refused_before_building": "contract",
+    "test_input_holes.py::test_a_sidecar_of_the_shipped_sizes_still_loads": "contract",
+    "test_input_holes.py::test_buffer_size_and_n_envs_are_bounded": "contract",
+    "test_input_holes.py::test_fleet_duration_and_robots_are_limits": "contract",
+    "test_input_holes.py::test_the_suite_limits_are_in_the_one_table_and_raisable": "contract",
+    "test_input_holes.py::test_dataset_ids_follow_minaris_rule": "library",  # Minari's own id parser
+    "test_input_holes.py::test_a_bad_dataset_id_stops_navigate_before_any_episode": "contract",
+    # the parsed argv against the paths by hand; the replayed row against the report's
+    "test_input_holes.py::test_a_replay_command_from_a_report_replays_its_episode": "hand",
+    # ---- test_json_output.py
+    "test_json_output.py::test_every_command_with_json_is_run_here": "contract",
+    "test_json_output.py::test_json_is_the_whole_of_stdout": "contract",
+    "test_json_output.py::test_the_gui_keeps_off_stdout_with_json": "contract",
     # ---- test_layout.py
     "test_layout.py::test_sample_layouts_load_and_admit_start_goal_pairs": "library",  # Shapely clearance, SciPy components, hypot
     "test_layout.py::test_bad_layout_files_name_file_and_field": "contract",
@@ -313,9 +376,11 @@ KINDS: dict[str, str] = {
     "test_layout.py::test_layout_without_valid_pair_raises": "contract",
     "test_layout.py::test_disconnected_halves_are_not_reachable": "hand",
     # ---- test_limits.py
-    "test_limits.py::test_every_limit_has_a_case_and_a_documented_row": "hand",  # docs/limits.md defaults and variables written in the test
+    # docs/limits.md defaults and variables written in the test
+    "test_limits.py::test_every_limit_has_a_case_and_a_documented_row": "hand",
     "test_limits.py::test_accepted_at_the_limit": "hand",  # the documented default, by hand
-    "test_limits.py::test_refused_just_above_with_field_value_limit_and_variable": "hand",  # value, hand limit and variable ending the line
+    # value, hand limit and variable ending the line
+    "test_limits.py::test_refused_just_above_with_field_value_limit_and_variable": "hand",
     "test_limits.py::test_raised_by_its_environment_variable": "hand",  # the variable named by hand
     "test_limits.py::test_lowered_by_its_environment_variable": "hand",  # 36 passes, 37 refused with the exact line
     "test_limits.py::test_a_bad_variable_is_named": "contract",
@@ -365,22 +430,29 @@ KINDS: dict[str, str] = {
     "test_movers.py::test_memory_does_not_grow_over_200_resets": "contract",
     # ---- test_navigation.py
     "test_navigation.py::test_shortest_path_matches_geometry": "formula",
-    "test_navigation.py::test_pid_astar_navigates_procedural_warehouses": "formula",  # driven length as the sum of true step lengths; SPL by S*l/max(p,l) from the rows
-    "test_navigation.py::test_other_planners_run_episodes": "formula",  # driven length as the sum of true step lengths; SPL by its formula; A* episodes
-    "test_navigation.py::test_odometry_pose_source_navigates_an_empty_room": "formula",  # true last pose inside the goal disc; straight-line shortest path; step lengths summed
+    # driven length as the sum of true step lengths; SPL by S*l/max(p,l) from the rows
+    "test_navigation.py::test_pid_astar_navigates_procedural_warehouses": "formula",
+    # driven length as the sum of true step lengths; SPL by its formula; A* episodes
+    "test_navigation.py::test_other_planners_run_episodes": "formula",
+    # true last pose inside the goal disc; straight-line shortest path; step lengths summed
+    "test_navigation.py::test_odometry_pose_source_navigates_an_empty_room": "formula",
     "test_navigation.py::test_navigate_cli_json": "formula",  # success rate, SPL and mean length recomputed from the per-episode rows
     "test_navigation.py::test_navigate_cli_bad_world": "contract",
-    "test_navigation.py::test_navigator_drives_an_env_with_normalized_actions_the_same_way": "formula",  # each run's driven length against the sum of its true step lengths; SPL by its formula
+    # each run's driven length against the sum of its true step lengths; SPL by its formula
+    "test_navigation.py::test_navigator_drives_an_env_with_normalized_actions_the_same_way": "formula",
     # ---- test_nothing_lost.py
     "test_nothing_lost.py::test_a_killed_training_leaves_whole_files_and_resumes": "contract",
     # the tiny suite's committed rows
     "test_nothing_lost.py::test_a_killed_benchmark_leaves_whole_files_and_resumes_to_the_same_rows": "golden",
-    "test_nothing_lost.py::test_a_checkpoint_interrupted_after_its_commit_is_completed_whole": "library",  # the set read by zipfile, json and torch: hand-set step and mean, the second set's weights
-    "test_nothing_lost.py::test_a_checkpoint_interrupted_before_its_commit_leaves_the_previous_set": "library",  # the set read by zipfile, json and torch: the first set's step, mean and weights
+    # the set read by zipfile, json and torch: hand-set step and mean, the second set's weights
+    "test_nothing_lost.py::test_a_checkpoint_interrupted_after_its_commit_is_completed_whole": "library",
+    # the set read by zipfile, json and torch: the first set's step, mean and weights
+    "test_nothing_lost.py::test_a_checkpoint_interrupted_before_its_commit_leaves_the_previous_set": "library",
     "test_nothing_lost.py::test_a_checkpoint_without_statistics_removes_the_older_sets": "contract",
     "test_nothing_lost.py::test_a_checkpoint_commit_naming_other_files_is_refused": "contract",
     # ---- test_physics_profile.py
-    "test_physics_profile.py::test_rate_table_structure": "formula",  # the 120 Hz row's errors, policy points and verdict recomputed from the raw rows
+    # the 120 Hz row's errors, policy points and verdict recomputed from the raw rows
+    "test_physics_profile.py::test_rate_table_structure": "formula",
     "test_physics_profile.py::test_reference_against_itself_is_exact": "self",
     "test_physics_profile.py::test_driving_is_physical": "formula",  # distance = v t, heading = w t, less the start-up
     "test_physics_profile.py::test_plate_collision_registers": "hand",
@@ -411,8 +483,10 @@ KINDS: dict[str, str] = {
     "test_planning.py::test_bench_planners_times_each_call_and_counts_only_valid_paths": "hand",
     # ---- test_randomization.py
     "test_randomization.py::test_draws_stay_inside_the_declared_ranges_and_cover_them": "hand",
-    "test_randomization.py::test_draws_are_reproducible_under_the_seed_and_keep_the_episode": "formula",  # moments of 20,000 draws against closed forms (SciPy for the clipped normal)
-    "test_randomization.py::test_a_drawn_value_drives_the_same_physics_as_the_shift_itself": "hand",  # one step of latency: still at the start after step 1
+    # moments of 20,000 draws against closed forms (SciPy for the clipped normal)
+    "test_randomization.py::test_draws_are_reproducible_under_the_seed_and_keep_the_episode": "formula",
+    # one step of latency: still at the start after step 1
+    "test_randomization.py::test_a_drawn_value_drives_the_same_physics_as_the_shift_itself": "hand",
     "test_randomization.py::test_world_parameters_reach_the_layout_and_mover_speeds_the_movers": "hand",
     "test_randomization.py::test_bad_specifications_are_refused_by_name": "contract",
     "test_randomization.py::test_every_shift_field_and_world_parameter_is_randomizable": "contract",
@@ -481,11 +555,13 @@ KINDS: dict[str, str] = {
     "test_ros_record.py::test_cli_fleet_and_evaluate_record": "library",
     # ---- test_ros_replay.py
     "test_ros_replay.py::test_replay_draws_the_live_frames": "hand",  # the frame count; the pictures against the live video
-    "test_ros_replay.py::test_recording_holds_what_replay_needs": "hand",  # 200 steps of 1/24 s per episode, counted and timed with mcap's reader
+    # 200 steps of 1/24 s per episode, counted and timed with mcap's reader
+    "test_ros_replay.py::test_recording_holds_what_replay_needs": "hand",
     "test_ros_replay.py::test_replay_refuses_what_is_no_recording": "contract",
     "test_ros_replay.py::test_foxglove_layout_and_panel": "contract",
     # ---- test_rrt_fresh_process.py
-    "test_rrt_fresh_process.py::test_first_call_in_fresh_process_solves_narrow_passage": "library",  # every path clear of the occupied cells by Shapely
+    # every path clear of the occupied cells by Shapely
+    "test_rrt_fresh_process.py::test_first_call_in_fresh_process_solves_narrow_passage": "library",
     "test_rrt_fresh_process.py::test_same_paths_in_this_process": "self",
     "test_rrt_fresh_process.py::test_compiling_inside_the_first_call_changes_nothing": "self",
     # ---- test_safe_models.py
@@ -508,7 +584,8 @@ KINDS: dict[str, str] = {
     "test_sensors.py::test_lidar_never_sees_the_robot_and_reads_max_range_in_the_open": "hand",
     "test_sensors.py::test_lidar_noise_has_the_configured_std": "formula",
     "test_sensors.py::test_sensor_reads_are_idempotent_within_a_step": "hand",  # the room's wall distances, reads within 5 sigma
-    "test_sensors.py::test_every_sensor_reading_lies_in_its_space": "formula",  # ray ahead = 2 m - x - lidar offset while driving at the wall
+    # ray ahead = 2 m - x - lidar offset while driving at the wall
+    "test_sensors.py::test_every_sensor_reading_lies_in_its_space": "formula",
     "test_sensors.py::test_depth_camera_centre_pixel_reads_the_wall_distance": "formula",
     "test_sensors.py::test_imu_noise_statistics_and_gravity_at_rest": "formula",
     "test_sensors.py::test_imu_bias_and_rotation_rate": "formula",
@@ -549,11 +626,13 @@ KINDS: dict[str, str] = {
     "test_shifts.py::test_lidar_dropout_and_imu_noise_scale_as_declared": "formula",
     "test_shifts.py::test_a_shift_keeps_the_episode_and_reports_itself": "hand",
     "test_shifts.py::test_unknown_names_and_bad_values_are_refused_clearly": "contract",
-    "test_shifts.py::test_every_named_shift_runs_a_controller": "formula",  # driven length as the sum of true step lengths, sim time = steps / 24
+    # driven length as the sum of true step lengths, sim time = steps / 24
+    "test_shifts.py::test_every_named_shift_runs_a_controller": "formula",
     # ---- test_simulation.py
     # the obstacle counts; the poses against a third client
     "test_simulation.py::test_two_worlds_in_one_process_stay_independent": "hand",
-    "test_simulation.py::test_robot_snapshot_equals_live_state_after_every_step_and_reset": "formula",  # no sideways slide, v = r (wl + wr) / 2
+    # no sideways slide, v = r (wl + wr) / 2
+    "test_simulation.py::test_robot_snapshot_equals_live_state_after_every_step_and_reset": "formula",
     "test_simulation.py::test_same_layout_reset_teleports_without_rebuilding": "hand",
     "test_simulation.py::test_seeded_rollouts_are_bit_identical": "formula",  # path = v t less start-up; no sideways step
     "test_simulation.py::test_thousand_resets_do_not_grow_memory": "contract",
@@ -575,11 +654,13 @@ KINDS: dict[str, str] = {
     "test_tour.py::test_free_order_beats_the_given_order_where_they_differ": "hand",
     "test_tour.py::test_tour_rejects_bad_input": "contract",
     # ---- test_vector.py
-    "test_vector.py::test_make_vec_sync_is_seeded_autoresets_and_batches_info": "formula",  # batched goal distances = hypot(goal - pose); autoreset reward 0
+    # batched goal distances = hypot(goal - pose); autoreset reward 0
+    "test_vector.py::test_make_vec_sync_is_seeded_autoresets_and_batches_info": "formula",
     "test_vector.py::test_make_vec_async_gives_the_sync_batch": "formula",  # the async batch's goal distances = hypot(goal - pose)
     # ---- test_viz.py
     "test_viz.py::test_video_frames_are_composed_and_counted": "library",  # decoded by imageio; the documented frame count
-    "test_viz.py::test_recording_leaves_the_episode_unchanged": "library",  # the side video decoded by imageio: the documented frame count of each traced episode
+    # the side video decoded by imageio: the documented frame count of each traced episode
+    "test_viz.py::test_recording_leaves_the_episode_unchanged": "library",
     "test_viz.py::test_dashboard_needs_the_gui": "contract",
     "test_viz.py::test_simplify_path_keeps_corners_and_caps_segments": "hand",
     "test_viz.py::test_dashboard_throttles_and_replaces_in_place": "hand",
@@ -593,10 +674,12 @@ KINDS: dict[str, str] = {
     "test_viz_mission.py::test_mission_video_numbers_goals_and_shows_progress": "contract",
     "test_viz_mission.py::test_dashboard_marks_every_goal_and_progress": "hand",
     # ---- test_viz_movers.py
-    "test_viz_movers.py::test_plot_draws_one_route_per_mover_with_trail_and_footprint": "library",  # each final footprint against its Shapely shape from the mover's last pose
+    # each final footprint against its Shapely shape from the mover's last pose
+    "test_viz_movers.py::test_plot_draws_one_route_per_mover_with_trail_and_footprint": "library",
     "test_viz_movers.py::test_scripted_events_are_marked_on_the_plot": "hand",
     "test_viz_movers.py::test_static_world_logs_and_plots_no_movers_or_events": "hand",
-    "test_viz_movers.py::test_video_map_shows_movers_events_and_a_text_line": "hand",  # pixels at positions from the map transform written in the test
+    # pixels at positions from the map transform written in the test
+    "test_viz_movers.py::test_video_map_shows_movers_events_and_a_text_line": "hand",
     "test_viz_movers.py::test_recording_and_logging_leave_a_dynamic_episode_unchanged": "self",
     "test_viz_movers.py::test_dashboard_draws_routes_once_and_event_messages": "hand",
 }
