@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 
 import gymnasium as gym
 import numpy as np
@@ -56,7 +57,12 @@ def test_state_round_trips():
     d = Curriculum.from_spec(SPEC)
     d.restore(json.loads(json.dumps(c.state())))
     assert (d.stage, d.episodes_in_stage, list(d.recent)) == (c.stage, c.episodes_in_stage, list(c.recent))
+    # By hand from the rules: promoted on the 6th success, then 3 episodes of stage 1 in the window.
+    assert (d.stage, d.episodes_in_stage, list(d.recent)) == (1, 3, [1, 0, 1])
     assert d.record(True) == c.record(True)
+    # Episodes 5 and 6 of stage 1 succeed: the window [1, 1, 1, 1] >= 0.75 at min_episodes, so the
+    # restored curriculum promotes on the second, as the original does.
+    assert [d.record(True) for _ in range(2)] == [c.record(True) for _ in range(2)] == [None, 2]
 
 
 @pytest.mark.parametrize("spec, message", [
@@ -77,6 +83,8 @@ def test_set_episode_config_changes_the_next_episodes_and_restores():
     for seed in range(5):
         _, info = env.reset(seed=seed)
         assert 1.0 <= info["initial_distance"] <= 1.5 and info["shift"]["mass_scale"] == 1.5
+        (x, y, _), (gx, gy) = info["pose"], info["goal"]  # the distance is the straight one
+        assert info["initial_distance"] == pytest.approx(math.hypot(gx - x, gy - y), abs=1e-9)
     env.unwrapped.set_episode_config()
     _, info = env.reset(seed=0)
     assert info["initial_distance"] >= 2.0 and "shift" not in info

@@ -11,6 +11,8 @@ import pytest
 import bulletnav  # noqa: F401
 from bulletnav.config import asset_path
 from bulletnav.control.navigator import Navigator, NavigatorConfig
+from bulletnav.sim.layout import layout_to_dict
+from test_layout import _reachable_independent, _shapely_clearance
 
 EMPTY = str(asset_path("worlds", "empty.yaml"))
 HALL = str(asset_path("worlds", "hall.yaml"))
@@ -107,6 +109,11 @@ def test_sampled_missions_are_connected_and_apart():
         assert all(math.dist(a, b) >= 1.5 for k, a in enumerate(pts) for b in pts[k + 1:])
         free = env.unwrapped._scene.free_space
         assert all(free.reachable(pts[0], g) for g in info["goals"])
+        # Against outside references: SciPy's connected components of the free grid join the
+        # start to every goal, and Shapely puts each goal clear of every footprint and wall.
+        layout, cfg = env.unwrapped.scene.layout, env.unwrapped.config.sampler
+        assert all(_reachable_independent(layout, pts[0], g, cfg) for g in info["goals"])
+        assert _shapely_clearance(layout_to_dict(layout), np.array(pts)).min() >= cfg.clearance - 0.04  # up to the grid
     env.close()
 
 
