@@ -568,9 +568,9 @@ KINDS: dict[str, str] = {
     "test_safe_models.py::test_a_crafted_zip_entry_is_refused_and_never_runs": "contract",
     "test_safe_models.py::test_a_payload_in_any_entry_never_runs": "contract",
     "test_safe_models.py::test_a_crafted_vecnormalize_pickle_is_refused_and_never_runs": "contract",
-    "test_safe_models.py::test_a_pickle_beside_safe_files_is_never_opened": "contract",
+    "test_safe_models.py::test_a_pickle_beside_safe_files_is_never_opened": "formula",  # actions against a NumPy forward pass from the safetensors arrays
     "test_safe_models.py::test_a_crafted_tensor_file_is_refused": "contract",
-    "test_safe_models.py::test_safe_files_that_were_tampered_with_are_refused": "contract",
+    "test_safe_models.py::test_safe_files_that_were_tampered_with_are_refused": "library",  # the recorded digest is hashlib's SHA-256 of the file
     "test_safe_models.py::test_pickle_globals_reads_names_without_importing": "hand",
     "test_safe_models.py::test_shipped_models_load_from_the_safe_format_and_act_as_the_zip": "library",  # SB3's own zip loader
     "test_safe_models.py::test_normalizer_matches_vecnormalize_arithmetic": "library",  # SB3's VecNormalize
@@ -578,7 +578,7 @@ KINDS: dict[str, str] = {
     "test_safe_models.py::test_convert_model_needs_trust_for_a_pickle_and_reproduces_the_shipped_files": "golden",
     "test_safe_models.py::test_broken_statistics_and_sidecars_are_clear_errors": "contract",
     "test_safe_models.py::test_hyperparameter_files_name_only_allowed_classes": "contract",
-    "test_safe_models.py::test_a_pickled_schedule_function_is_not_run_and_the_model_still_acts": "contract",
+    "test_safe_models.py::test_a_pickled_schedule_function_is_not_run_and_the_model_still_acts": "formula",  # actions against a NumPy forward pass from the shipped arrays
     # ---- test_sensors.py
     "test_sensors.py::test_lidar_reads_a_wall_at_a_known_distance": "formula",
     "test_sensors.py::test_lidar_never_sees_the_robot_and_reads_max_range_in_the_open": "hand",

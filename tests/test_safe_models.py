@@ -4,6 +4,7 @@ the shipped models load from the pickle-free format, and the safe readers agree 
 from __future__ import annotations
 
 import base64
+import hashlib
 import io
 import json
 import pickle
@@ -72,6 +73,22 @@ def _crafted_zip(tmp_path: Path, marker: Path, key: str = "policy_class") -> Pat
     return model
 
 
+def _numpy_actions(weights: Path, obs: np.ndarray) -> np.ndarray:
+    """The deterministic actions of ppo_warehouse's policy computed here with NumPy from the raw
+    arrays that safetensors' own reader gives: the observation followed by exp(-clearance / 0.15)
+    per ray (clearance = 5 m x lidar entry less the stored footprint, at least 0; SB3's
+    ClearanceFeatures defaults), two tanh layers of 128, the action layer, clipped to [-1, 1]."""
+    from safetensors.numpy import load_file
+
+    w = {k: v.astype(np.float64) for k, v in load_file(weights).items()}
+    x = obs.astype(np.float64)
+    clearance = np.maximum(x[:, :36] * 5.0 - w["pi_features_extractor.footprint"], 0.0)
+    h = np.concatenate([x, np.exp(-clearance / 0.15)], axis=1)
+    for layer in ("mlp_extractor.policy_net.0", "mlp_extractor.policy_net.2"):
+        h = np.tanh(h @ w[f"{layer}.weight"].T + w[f"{layer}.bias"])
+    return np.clip(h @ w["action_net.weight"].T + w["action_net.bias"], -1.0, 1.0)
+
+
 def _evaluate(model: Path, capsys, *extra: str) -> tuple[int, str]:
     rc = main(["evaluate", "--model", str(model), "--algo", "ppo", "--episodes", "1", "--json", *extra])
     return rc, capsys.readouterr().err
@@ -125,6 +142,13 @@ def test_a_pickle_beside_safe_files_is_never_opened(tmp_path, capsys):
     (tmp_path / "ppo_warehouse_vecnormalize.pkl").write_bytes(pickle.dumps(_Payload(marker)))
     rc, _ = _evaluate(tmp_path / "ppo_warehouse.zip", capsys)
     assert rc == 0 and not marker.exists()
+    # What loaded is what the safe file holds: its actions against a NumPy forward pass from the
+    # raw arrays, on 256 observations drawn over the observation space.
+    model, _, _ = load_model(tmp_path / "ppo_warehouse.zip")
+    space = model.observation_space
+    obs = np.random.default_rng(1).uniform(space.low, space.high, (256, *space.shape)).astype(np.float32)
+    np.testing.assert_allclose(model.predict(obs, deterministic=True)[0],
+                               _numpy_actions(tmp_path / "ppo_warehouse.safetensors", obs), atol=1e-5)
 
 
 def test_a_crafted_tensor_file_is_refused(tmp_path, capsys):
@@ -151,6 +175,11 @@ def test_safe_files_that_were_tampered_with_are_refused(tmp_path, capsys):
     weights.write_bytes(bytes(blob))
     rc, err = _evaluate(model, capsys)
     assert rc == 2 and "SHA-256" in err
+    # The digest the sidecar records is hashlib's SHA-256 of the shipped file, and the flipped byte
+    # gives another: the check compares the file with the real digest.
+    recorded = json.loads((tmp_path / "m.json").read_text())["policy"]["weights_sha256"]
+    assert hashlib.sha256((ROOT / "models" / "ppo_warehouse.safetensors").read_bytes()).hexdigest() == recorded
+    assert hashlib.sha256(bytes(blob)).hexdigest() != recorded
     shutil.copy(ROOT / "models" / "ppo_warehouse.safetensors", weights)
     meta = json.loads((tmp_path / "m.json").read_text())
     meta["policy"]["class"] = "os.system"
@@ -285,6 +314,11 @@ def test_a_pickled_schedule_function_is_not_run_and_the_model_still_acts(tmp_pat
     shipped, _, _ = load_model(ROOT / "models" / "ppo_warehouse.zip")
     obs = np.zeros((4, *loaded.observation_space.shape), dtype=np.float32)
     np.testing.assert_array_equal(loaded.predict(obs, deterministic=True)[0], shipped.predict(obs, deterministic=True)[0])
+    # and acts as the weights say: against a NumPy forward pass from the shipped safe file's arrays
+    space = loaded.observation_space
+    obs = np.random.default_rng(2).uniform(space.low, space.high, (64, *space.shape)).astype(np.float32)
+    np.testing.assert_allclose(loaded.predict(obs, deterministic=True)[0],
+                               _numpy_actions(ROOT / "models" / "ppo_warehouse.safetensors", obs), atol=1e-5)
     assert loaded.learning_rate == 0.0
     with pytest.raises(ModelError, match="pickled function"):
         loaded.clip_range(1.0)
