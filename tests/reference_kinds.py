@@ -405,8 +405,8 @@ KINDS: dict[str, str] = {
     "test_mission.py::test_mission_env_passes_the_checkers": "library",
     "test_mission.py::test_yaml_goals_are_the_missions_goals_and_bad_ones_are_refused": "hand",
     # ---- test_mission_policy.py
-    "test_mission_policy.py::test_the_shipped_mission_policy_completes_unseen_missions": "contract",
-    "test_mission_policy.py::test_every_shipped_model_is_in_the_checkout": "contract",
+    "test_mission_policy.py::test_the_shipped_mission_policy_completes_unseen_missions": "formula",  # sim time = steps / 24 Hz, SPL = S l / max(p, l) from each row
+    "test_mission_policy.py::test_every_shipped_model_is_in_the_checkout": "library",  # hashlib SHA-256 of each safe file = its sidecar's digest
     # ---- test_movers.py
     "test_movers.py::test_forklift_body_follows_constant_speed_kinematics_back_and_forth": "formula",
     "test_movers.py::test_forward_lidar_ray_sees_a_crossing_forklift_at_the_analytic_range_and_window": "formula",

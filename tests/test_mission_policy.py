@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+import json
 from pathlib import Path
 
 import gymnasium as gym
@@ -29,8 +31,19 @@ def test_the_shipped_mission_policy_completes_unseen_missions():
     assert all(r.goals_total == 3 for r in results)
     assert sum(r.success for r in results) >= 2
     assert sum(r.goals_reached for r in results) >= 7
+    # Each row's derived figures recomputed from its own raw ones: the simulated time is the
+    # steps at 24 Hz, SPL is S * l / max(p, l), and success means every goal reached.
+    for r in results:
+        assert r.sim_time == pytest.approx(r.steps / 24, abs=1e-9)
+        assert r.spl == pytest.approx(r.success * r.shortest_path / max(r.path_length, r.shortest_path), abs=1e-9)
+        assert r.success == (r.goals_reached == r.goals_total)
 
 
 def test_every_shipped_model_is_in_the_checkout():
     for env_id, path in SHIPPED_MODELS.items():
         assert (ROOT / path).is_file(), f"demo --env {env_id} would look for {path}"
+        # its weights whole: hashlib's SHA-256 of the safe file is the digest its sidecar records
+        zipped = ROOT / path
+        meta = json.loads(zipped.with_suffix(".json").read_text())
+        digest = hashlib.sha256(zipped.with_suffix(".safetensors").read_bytes()).hexdigest()
+        assert meta["env_id"] == env_id and digest == meta["policy"]["weights_sha256"], path
