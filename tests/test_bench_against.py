@@ -73,6 +73,7 @@ def test_against_head_measures_both_sides(capsys):
     out = json.loads(capsys.readouterr().out)
     assert code == 0
     assert out["benchmark"] == "env_against" and out["rounds"] == 1 and len(out["before_commit"]) == 7
+    assert len(out["load_average_1min"]) == 2
     row = out["ids"]["bulletnav/WarehouseAisles-v0"]
     for side in ("before", "after"):
         for key in ("reset_ms", "reset_ms_p90", "reset_cpu_ms", "steps_per_s_with_resets", "steps_per_s_between_resets",

@@ -309,7 +309,7 @@ def bench_against(commit: str, env_ids: tuple[str, ...] = REGISTERED, rounds: in
     round then runs both sides in fresh processes, in alternating order, so machine drift hits
     both alike. Per id, ``before`` and ``after`` hold the medians over rounds, ``speedup`` the
     median of the per-round ratios and ``ratios`` every round's (after over before for steps/s,
-    before over after for reset times).
+    before over after for reset times); ``load_average_1min`` the machine's load at start and end.
 
     Raises:
         BulletnavError: ``commit`` cannot be measured: not a commit of ``repo`` (default: the
@@ -319,6 +319,7 @@ def bench_against(commit: str, env_ids: tuple[str, ...] = REGISTERED, rounds: in
     root = Path(repo).resolve() if repo else Path(__file__).resolve().parents[2]
     python = python or sys.executable
     spec = {"ids": list(env_ids), "resets": resets, "steps": steps, "seed": seed}
+    load = [round(os.getloadavg()[0], 2)]
     tmp = Path(tempfile.mkdtemp(prefix="bulletnav-before-"))
     try:
         full = _export(commit, root, tmp)
@@ -332,9 +333,11 @@ def bench_against(commit: str, env_ids: tuple[str, ...] = REGISTERED, rounds: in
                 runs[side].append(_probe(python, sides[side], spec, labels[side])["ids"])
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+    load.append(round(os.getloadavg()[0], 2))
     head = _git(root, "rev-parse", "--short", "HEAD").stdout.decode().strip()
     dirty = bool(_git(root, "status", "--porcelain", "--untracked-files=no").stdout.strip())
     return {"benchmark": "env_against", "before_commit": full[:7], "after_commit": head + ("+changes" if dirty else ""),
             "rounds": rounds, "resets": resets, "steps": steps, "seed": seed, "measured_by": "bulletnav/bench/against_probe.py",
+            "load_average_1min": load,
             "ids": {env_id: _against_row([run[env_id] for run in runs["before"]], [run[env_id] for run in runs["after"]])
                     for env_id in env_ids}}
