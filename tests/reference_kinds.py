@@ -387,7 +387,7 @@ KINDS: dict[str, str] = {
     "test_limits.py::test_a_bad_variable_is_named": "contract",
     "test_limits.py::test_env_kwargs_are_checked_before_a_world_is_built": "contract",
     "test_limits.py::test_max_episode_steps_through_make_env": "hand",  # 100,000 builds, 100,001 refused, exact line
-    "test_limits.py::test_layout_files_name_file_field_and_limit": "contract",
+    "test_limits.py::test_layout_files_name_file_field_and_limit": "hand",  # the whole line, one above each documented limit
     "test_limits.py::test_layout_at_the_limits_loads": "hand",  # the documented limits written out
     "test_limits.py::test_benchmark_suite_world_kwargs": "hand",  # 1000 / 8 pass, 1001 / 9 refused
     "test_limits.py::test_sweep_grid_is_refused_before_it_is_expanded": "hand",  # 10,000 trials pass, 10,001 refused

@@ -207,13 +207,16 @@ BOX = {"type": "box", "center": [0.0, 0.0], "size": [0.2, 0.2, 0.5]}
 
 
 @pytest.mark.parametrize("data, what", [
-    ({"size": [10_000.0, 10.0], "obstacles": []}, "field 'size[0]' = 10000.0 exceeds the limit 200.0"),
-    ({"size": [10.0, 10.0], "obstacles": [BOX] * (D.obstacles + 1)}, "field 'obstacles (entries)' = 1001"),
+    ({"size": [10_000.0, 10.0], "obstacles": []},
+     "field 'size[0]' = 10000.0 exceeds the limit 200.0 (raise it with BULLETNAV_MAX_WORLD_SIZE)"),
+    ({"size": [10.0, 10.0], "obstacles": [BOX] * (D.obstacles + 1)},
+     "field 'obstacles (entries)' = 1001 exceeds the limit 1000 (raise it with BULLETNAV_MAX_OBSTACLES)"),
     ({"size": [10.0, 10.0], "dynamic": [{"type": "worker", "waypoints": [[1, 1], [2, 2]]}] * (D.movers + 1)},
      "field 'dynamic (entries)' = 65 exceeds the limit 64 (raise it with BULLETNAV_MAX_MOVERS)"),
     ({"size": [10.0, 10.0], "events": [{"at": 1.0, "add": BOX}] * (D.events + 1)},
-     "field 'events (entries)' = 1001 exceeds the limit 1000"),
-    ({"size": [10.0, 10.0], "goals": [[1.0, 1.0]] * (D.goals + 1)}, "field 'goals (entries)' = 9 exceeds the limit 8"),
+     "field 'events (entries)' = 1001 exceeds the limit 1000 (raise it with BULLETNAV_MAX_EVENTS)"),
+    ({"size": [10.0, 10.0], "goals": [[1.0, 1.0]] * (D.goals + 1)},
+     "field 'goals (entries)' = 9 exceeds the limit 8 (raise it with BULLETNAV_MAX_GOALS)"),
 ])
 def test_layout_files_name_file_field_and_limit(tmp_path, data, what):
     from bulletnav.sim.layout import load_layout
@@ -224,6 +227,7 @@ def test_layout_files_name_file_field_and_limit(tmp_path, data, what):
         load_layout(path)
     assert str(err.value).startswith(f"{path}: ")
     assert what in str(err.value)
+    assert str(err.value) == f"{path}: {what}"  # the whole line: one above the documented limit, by hand
 
 
 def test_layout_at_the_limits_loads(tmp_path):
