@@ -141,6 +141,14 @@ def test_seeded_runs_are_equal_step_for_step():
     assert len(a) == len(b) > 3 * STEPS_PER_EPISODE
     for x, y in zip(a, b):
         np.testing.assert_array_equal(x, y)
+    # by hand: 0.5 s episodes at 24 Hz end together on step 12 and only there, each of the 4
+    # robots then handing over one terminal observation (reset obs, then obs, rewards, dones per step)
+    dones, k = [], 1
+    for _ in range(STEPS_PER_EPISODE + 3):
+        dones.append(a[k + 2])
+        k += 3 + (4 if a[k + 2].any() else 0)
+    assert k == len(a)
+    assert [d.tolist() for d in dones] == [[float(t == 12)] * 4 for t in range(1, STEPS_PER_EPISODE + 4)]
 
 
 # ------------------------------------------------------------------ batched inference

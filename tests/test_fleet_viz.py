@@ -70,6 +70,12 @@ def recorded(tmp_path_factory):
 def test_pictures_leave_the_episodes_unchanged(recorded):
     _, _, _, with_pictures, without = recorded
     assert _rows(with_pictures) == _rows(without)
+    # each row against its documented definition, worked out here: episode k has seed 11 + k,
+    # the throughput is errands per simulated hour of the 2 s episode, the errand count the legs' halves at most
+    for k, row in enumerate(with_pictures["episodes"]):
+        assert row["episode"] == k and row["seed"] == 11 + k and row["robots"] == ROBOTS
+        assert row["throughput_per_hour"] == pytest.approx(row["errands"] * 3600.0 / DURATION, rel=1e-12)
+        assert 2 * row["errands"] <= row["legs"]
 
 
 def test_video_of_episode_0_decodes_with_one_frame_per_step(recorded):
