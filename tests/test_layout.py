@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -186,9 +187,29 @@ def _reachable_independent(layout, a, b, cfg):
 
 def test_layout_without_valid_pair_raises(write_layout):
     # A wall of boxes splits the room; each half is too small for a 2 m start-goal distance.
-    layout = write_layout({"size": [2.5, 3.0], "obstacles": [{"type": "box", "center": [0.0, 0.0], "size": [2.5, 0.4, 1.0]}]})
+    data = {"size": [2.5, 3.0], "obstacles": [{"type": "box", "center": [0.0, 0.0], "size": [2.5, 0.4, 1.0]}]}
+    layout = write_layout(data)
     with pytest.raises(SamplingError, match="no reachable start/goal pair"):
         sample_start_goal(FreeSpace.build(layout, SamplerConfig(), RADIUS), np.random.default_rng(0), SamplerConfig(max_tries=50))
+    # The refusal is right, by Shapely: the places clear by the sampler's clearance form two
+    # pieces (one per half), and the farthest two points of either are closer than the minimum
+    # start-goal distance.
+    cfg = SamplerConfig()
+    clear = shapely.box(-1.25, -1.5, 1.25, 1.5).difference(shapely.box(-1.25, -0.2, 1.25, 0.2)).buffer(-cfg.clearance)
+    pieces = list(getattr(clear, "geoms", [clear]))
+    assert len(pieces) == 2
+    for piece in pieces:
+        corners = np.array(piece.convex_hull.exterior.coords)
+        diameter = np.max(np.hypot(*(corners[:, None, :] - corners[None, :, :]).transpose(2, 0, 1)))
+        assert 1.0 < diameter < cfg.min_goal_distance  # 1.77 m: hypot(2.5 - 0.8, 1.3 - 0.8)
+    points = np.random.default_rng(0).uniform((-1.25, -1.5), (1.25, 1.5), size=(2000, 2))
+    inside = shapely.contains_xy(clear, points[:, 0], points[:, 1])
+    np.testing.assert_array_equal(inside, _shapely_clearance(data, points) >= cfg.clearance)  # the same places
+    # Below that diameter the sampler does find pairs, both ends in one piece (up to its grid).
+    near = replace(cfg, min_goal_distance=1.5)
+    (sx, sy, _), (gx, gy) = sample_start_goal(FreeSpace.build(layout, near, RADIUS), np.random.default_rng(0), near)
+    assert math.hypot(gx - sx, gy - sy) >= 1.5
+    assert any(piece.buffer(0.05).contains(shapely.MultiPoint([(sx, sy), (gx, gy)])) for piece in pieces)
 
 
 def test_disconnected_halves_are_not_reachable(write_layout):
