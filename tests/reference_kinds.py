@@ -92,8 +92,10 @@ KINDS: dict[str, str] = {
     "test_benchmark.py::test_turning_and_a_slow_drive": "hand",
     "test_benchmark.py::test_person_zones_are_counted_both_ways_and_collisions_by_kind": "hand",
     "test_benchmark.py::test_tiny_results_are_the_committed_ones_at_1_and_2_workers": "golden",
-    "test_benchmark.py::test_an_interrupted_run_resumes_without_rerunning": "contract",
-    "test_benchmark.py::test_cli_prints_the_headline_and_writes_the_report": "contract",
+    # the resumed rows against the committed tiny-suite rows
+    "test_benchmark.py::test_an_interrupted_run_resumes_without_rerunning": "golden",
+    # the printed rows against the committed tiny-suite rows
+    "test_benchmark.py::test_cli_prints_the_headline_and_writes_the_report": "golden",
     "test_benchmark.py::test_build_results_orders_rows_and_keeps_one_per_episode": "hand",
     "test_benchmark.py::test_tiny_suite_through_a_ray_cluster_gives_the_committed_rows": "golden",
     "test_benchmark.py::test_an_address_with_no_cluster_is_one_clear_error": "contract",
@@ -288,7 +290,8 @@ KINDS: dict[str, str] = {
     "test_fleet_learning.py::test_adapter_follows_the_vecenv_api": "library",
     # the autoreset written out in the test on a plain fleet
     "test_fleet_learning.py::test_autoreset_matches_a_fleet_stepped_by_hand": "formula",
-    "test_fleet_learning.py::test_seeded_runs_are_equal_step_for_step": "hand",  # episodes end together on step 12 (0.5 s at 24 Hz) and only there, 4 terminal observations
+    # episodes end together on step 12 (0.5 s at 24 Hz) and only there, 4 terminal observations
+    "test_fleet_learning.py::test_seeded_runs_are_equal_step_for_step": "hand",
     "test_fleet_learning.py::test_batched_actions_match_per_robot_predict": "library",  # SB3's own predict per robot
     "test_fleet_learning.py::test_fleet_train_writes_a_safe_model_and_resumes": "hand",
     # ---- test_fleet_viz.py
@@ -374,7 +377,8 @@ KINDS: dict[str, str] = {
     "test_layout.py::test_obstacle_count_is_configurable_and_gaps_hold": "formula",
     "test_layout.py::test_too_many_obstacles_raise_a_clear_error": "contract",
     "test_layout.py::test_sampler_respects_distance_clearance_and_reachability": "library",  # SciPy connected components
-    "test_layout.py::test_layout_without_valid_pair_raises": "library",  # Shapely: no 2 m pair in either clear piece; a 1.5 m pair lies in one
+    # Shapely: no 2 m pair in either clear piece; a 1.5 m pair lies in one
+    "test_layout.py::test_layout_without_valid_pair_raises": "library",
     "test_layout.py::test_disconnected_halves_are_not_reachable": "hand",
     # ---- test_limits.py
     # docs/limits.md defaults and variables written in the test
@@ -405,8 +409,10 @@ KINDS: dict[str, str] = {
     "test_mission.py::test_mission_env_passes_the_checkers": "library",
     "test_mission.py::test_yaml_goals_are_the_missions_goals_and_bad_ones_are_refused": "hand",
     # ---- test_mission_policy.py
-    "test_mission_policy.py::test_the_shipped_mission_policy_completes_unseen_missions": "formula",  # sim time = steps / 24 Hz, SPL = S l / max(p, l) from each row
-    "test_mission_policy.py::test_every_shipped_model_is_in_the_checkout": "library",  # hashlib SHA-256 of each safe file = its sidecar's digest
+    # sim time = steps / 24 Hz, SPL = S l / max(p, l) from each row
+    "test_mission_policy.py::test_the_shipped_mission_policy_completes_unseen_missions": "formula",
+    # hashlib SHA-256 of each safe file = its sidecar's digest
+    "test_mission_policy.py::test_every_shipped_model_is_in_the_checkout": "library",
     # ---- test_movers.py
     "test_movers.py::test_forklift_body_follows_constant_speed_kinematics_back_and_forth": "formula",
     "test_movers.py::test_forward_lidar_ray_sees_a_crossing_forklift_at_the_analytic_range_and_window": "formula",
@@ -498,6 +504,7 @@ KINDS: dict[str, str] = {
     "test_reference_kinds.py::test_every_test_function_has_a_kind_and_every_kind_a_test_function": "contract",
     "test_reference_kinds.py::test_every_kind_is_one_of_the_documented_ones": "contract",
     "test_reference_kinds.py::test_the_collector_and_the_tables_on_a_made_up_folder": "hand",
+    "test_reference_kinds.py::test_the_table_keeps_within_ruffs_line_length": "contract",
     # ---- test_report_browser.py
     "test_report_browser.py::test_report_in_chromium": "library",  # a real Chromium through Playwright
     # ---- test_reset_kernels.py
