@@ -7,6 +7,7 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
+import shapely
 
 import bulletnav  # noqa: F401
 from bulletnav.config import asset_path
@@ -125,6 +126,16 @@ def test_bad_mission_input_is_refused_with_the_value():
         env.reset(seed=0, options={"goals": [[9.0, 0.0], [3.0, 1.0]]})
     with pytest.raises(ValueError, match="has 1 goals but the env was made with goals=2"):
         env.reset(seed=0, options={"goals": [[3.0, 1.0]]})
+    # The refusals agree with Shapely on the hall's own geometry: (-2, 0) inside a footprint,
+    # (9, 0) off the floor; two goals Shapely puts clear of everything are taken as given.
+    data = layout_to_dict(env.unwrapped.scene.layout)
+    hx, hy = data["size"][0] / 2, data["size"][1] / 2
+    assert _shapely_clearance(data, np.array([[-2.0, 0.0]]))[0] == 0.0
+    assert not shapely.box(-hx, -hy, hx, hy).contains(shapely.Point(9.0, 0.0))
+    good = [[3.0, 1.0], [-3.0, -2.0]]
+    assert _shapely_clearance(data, np.array(good)).min() > 0.5
+    _, info = env.reset(seed=0, options={"goals": good})
+    assert [list(g) for g in info["goals"]] == good
     env.close()
     with pytest.raises(ValueError, match=r"task goals = 9 exceeds the limit 8 \(raise it with BULLETNAV_MAX_GOALS\)"):
         gym.make("bulletnav/Warehouse-v0", task_name="mission", goals=9)
