@@ -405,7 +405,8 @@ KINDS: dict[str, str] = {
     "test_mission.py::test_mission_step_limit_scales_with_the_goals": "hand",
     # SciPy components join start and goals; Shapely clearance
     "test_mission.py::test_sampled_missions_are_connected_and_apart": "library",
-    "test_mission.py::test_bad_mission_input_is_refused_with_the_value": "library",  # refused points inside a footprint / off the floor by Shapely; clear goals taken
+    # refused points inside a footprint / off the floor by Shapely; clear goals taken
+    "test_mission.py::test_bad_mission_input_is_refused_with_the_value": "library",
     "test_mission.py::test_mission_env_passes_the_checkers": "library",
     "test_mission.py::test_yaml_goals_are_the_missions_goals_and_bad_ones_are_refused": "hand",
     # ---- test_mission_policy.py
