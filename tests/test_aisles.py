@@ -209,6 +209,16 @@ def test_clutter_narrows_aisles_without_closing_them():
     assert narrowed >= 20
 
 
+def _footprint(o):
+    """An obstacle's footprint as a Shapely polygon: the box's size rectangle turned by its yaw
+    about its centre, or the cylinder's disc."""
+    if o.kind == "box":
+        sx, sy = o.size[0] / 2, o.size[1] / 2
+        box = shapely.affinity.rotate(shapely.box(-sx, -sy, sx, sy), o.yaw, origin=(0, 0), use_radians=True)
+        return shapely.affinity.translate(box, *o.center)
+    return shapely.Point(o.center).buffer(o.radius, quad_segs=64)
+
+
 def test_generator_is_seeded_and_registered():
     assert WORLDS["aisles"] is world_generator("aisles")
     assert _layout(5) == _layout(5) and _layout(5) != _layout(6)
@@ -220,6 +230,15 @@ def test_generator_is_seeded_and_registered():
     # the default 14 x 14 floor fits an aisle warehouse too
     small = world_generator("aisles")(np.random.default_rng(0), WorldConfig(style="aisles"))
     assert small.size == (14.0, 14.0) and any(o.label == "rack" for o in small.obstacles)
+    # By Shapely, on five seeds and the small floor: every footprint lies on the floor and no
+    # two overlap (they may touch: a rack against the wall or its neighbour).
+    for layout in [*(_layout(s) for s in range(5)), small]:
+        hx, hy = layout.half_extents
+        floor = shapely.box(-hx, -hy, hx, hy).buffer(1e-9)
+        shapes = [_footprint(o) for o in layout.obstacles]
+        assert all(floor.covers(shape) for shape in shapes)
+        overlap = max(a.intersection(b).area for k, a in enumerate(shapes) for b in shapes[k + 1:])
+        assert overlap < 1e-9
 
 
 # --------------------------------------------------------------------------- sampler options
