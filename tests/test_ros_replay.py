@@ -110,6 +110,12 @@ def test_foxglove_layout_and_panel(recorded, tmp_path, capsys):
     topics = set(layout["configById"]["3D!bulletnav"]["topics"])
     paths = {p["value"].split(".")[0] for cfg in layout["configById"].values() for p in cfg.get("paths", [])}
     assert topics | paths <= set(TOPIC_TYPES)
+    # ... and the recording has them: its channels as mcap's own reader lists them
+    from mcap.reader import make_reader
+
+    with open(recorded / "run.mcap", "rb") as f:
+        recorded_topics = {c.topic for c in make_reader(f).get_summary().channels.values()}
+    assert topics | paths <= recorded_topics, (topics | paths) - recorded_topics
     assert layout["configById"]["3D!bulletnav"]["followTf"] == "base_link"
     out = tmp_path / "panel.png"
     assert main(["replay", str(recorded / "run.mcap"), "--panel", str(out), "--panel-at", "4", "--json"]) == 0
