@@ -568,7 +568,8 @@ KINDS: dict[str, str] = {
     # 200 steps of 1/24 s per episode, counted and timed with mcap's reader
     "test_ros_replay.py::test_recording_holds_what_replay_needs": "hand",
     "test_ros_replay.py::test_replay_refuses_what_is_no_recording": "contract",
-    "test_ros_replay.py::test_foxglove_layout_and_panel": "library",  # every topic the layout names is a channel of the recording, as mcap's reader lists them
+    # every topic the layout names is a channel of the recording, as mcap's reader lists them
+    "test_ros_replay.py::test_foxglove_layout_and_panel": "library",
     # ---- test_rrt_fresh_process.py
     # every path clear of the occupied cells by Shapely
     "test_rrt_fresh_process.py::test_first_call_in_fresh_process_solves_narrow_passage": "library",
