@@ -17,10 +17,11 @@ def _env_against(args: argparse.Namespace) -> tuple[dict, list[str]]:
     result = bench_against(args.against, (args.env_id,) if args.env_id else REGISTERED, rounds=args.rounds,
                            resets=args.resets, steps=args.steps or 6000, seed=args.seed)
     lines = [f"{'id':32s} {'reset ms before':>16s} {'after':>7s} {'steps/s with resets before':>27s} {'after':>8s} "
-             f"{'speed-up':>9s}"]
+             f"{'speed-up':>9s} {'(CPU time)':>10s}"]
     lines += [f"{env_id:32s} {r['before']['reset_ms']:16.2f} {r['after']['reset_ms']:7.2f} "
               f"{r['before']['steps_per_s_with_resets']:27.1f} {r['after']['steps_per_s_with_resets']:8.1f} "
-              f"{r['speedup']['steps_per_s_with_resets']:8.3f}x" for env_id, r in result["ids"].items()]
+              f"{r['speedup']['steps_per_s_with_resets']:8.3f}x {r['speedup']['cpu_steps_per_s_with_resets']:9.3f}x"
+              for env_id, r in result["ids"].items()]
     return result, lines
 
 
