@@ -270,7 +270,7 @@ def test_sweep_interrupted_with_ctrl_c_resumes_without_rerunning_finished_trials
     # a guard against a hang, not a timing check: on a loaded 2-core machine the resumed trial took over 300 s
     resumed = subprocess.run([*cmd, "--resume", "--json"], capture_output=True, text=True, timeout=900)
     assert resumed.returncode == 0, resumed.stdout[-2000:] + resumed.stderr[-2000:]
-    record = json.loads(resumed.stdout[resumed.stdout.index("{"):])
+    record = json.loads(resumed.stdout)  # --json: the whole of stdout is the one document (test_json_output)
     assert [r["status"] for r in record["trials"]] == ["finished", "finished"]
     assert first.stat().st_mtime_ns == finished_at  # the finished trial was not rerun
     run1 = json.loads((Path(record["trials"][1]["model"]).parent / "run.json").read_text())
