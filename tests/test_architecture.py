@@ -726,3 +726,70 @@ def test_the_writers_write_what_they_are_given(tmp_path):
     files.save_image(image, tmp_path / "e.png", optimize=True)
     assert np.array_equal(np.asarray(Image.open(tmp_path / "e.png")), image)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.bin", "b.txt", "c.json", "e.png"]
+
+
+# ---------------------------------------------------------------------------------------
+# (f) no function over 80 lines
+
+MAX_FUNCTION_LINES = 80
+"""The most lines a function of the package may span, from its ``def`` to its last line
+(decorators not counted), except the numeric kernels in :data:`LONG_FUNCTIONS`. Ruff's
+``C901`` and ``PLR0915`` (pyproject.toml) bound the branches and statements of the same
+functions; ruff has no rule for lines."""
+
+LONG_FUNCTIONS = {
+    "bulletnav/planning/astar.py::_astar_kernel": (
+        "numba kernel: 8-connected A* over a flattened, bordered grid with its binary heap (integer "
+        "keys ordering f) pushed and popped inline in one compiled loop; its paths are pinned bit for "
+        "bit by the golden traces, and the loop's state (heap, g, parents, flags) is one unit"),
+}
+"""``"path::qualified name"`` -> why it may be longer than :data:`MAX_FUNCTION_LINES` (numeric
+kernels only, each still over the limit: a stale entry fails)."""
+
+
+def function_lengths(source: str, filename: str) -> dict[str, int]:
+    """``"filename::qualified name"`` (``Class.method``, ``outer.inner``) -> lines spanned, of
+    every function and method in ``source``."""
+    out: dict[str, int] = {}
+
+    def visit(node: ast.AST, prefix: str) -> None:
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                name = f"{prefix}{child.name}"
+                out[f"{filename}::{name}"] = child.end_lineno - child.lineno + 1
+                visit(child, f"{name}.")
+            elif isinstance(child, ast.ClassDef):
+                visit(child, f"{prefix}{child.name}.")
+            else:
+                visit(child, prefix)
+
+    visit(ast.parse(source, filename), "")
+    return out
+
+
+def test_function_length_checker_measures_what_it_should():
+    snippet = ("@decorator\n"                   # line 1: not counted
+               "def f(x):\n"                     # line 2
+               "    def g():\n"                  # line 3
+               "        return 1\n"              # line 4
+               "    return g() + x\n"            # line 5
+               "class C:\n"
+               "    def m(self):\n"
+               "        if self:\n"
+               "            pass\n"
+               "\n"
+               "        return None\n"
+               "async def h():\n"
+               "    pass\n")
+    assert function_lengths(snippet, "s.py") == {"s.py::f": 4, "s.py::f.g": 2, "s.py::C.m": 5, "s.py::h": 2}
+
+
+def test_no_function_is_over_80_lines_but_the_listed_kernels():
+    lengths = {k: n for path in sorted(PKG.rglob("*.py")) for k, n in function_lengths(path.read_text(), _rel(path)).items()}
+    assert len(lengths) > 1000  # the walk found the package's functions
+    long = {k: n for k, n in lengths.items() if n > MAX_FUNCTION_LINES and k not in LONG_FUNCTIONS}
+    assert not long, (f"functions over {MAX_FUNCTION_LINES} lines (split them along their seams; only numeric "
+                      f"kernels may be listed in LONG_FUNCTIONS, with the reason):\n"
+                      + "\n".join(f"{n:4d} {k}" for k, n in sorted(long.items(), key=lambda e: -e[1])))
+    stale = {k: lengths.get(k) for k in LONG_FUNCTIONS if lengths.get(k, 0) <= MAX_FUNCTION_LINES}
+    assert not stale, f"LONG_FUNCTIONS entries gone or no longer over {MAX_FUNCTION_LINES} lines (remove them): {stale}"

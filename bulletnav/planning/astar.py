@@ -85,7 +85,8 @@ def _pop(heap: np.ndarray, n: int) -> int:
 
 
 @njit(cache=True, nogil=True)
-def _astar_kernel(occ: np.ndarray, sx: int, sy: int, gx: int, gy: int, res: float, ox: float, oy: float,
+def _astar_kernel(occ: np.ndarray, sx: int, sy: int,  # noqa: C901, PLR0915  (numeric kernel: LONG_FUNCTIONS in test_architecture.py)
+                  gx: int, gy: int, res: float, ox: float, oy: float,
                   octile: bool) -> tuple[float, np.ndarray, np.ndarray, int]:
     """A* from cell (sx, sy) to (gx, gy) over the free cells of ``occ`` (uint8, 1 = occupied).
 
