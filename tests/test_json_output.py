@@ -6,7 +6,7 @@ included) on stderr.
 prints, C code's writes (PyBullet), and C stdio buffers flushed when the process ends. Each
 command runs with the smallest arguments that still do its work (one short episode, a one-world
 suite). To spare ten fresh interpreters their imports (ten seconds each on a loaded machine), one
-driver process (:data:`DRIVER`) imports ``bulletnav.cli``, every ``bulletnav`` module and the
+driver process (:data:`DRIVER`) imports ``bulletnav.cli``, every ``bulletnav`` module (but Ray's, sweep) and the
 heavy libraries once, and forks a child per command: the child points file descriptors 1 and 2 at
 files of its own, runs ``bulletnav.cli.main(argv)``, then does what a process's end writes -- the
 atexit handlers, then Python's and C's stdio buffers flushed -- and leaves with ``os._exit``
@@ -77,7 +77,8 @@ import bulletnav.cli  # as `bulletnav` imports it; then what the commands import
 for name in plan["preload"]:
     importlib.import_module(name)
 for module in pkgutil.walk_packages(bulletnav.__path__, "bulletnav."):
-    importlib.import_module(module.name)
+    if not module.name.startswith("bulletnav.sweep"):  # Ray, and its allocator's thread: sweep is not run here
+        importlib.import_module(module.name)
 libc = ctypes.CDLL(None)
 done = {}
 for step in plan["steps"]:
