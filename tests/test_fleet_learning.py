@@ -16,14 +16,14 @@ from stable_baselines3.common.vec_env import VecEnv, VecMonitor, VecNormalize
 
 from bulletnav.cli import main
 from bulletnav.fleet import fleet_v0
-from bulletnav.fleet.controllers import DEFAULT_MODEL, make_controller, model_env_kwargs, policy_controller
+from bulletnav.fleet.controllers import DEFAULT_FLEET_MODEL, make_controller, model_env_kwargs, policy_controller
 from bulletnav.fleet.learned import SharedPolicyController
 from bulletnav.fleet.vec import FleetVecEnv
 from bulletnav.rl.io import load_model
 from bulletnav.rl.policy import SB3Policy
 
 ROOT = Path(__file__).resolve().parent.parent
-MODEL = ROOT / DEFAULT_MODEL
+MODEL = ROOT / DEFAULT_FLEET_MODEL
 EMPTY = str(ROOT / "bulletnav" / "assets" / "worlds" / "empty.yaml")
 ROOM = {"world": EMPTY, "pick_stations": [(2.0, 3.0), (-2.0, 3.0)], "drop_stations": [(3.0, -3.5), (-3.0, -3.5)]}
 STEPS_PER_EPISODE = 12  # 0.5 s at 24 Hz

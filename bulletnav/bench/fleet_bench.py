@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from bulletnav.fleet.controllers import CONTROLLERS, DEFAULT_MODEL, make_controller, model_env_kwargs
+from bulletnav.fleet.controllers import CONTROLLERS, DEFAULT_FLEET_MODEL, make_controller, model_env_kwargs
 from bulletnav.fleet.env import FleetEnv
 
 SIZES = (1, 2, 4, 8, 16)
@@ -27,7 +27,7 @@ SIZES = (1, 2, 4, 8, 16)
 
 def time_fleet(controller_name: str, n: int, steps: int, warmup: int, seed: int) -> dict[str, Any]:
     """One row: ``steps`` timed control steps of ``n`` robots driven by ``controller_name``."""
-    model = DEFAULT_MODEL if controller_name == "policy" else None
+    model = DEFAULT_FLEET_MODEL if controller_name == "policy" else None
     kwargs = dict(model_env_kwargs(model)) if model else {}
     env = FleetEnv(num_robots=n, duration_s=3600.0, **kwargs)
     hz = env.config.physics.control_hz

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from bulletnav.benchmark.suite import SHIPPED_MODELS
 from bulletnav.cli.args import (
     COUNT,
     DATASET_HELP,
@@ -29,10 +30,9 @@ from bulletnav.cli.episodes import evaluate_report, load_for_evaluation
 from bulletnav.cli.output import holds_run, print_json, refuse_existing_files
 from bulletnav.errors import BulletnavError
 
-DEFAULT_MODEL = "models/ppo_warehouse.zip"
-SHIPPED_MODELS = {"bulletnav/Warehouse-v0": DEFAULT_MODEL, "bulletnav/WarehouseMission-v0": "models/ppo_mission.zip",
-                  "bulletnav/WarehouseDynamic-v0": "models/ppo_dynamic.zip"}
-"""The model ``demo`` runs on each env id when ``--model`` is not given (others: ``DEFAULT_MODEL``)."""
+DEFAULT_MODEL = SHIPPED_MODELS[DEFAULT_ENV_ID]
+"""The model ``demo`` runs when ``--model`` is not given and ``--env`` has no shipped model of its own
+(``SHIPPED_MODELS``, the benchmark's ``model: shipped`` table)."""
 DEFAULT_DEMO_OUT = "runs/demo"
 """Where ``demo`` writes without ``--out``; when it holds an earlier demo, ``runs/demo-2``, ``-3``, ..."""
 MODEL_ENV_HELP = "the env the model's .json names, else " + DEFAULT_ENV_ID
@@ -86,9 +86,8 @@ def _register_compare(sub) -> None:
 
 def _register_demo(sub) -> None:
     demo = add_command(sub, "demo", "the main job: the shipped PPO policy, report, video and trajectory plot")
-    demo.add_argument("--model", help=f"model zip (default: the shipped model for --env, {DEFAULT_MODEL} on "
-                      "Warehouse-v0, models/ppo_mission.zip on WarehouseMission-v0, models/ppo_dynamic.zip on "
-                      "WarehouseDynamic-v0)")
+    shipped = ", ".join(f"{path} on {env_id.split('/')[-1]}" for env_id, path in SHIPPED_MODELS.items())
+    demo.add_argument("--model", help=f"model zip (default: the shipped model for --env, {shipped})")
     demo.add_argument("--episodes", type=COUNT, default=5, help="episodes to run (default 5)")
     demo.add_argument("--seed", type=SEED, default=2024, help="episode k uses env seed S + k (default 2024)")
     add_env_arg(demo, MODEL_ENV_HELP)

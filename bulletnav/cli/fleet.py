@@ -172,11 +172,11 @@ def _fleet_hooks(args: argparse.Namespace) -> tuple:
 
 def cmd_fleet(args: argparse.Namespace) -> int:
     """Run a fleet controller on seeded fleet episodes; print the metrics (``--json``) or a table."""
-    from bulletnav.fleet.controllers import DEFAULT_MODEL, make_controller
+    from bulletnav.fleet.controllers import DEFAULT_FLEET_MODEL, make_controller
     from bulletnav.fleet.metrics import run_fleet_episodes
 
     _check_fleet_args(args)
-    model = args.model or DEFAULT_MODEL
+    model = args.model or DEFAULT_FLEET_MODEL
     env_kwargs = _fleet_env_kwargs(args, model)
     visuals, recorder = _fleet_hooks(args)
     hooks = [h for h in (visuals, recorder) if h is not None]

@@ -47,7 +47,7 @@ log = logging.getLogger(__name__)
 
 CONTROLLERS = ("independent", "coordinated", "policy")
 """Names :func:`make_controller` takes."""
-DEFAULT_MODEL = "models/ppo_dynamic.zip"
+DEFAULT_FLEET_MODEL = "models/ppo_dynamic.zip"
 """The single-robot model the ``policy`` controller drives with unless told otherwise."""
 
 
@@ -138,7 +138,7 @@ def model_env_kwargs(model_path: str | Path) -> dict[str, Any]:
     return {k: v for k, v in kwargs.items() if k not in _UNSUPPORTED and not k.startswith("shift_")}
 
 
-def policy_controller(env: FleetEnv, model_path: str | Path = DEFAULT_MODEL) -> SharedPolicyController:
+def policy_controller(env: FleetEnv, model_path: str | Path = DEFAULT_FLEET_MODEL) -> SharedPolicyController:
     """One SB3 model on every robot, all robots in one forward pass per step
     (:class:`~bulletnav.fleet.learned.SharedPolicyController`): a single-robot model zero-shot
     (``models/ppo_dynamic.zip``) or one fine-tuned in the fleet (``models/ppo_fleet.zip``).
@@ -245,10 +245,10 @@ def make_controller(name: str, env: FleetEnv, shield: bool = False, model: str |
     elif name == "coordinated":
         controller = CoordinatedController(env)
     else:
-        controller = policy_controller(env, model or DEFAULT_MODEL)
+        controller = policy_controller(env, model or DEFAULT_FLEET_MODEL)
     return ShieldedController(controller, env) if shield else controller
 
 
-__all__ = ["CONTROLLERS", "DEFAULT_MODEL", "CoordinatedConfig", "CoordinatedController", "ErrandNavigator",
+__all__ = ["CONTROLLERS", "DEFAULT_FLEET_MODEL", "CoordinatedConfig", "CoordinatedController", "ErrandNavigator",
            "FleetController", "PerRobotController", "ShieldedController", "independent_controller", "make_controller",
            "model_env_kwargs", "policy_controller"]

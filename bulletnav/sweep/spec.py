@@ -39,9 +39,9 @@ from typing import Any
 
 from bulletnav import ENV_ID, limits
 from bulletnav.errors import ConfigError, LimitError
+from bulletnav.rl.algos import ALGOS
 from bulletnav.yamlfile import read_yaml, show
 
-ALGOS = ("ppo", "sac", "td3", "a2c")
 DISTRIBUTIONS = ("uniform", "loguniform", "randint", "choice")
 """Forms of a ``search:`` entry: ``{uniform: [lo, hi]}``, ``{loguniform: [lo, hi]}``,
 ``{randint: [lo, hi]}`` (integers, ``hi`` excluded) and ``{choice: [v, ...]}``."""
@@ -125,37 +125,8 @@ class SweepSpec:
         if not limits.is_slug(kw["name"]):
             given = "" if data.get("name") else f" (default: the file's name, {show(default_name)})"
             raise bad("name", f"names the results folder{given}: it must be {limits.SLUG_RULE}")
-        env_id = data.get("env_id", ENV_ID)
-        if not isinstance(env_id, str) or not env_id:
-            raise bad("env_id", "must be a registered env id")
-        kw["env_id"] = env_id
-        if data.get("hyperparams") is not None:
-            hp = Path(str(data["hyperparams"])).expanduser()
-            if not hp.is_absolute():  # relative to where the sweep is started (as train --hyperparams)
-                hp = Path.cwd() / hp
-            if not hp.is_file():
-                raise bad("hyperparams", f"no such file {hp}")
-            kw["hyperparams"] = str(hp.resolve())
-        for name in ("env_kwargs", "resources"):
-            if data.get(name) is not None and not isinstance(data[name], dict):
-                raise bad(name, "must be a mapping")
-        kw["env_kwargs"] = dict(data.get("env_kwargs") or {})
-        if data.get("resources") is not None:
-            res = {}
-            for key, value in data["resources"].items():
-                if not isinstance(value, (int, float)) or isinstance(value, bool) or value < 0:
-                    raise bad("resources", f"{show(key)} must be a number >= 0")
-                res[str(key)] = float(value)
-            kw["resources"] = res
-        for name, low in (("timesteps", 1), ("eval_freq", 1), ("eval_episodes", 1), ("checkpoint_freq", 1)):
-            if name in data:
-                kw[name] = _int(data[name], low, bad, name)
-        if data.get("n_envs") is not None:
-            kw["n_envs"] = _int(data["n_envs"], 1, bad, "n_envs")
-        if "vec_env" in data:
-            if data["vec_env"] not in ("dummy", "subproc"):
-                raise bad("vec_env", "must be 'dummy' or 'subproc'")
-            kw["vec_env"] = data["vec_env"]
+        _environment(data, kw, bad)  # env id, hyperparameter file, env kwargs, resources
+        _training(data, kw, bad)  # step counts, n_envs, vec_env
         _trials(data, kw, where, bad)  # seeds, grid and their product's limit
         _scoring(data, kw, where, bad)  # search, early stopping, evaluation, metric, mode
         return cls(**kw)
@@ -194,6 +165,45 @@ class SweepSpec:
         d["grid"] = {k: tuple(v) for k, v in d["grid"].items()}
         d["seeds"] = tuple(d["seeds"])
         return cls(**d)
+
+
+def _environment(data: dict[str, Any], kw: dict[str, Any], bad) -> None:
+    """:meth:`SweepSpec.from_dict`'s ``env_id``, ``hyperparams``, ``env_kwargs`` and ``resources`` into ``kw``."""
+    env_id = data.get("env_id", ENV_ID)
+    if not isinstance(env_id, str) or not env_id:
+        raise bad("env_id", "must be a registered env id")
+    kw["env_id"] = env_id
+    if data.get("hyperparams") is not None:
+        hp = Path(str(data["hyperparams"])).expanduser()
+        if not hp.is_absolute():  # relative to where the sweep is started (as train --hyperparams)
+            hp = Path.cwd() / hp
+        if not hp.is_file():
+            raise bad("hyperparams", f"no such file {hp}")
+        kw["hyperparams"] = str(hp.resolve())
+    for name in ("env_kwargs", "resources"):
+        if data.get(name) is not None and not isinstance(data[name], dict):
+            raise bad(name, "must be a mapping")
+    kw["env_kwargs"] = dict(data.get("env_kwargs") or {})
+    if data.get("resources") is not None:
+        res = {}
+        for key, value in data["resources"].items():
+            if not isinstance(value, (int, float)) or isinstance(value, bool) or value < 0:
+                raise bad("resources", f"{show(key)} must be a number >= 0")
+            res[str(key)] = float(value)
+        kw["resources"] = res
+
+
+def _training(data: dict[str, Any], kw: dict[str, Any], bad) -> None:
+    """:meth:`SweepSpec.from_dict`'s step counts, ``n_envs`` and ``vec_env`` into ``kw``."""
+    for name, low in (("timesteps", 1), ("eval_freq", 1), ("eval_episodes", 1), ("checkpoint_freq", 1)):
+        if name in data:
+            kw[name] = _int(data[name], low, bad, name)
+    if data.get("n_envs") is not None:
+        kw["n_envs"] = _int(data["n_envs"], 1, bad, "n_envs")
+    if "vec_env" in data:
+        if data["vec_env"] not in ("dummy", "subproc"):
+            raise bad("vec_env", "must be 'dummy' or 'subproc'")
+        kw["vec_env"] = data["vec_env"]
 
 
 def _trials(data: dict[str, Any], kw: dict[str, Any], where: str, bad) -> None:
