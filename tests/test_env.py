@@ -717,7 +717,7 @@ def test_bench_env_cli_prints_the_ratio_with_its_provenance(capsys):
     t0 = time.perf_counter()
     assert main(["bench", "env", "--steps", "200", "--resets", "10", "--json"]) == 0  # few resets: a quick run
     elapsed = time.perf_counter() - t0
-    result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    result = json.loads(capsys.readouterr().out)  # --json: the whole of stdout is one document
     assert result["benchmark"] == "env" and result["steps"] == 200
     # Both timed loops ran inside the command: their times add up to less than its wall time.
     assert 200 / result["env_steps_per_s"] + 200 / result["raw_steps_per_s"] < elapsed

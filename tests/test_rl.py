@@ -94,7 +94,7 @@ def test_short_training_of_each_algorithm_then_evaluate(tmp_path, capsys, algo):
     _check_run_dir(out, algo)
     _check_final_evaluation(out, capsys)
     assert main(["evaluate", "--model", str(out / "model.zip"), "--episodes", "1", "--json"]) == 0
-    result = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    result = json.loads(capsys.readouterr().out)  # --json: the whole of stdout is one document
     assert result["episodes"] == 1
 
 
