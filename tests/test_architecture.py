@@ -147,6 +147,15 @@ def test_consumers_use_only_obs_info_and_the_scene_view():
 # ---------------------------------------------------------------------------------------
 # (b) the import graph: sim/ is physics only, planning/ is pure algorithms
 
+def from_module(node: ast.ImportFrom, package: str) -> str:
+    """The dotted module a ``from ... import`` names, a relative one resolved against ``package``."""
+    if not node.level:
+        return node.module or ""
+    base = package.split(".")
+    base = base[: len(base) - (node.level - 1)]
+    return ".".join([*base, node.module] if node.module else base)
+
+
 def imported_modules(path: Path, root: Path = ROOT) -> list[tuple[int, str]]:
     """``(line, dotted name)`` of every module ``path`` imports from anywhere in it (functions
     and ``TYPE_CHECKING`` blocks included), relative imports resolved; ``from a import b``
@@ -159,12 +168,7 @@ def imported_modules(path: Path, root: Path = ROOT) -> list[tuple[int, str]]:
         if isinstance(node, ast.Import):
             out += [(node.lineno, alias.name) for alias in node.names]
         elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = package.split(".")
-                base = base[: len(base) - (node.level - 1)]
-                module = ".".join([*base, node.module] if node.module else base)
-            else:
-                module = node.module or ""
+            module = from_module(node, package)
             out.append((node.lineno, module))
             out += [(node.lineno, f"{module}.{alias.name}") for alias in node.names]
     return out
@@ -379,12 +383,7 @@ def package_imports(path: Path, modules: dict[str, Path] | None = None, root: Pa
         if isinstance(node, ast.Import):
             out |= {alias.name for alias in node.names if alias.name in modules}
         elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = package.split(".")
-                base = base[: len(base) - (node.level - 1)]
-                module = ".".join([*base, node.module] if node.module else base)
-            else:
-                module = node.module or ""
+            module = from_module(node, package)
             for alias in node.names:
                 if f"{module}.{alias.name}" in modules:
                     out.add(f"{module}.{alias.name}")

@@ -35,6 +35,7 @@ from bulletnav.rl.envs import EVAL_SEED_BASE, evaluation_env_kwargs, make_env_fn
 from bulletnav.rl.hyperparams import load_hyperparams, upgrade_hyperparams
 from bulletnav.rl.io import atomic_save_model, load_model
 from bulletnav.rl.policy import SB3Policy
+from rollouts import episode_rows
 
 ENV_ID = "bulletnav/Warehouse-v0"
 ROOT = Path(__file__).resolve().parents[1]
@@ -130,41 +131,13 @@ def _check_final_evaluation(out: Path, capsys) -> None:
             f"{key}: run.json's final evaluation {final[key]} differs from `bulletnav evaluate` on the saved "
             f"model {evaluated[key]} (same seeds): the recorded evaluation is not of the saved model")
     # and against a second computation that shares no evaluation code: the episodes stepped here
-    rows = _episode_rows(out / "model.zip", EVAL_EPISODES, EVAL_SEED_BASE)
+    rows = episode_rows(out / "model.zip", EVAL_EPISODES, EVAL_SEED_BASE)
     n = len(rows)
     assert final["success_rate"] == sum(r["success"] for r in rows) / n
     assert final["collision_rate"] == sum(r["collision"] for r in rows) / n
     assert final["mean_reward"] == pytest.approx(statistics.fmean(r["reward"] for r in rows), rel=1e-9)
     assert final["std_reward"] == pytest.approx(statistics.pstdev(r["reward"] for r in rows), rel=1e-6, abs=1e-9)
     assert final["mean_length"] == pytest.approx(statistics.fmean(r["steps"] for r in rows), rel=1e-12)
-
-
-def _episode_rows(model_path: Path, episodes: int, seed: int) -> list[dict]:
-    """The model's evaluation episodes stepped here, with none of evaluate_model, run_episodes or
-    summarize: episode k reset with ``seed + k``, the deterministic action on the observation
-    (normalised when the model's statistics say so), until the env ends it."""
-    from bulletnav.rl.envs import EVALUATE_OBSTACLES
-
-    model, meta, normalizer = load_model(model_path)
-    kwargs = evaluation_env_kwargs(meta["env_kwargs"])
-    if meta["env_id"] == ENV_ID:
-        kwargs["num_obstacles"] = EVALUATE_OBSTACLES  # the benchmark's warehouses, as documented
-    env = gym.make(meta["env_id"], **kwargs)
-    rows = []
-    try:
-        for k in range(episodes):
-            obs, info = env.reset(seed=seed + k)
-            total, steps, done = 0.0, 0, False
-            while not done:
-                if normalizer is not None and normalizer.norm_obs:
-                    obs = normalizer.normalize_obs(obs)
-                obs, reward, terminated, truncated, info = env.step(model.predict(obs, deterministic=True)[0])
-                total, steps, done = total + reward, steps + 1, terminated or truncated
-            rows.append({"success": bool(info["is_success"]), "collision": bool(info["collision"]), "reward": total,
-                         "steps": steps})
-    finally:
-        env.close()
-    return rows
 
 
 @pytest.mark.slow  # uses the module's smoke PPO training (14 s), or trains itself

@@ -20,6 +20,7 @@ import yaml
 from bulletnav.errors import ConfigError, RunError
 from bulletnav.sweep.results import bootstrap_ci, summarize_configs
 from bulletnav.sweep.spec import SweepSpec
+from rollouts import episode_rows
 
 # a budget that trains for real but in seconds: 1 env, PPO updates every 64 steps
 TINY = {"algo": "ppo", "timesteps": 256, "n_envs": 1, "grid": {"n_steps": [64], "batch_size": [64]},
@@ -138,39 +139,6 @@ def two_node_cluster():
         cluster.shutdown()
 
 
-def _episode_rows(model_path: str, env_id: str, episodes: int, seed: int) -> list[dict]:
-    """The held-out episodes of a trial's model, stepped here: episode k reset with ``seed + k``,
-    the model's deterministic action on its normalised observation, until the env ends it; a
-    row per episode with its success, reward sum and steps."""
-    import gymnasium as gym
-
-    from bulletnav.rl.envs import EVALUATE_OBSTACLES, evaluation_env_kwargs
-    from bulletnav.rl.io import load_model
-
-    model, meta, normalizer = load_model(model_path)
-    kwargs = evaluation_env_kwargs(meta["env_kwargs"])
-    if env_id == "bulletnav/Warehouse-v0":
-        kwargs["num_obstacles"] = EVALUATE_OBSTACLES  # the benchmark's warehouses, as `bulletnav evaluate` scores
-    env = gym.make(env_id, **kwargs)
-    rows = []
-    try:
-        for k in range(episodes):
-            obs, info = env.reset(seed=seed + k)
-            total, steps, done = 0.0, 0, False
-            while not done:
-                if normalizer is not None and normalizer.norm_obs:  # reward-only statistics leave obs alone
-                    obs = normalizer.normalize_obs(obs)
-                action, _ = model.predict(obs, deterministic=True)
-                obs, reward, terminated, truncated, info = env.step(action)
-                total += reward
-                steps += 1
-                done = terminated or truncated
-            rows.append({"seed": seed + k, "success": bool(info["is_success"]), "reward": total, "steps": steps})
-    finally:
-        env.close()
-    return rows
-
-
 @pytest.mark.slow
 def test_sweep_two_trials_run_on_the_two_worker_nodes(tmp_path, two_node_cluster):
     from bulletnav.sweep.run import SweepOptions, run_sweep
@@ -184,7 +152,7 @@ def test_sweep_two_trials_run_on_the_two_worker_nodes(tmp_path, two_node_cluster
         assert r["timesteps"] >= spec.timesteps and Path(r["model"]).is_file()
         # the table's score is the saved model's: recomputed from episode rows that a loop written
         # here collects (not evaluate_model, run_episodes or summarize, which the sweep used)
-        episodes = _episode_rows(r["model"], spec.env_id, spec.evaluation_episodes, spec.evaluation_seed)
+        episodes = episode_rows(r["model"], spec.evaluation_episodes, spec.evaluation_seed, spec.env_id)
         assert [e["seed"] for e in episodes] == [1000, 1001]
         assert r["success_rate"] == sum(e["success"] for e in episodes) / len(episodes)
         assert r["mean_reward"] == pytest.approx(sum(e["reward"] for e in episodes) / len(episodes), rel=1e-9)

@@ -144,6 +144,16 @@ def add_overwrite_arg(parser: argparse.ArgumentParser, what: str) -> None:
                         help=f"replace {what} that already exist (default: refuse, so one run never replaces another's)")
 
 
+def add_episode_outputs(parser: argparse.ArgumentParser) -> None:
+    """The files an episode-running command can write beside its report (``navigate``, ``evaluate``):
+    ``--video``, ``--plot``, ``--record``, ``--dataset`` and ``--overwrite``."""
+    parser.add_argument("--video", type=VIDEO_FILE, metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
+    parser.add_argument("--plot", type=PNG_FILE, metavar="PNG", help="write all episodes' paths over their maps")
+    parser.add_argument("--record", type=MCAP_FILE, metavar="PATH", help=RECORD_HELP)
+    parser.add_argument("--dataset", metavar="NAME", help=DATASET_HELP)
+    add_overwrite_arg(parser, "--video, --plot and --record files")
+
+
 def add_obstacles_arg(parser: argparse.ArgumentParser, default: str = "the env's; 31 on Warehouse-v0") -> None:
     parser.add_argument("--obstacles", type=NON_NEGATIVE, default=None, metavar="K",
                         help=f"obstacles in a procedural warehouse (default: {default})")

@@ -9,7 +9,6 @@ import sys
 from bulletnav.benchmark.suite import SHIPPED_MODELS
 from bulletnav.cli.args import (
     COUNT,
-    DATASET_HELP,
     DEFAULT_ENV_ID,
     FRACTION,
     MCAP_FILE,
@@ -19,6 +18,7 @@ from bulletnav.cli.args import (
     VIDEO_FILE,
     add_command,
     add_env_arg,
+    add_episode_outputs,
     add_mission_args,
     add_obstacles_arg,
     add_overwrite_arg,
@@ -61,11 +61,7 @@ def _register_evaluate(sub) -> None:
     ev.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
     add_shield_arg(ev)
     add_physics_arg(ev)
-    ev.add_argument("--video", type=VIDEO_FILE, metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
-    ev.add_argument("--plot", type=PNG_FILE, metavar="PNG", help="write all episodes' paths over their maps")
-    ev.add_argument("--record", type=MCAP_FILE, metavar="PATH", help=RECORD_HELP)
-    ev.add_argument("--dataset", metavar="NAME", help=DATASET_HELP)
-    add_overwrite_arg(ev, "--video, --plot and --record files")
+    add_episode_outputs(ev)
     ev.set_defaults(func=cmd_evaluate)
 
 

@@ -8,15 +8,10 @@ import numpy as np
 
 from bulletnav.cli.args import (
     COUNT,
-    DATASET_HELP,
     DEFAULT_ENV_ID,
-    MCAP_FILE,
-    PNG_FILE,
-    RECORD_HELP,
-    VIDEO_FILE,
     add_command,
+    add_episode_outputs,
     add_mission_args,
-    add_overwrite_arg,
     add_physics_arg,
     add_shield_arg,
     add_world_args,
@@ -40,11 +35,7 @@ def register(sub) -> None:
     nav.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
     add_shield_arg(nav)
     add_physics_arg(nav)
-    nav.add_argument("--video", type=VIDEO_FILE, metavar="PATH", help="record every episode to PATH (.mp4 or .gif)")
-    nav.add_argument("--plot", type=PNG_FILE, metavar="PNG", help="write all episodes' paths over their maps")
-    nav.add_argument("--record", type=MCAP_FILE, metavar="PATH", help=RECORD_HELP)
-    nav.add_argument("--dataset", metavar="NAME", help=DATASET_HELP)
-    add_overwrite_arg(nav, "--video, --plot and --record files")
+    add_episode_outputs(nav)
     nav.set_defaults(func=cmd_navigate)
 
 
