@@ -9,7 +9,8 @@ from dataclasses import asdict
 
 import pytest
 
-from bulletnav.cli import DEFAULT_ENV_ID, _make_env, build_parser, main
+from bulletnav.cli import DEFAULT_ENV_ID, build_parser, main
+from bulletnav.cli.envs import make_env
 from bulletnav.evaluation import NEAR_MISS_M, SAFETY_KEYS, EpisodeResult, SafetyTracker, summarize
 
 AISLES = "bulletnav/WarehouseAisles-v0"
@@ -32,7 +33,7 @@ def test_every_env_subcommand_defaults_to_warehouse_v0_and_takes_env(argv):
 
 def test_env_option_reaches_the_env():
     args = build_parser().parse_args(["navigate", "--env", AISLES])
-    env = _make_env(args)
+    env = make_env(args)
     try:
         env.reset(seed=3)
         scene = env.unwrapped.scene

@@ -12,7 +12,9 @@ import numpy as np
 import pytest
 from gymnasium import spaces
 
-from bulletnav.cli import _demo_folder, _rollout_note, build_parser, main
+from bulletnav.cli import build_parser, main
+from bulletnav.cli.evaluate import demo_folder
+from bulletnav.cli.train import rollout_note
 from bulletnav.errors import ModelError
 from bulletnav.rl.compat import check_model_fits, space_mismatch
 
@@ -105,19 +107,19 @@ def _train_args(**over) -> argparse.Namespace:
 
 
 def test_rollout_note_says_how_many_steps_will_be_trained():
-    note = _rollout_note(_train_args(timesteps=100, n_envs=2))  # ppo.yml: n_steps 512
+    note = rollout_note(_train_args(timesteps=100, n_envs=2))  # ppo.yml: n_steps 512
     assert note == ("--timesteps 100 is not a whole number of rollouts: PPO learns in rollouts of n_steps 512 x 2 envs "
                     "= 1,024 steps, so 1,024 steps will be trained (pass a multiple of 1,024 to train exactly that)")
-    assert "3,072 steps will be trained" in _rollout_note(_train_args(timesteps=2049, n_envs=2))
-    assert _rollout_note(_train_args(timesteps=2048, n_envs=2)) is None  # whole rollouts: nothing to say
-    assert _rollout_note(_train_args(timesteps=0, n_envs=2)) is None  # --init-from copies: no rollout
+    assert "3,072 steps will be trained" in rollout_note(_train_args(timesteps=2049, n_envs=2))
+    assert rollout_note(_train_args(timesteps=2048, n_envs=2)) is None  # whole rollouts: nothing to say
+    assert rollout_note(_train_args(timesteps=0, n_envs=2)) is None  # --init-from copies: no rollout
     assert "A2C learns in rollouts of n_steps 8 x 3 envs = 24 steps, so 120 steps" in \
-        _rollout_note(_train_args(algo="a2c", timesteps=100, n_envs=3))
+        rollout_note(_train_args(algo="a2c", timesteps=100, n_envs=3))
     # sac.yml: train_freq 1, so 2 envs collect 2 steps per update: 101 is one short of a whole 102
-    assert _rollout_note(_train_args(algo="sac", timesteps=101, n_envs=2)) == (
+    assert rollout_note(_train_args(algo="sac", timesteps=101, n_envs=2)) == (
         "--timesteps 101 is not a whole number of rollouts: SAC collects train_freq 1 x 2 envs per update = 2 steps, "
         "so 102 steps will be trained (pass a multiple of 2 to train exactly that)")
-    assert _rollout_note(_train_args(algo="td3", timesteps=100, n_envs=2)) is None  # 50 updates of 2 steps
+    assert rollout_note(_train_args(algo="td3", timesteps=100, n_envs=2)) is None  # 50 updates of 2 steps
 
 
 def test_rollout_note_reads_train_freq_from_the_hyperparameter_file(tmp_path):
@@ -125,7 +127,7 @@ def test_rollout_note_reads_train_freq_from_the_hyperparameter_file(tmp_path):
     def note(freq: str, timesteps: int) -> str | None:
         path = tmp_path / "sac.yml"
         path.write_text(f"bulletnav/Warehouse-v0:\n  policy: MlpPolicy\n  n_envs: 3\n  train_freq: {freq}\n")
-        return _rollout_note(_train_args(algo="sac", timesteps=timesteps, hyperparams=path))
+        return rollout_note(_train_args(algo="sac", timesteps=timesteps, hyperparams=path))
 
     assert note("[4, step]", 100) == (
         "--timesteps 100 is not a whole number of rollouts: SAC collects train_freq 4 x 3 envs per update = 12 steps, "
@@ -213,13 +215,13 @@ def test_check_model_fits_names_shapes_and_bounds():
 
 def test_demo_folders_are_per_run_by_default(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    assert _demo_folder(None) == (Path("runs/demo"), True)
-    assert _demo_folder(None) == (Path("runs/demo"), False)  # empty: still free
+    assert demo_folder(None) == (Path("runs/demo"), True)
+    assert demo_folder(None) == (Path("runs/demo"), False)  # empty: still free
     (tmp_path / "runs" / "demo" / "episodes.mp4").write_bytes(b"an earlier demo")
-    assert _demo_folder(None) == (Path("runs/demo-2"), True)
+    assert demo_folder(None) == (Path("runs/demo-2"), True)
     (tmp_path / "runs" / "demo-2" / "x").write_bytes(b"")
     (tmp_path / "runs" / "demo-3").write_bytes(b"a file, not a folder")
-    assert _demo_folder(None) == (Path("runs/demo-4"), True)
+    assert demo_folder(None) == (Path("runs/demo-4"), True)
     assert (tmp_path / "runs" / "demo" / "episodes.mp4").read_bytes() == b"an earlier demo"
 
 

@@ -9,7 +9,8 @@ import pytest
 
 import bulletnav  # noqa: F401  (registers the envs)
 from bulletnav.bench.physics_bench import PLATE_THICKNESS, bench_rates
-from bulletnav.cli import _world_kwargs, build_parser
+from bulletnav.cli import build_parser
+from bulletnav.cli.envs import world_kwargs
 from bulletnav.config import PHYSICS_PROFILES, PhysicsConfig, physics_profile
 from bulletnav.envs.warehouse import make_config
 
@@ -124,8 +125,8 @@ def test_cli_physics_flag():
         assert parser.parse_args(argv).physics is None  # the model's or the env's
         assert parser.parse_args([*argv, "--physics", "fast"]).physics == "fast"
     args = parser.parse_args(["evaluate", "--model", "m.zip", "--physics", "default"])
-    assert _world_kwargs(args)["physics"] == "default"
-    assert "physics" not in _world_kwargs(parser.parse_args(["evaluate", "--model", "m.zip"]))
+    assert world_kwargs(args)["physics"] == "default"
+    assert "physics" not in world_kwargs(parser.parse_args(["evaluate", "--model", "m.zip"]))
     with pytest.raises(SystemExit):
         parser.parse_args(["navigate", "--physics", "warp"])
     assert parser.parse_args(["bench", "physics", "--rates", "240,96"]).rates == (240, 96)

@@ -17,10 +17,9 @@ from collections.abc import Sequence
 
 from bulletnav.cli import bench, benchmark, evaluate, fleet, models, navigate, ros, sweep, train, view
 from bulletnav.cli.args import DEFAULT_ENV_ID, Parser
-from bulletnav.cli.envs import bulletnav_env_ids, check_env_id, make_env, world_kwargs
-from bulletnav.cli.evaluate import DEFAULT_MODEL, SHIPPED_MODELS, demo_folder
+from bulletnav.cli.envs import bulletnav_env_ids, check_env_id
+from bulletnav.cli.evaluate import DEFAULT_MODEL, SHIPPED_MODELS
 from bulletnav.cli.output import json_mode
-from bulletnav.cli.train import rollout_note
 from bulletnav.errors import BulletnavError
 
 __all__ = ["DEFAULT_ENV_ID", "DEFAULT_MODEL", "SHIPPED_MODELS", "build_parser", "bulletnav_env_ids", "check_env_id",
@@ -29,8 +28,6 @@ __all__ = ["DEFAULT_ENV_ID", "DEFAULT_MODEL", "SHIPPED_MODELS", "build_parser", 
 COMMAND_GROUPS = (navigate, train, sweep, evaluate, models, view, benchmark, fleet, ros, bench)
 """The command modules, in the order their commands appear in ``bulletnav --help``."""
 
-# the names the tests have imported from the single-module cli.py
-_make_env, _world_kwargs, _demo_folder, _rollout_note = make_env, world_kwargs, demo_folder, rollout_note
 
 
 def build_parser() -> Parser:
