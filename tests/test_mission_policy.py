@@ -39,6 +39,11 @@ def test_the_shipped_mission_policy_completes_unseen_missions():
         assert r.success == (r.goals_reached == r.goals_total)
 
 
+TRAINED_ON = {"bulletnav/WarehouseAisles-v0": "bulletnav/WarehouseDynamic-v0"}
+"""Shipped models trained on another id than the one they serve: the aisle world's is the dynamic
+policy, trained on the same aisle warehouses with movers (the benchmark's ``model: shipped``)."""
+
+
 def test_every_shipped_model_is_in_the_checkout():
     for env_id, path in SHIPPED_MODELS.items():
         assert (ROOT / path).is_file(), f"demo --env {env_id} would look for {path}"
@@ -46,4 +51,4 @@ def test_every_shipped_model_is_in_the_checkout():
         zipped = ROOT / path
         meta = json.loads(zipped.with_suffix(".json").read_text())
         digest = hashlib.sha256(zipped.with_suffix(".safetensors").read_bytes()).hexdigest()
-        assert meta["env_id"] == env_id and digest == meta["policy"]["weights_sha256"], path
+        assert meta["env_id"] == TRAINED_ON.get(env_id, env_id) and digest == meta["policy"]["weights_sha256"], path
