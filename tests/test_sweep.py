@@ -22,8 +22,10 @@ from bulletnav.sweep.results import bootstrap_ci, summarize_configs
 from bulletnav.sweep.spec import SweepSpec
 from rollouts import episode_rows
 
-# a budget that trains for real but in seconds: 1 env, PPO updates every 64 steps
+# a budget that trains for real but in seconds: 1 env, PPO updates every 64 steps, and episodes
+# cut at 200 steps so an untrained policy's evaluations end in a fifth of the env's 1,000
 TINY = {"algo": "ppo", "timesteps": 256, "n_envs": 1, "grid": {"n_steps": [64], "batch_size": [64]},
+        "env_kwargs": {"max_episode_steps": 200},
         "eval_freq": 128, "eval_episodes": 1, "checkpoint_freq": 128, "evaluation": {"episodes": 2, "seed": 1000}}
 
 
