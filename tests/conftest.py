@@ -14,6 +14,7 @@ from bulletnav.config import EnvConfig, PhysicsConfig, RobotConfig, SensorsConfi
 from bulletnav.envs.scene import Scene
 from bulletnav.sim.layout import Layout, load_layout
 from bulletnav.sim.simulation import Simulation
+from hang import HANG_S
 
 # One math thread per test process (unless the caller chose): `make test` runs two pytest workers
 # on two cores, and torch's default of one OpenMP thread per core in each of them made test_rl's
@@ -128,7 +129,7 @@ def pytest_pyfunc_call(pyfuncitem):
     straight to the parent, so a child that dies in C still shows why. A child that never
     reaches a verdict is run once more in a new child: one that hangs (PyBullet's GUI connection
     has, rarely, hung in a fresh process under Xvfb: once in a clean-clone `make test` of
-    2026-11-24) is killed after half of the 600 s, and one that ends without its session
+    2026-11-24) is killed after ``hang.HANG_S`` s (900, generous: a limit, not a speed check), and one that ends without its session
     finishing (PyBullet's GUI thread calls exit(1) when the X server fails it, and Xlib does on
     a broken connection: once in CI on 2026-11-27, exit 1 and no output, as the old fd capture
     swallowed it; both were PyBullet's GUI thread refused by an Xvfb resetting after its last
@@ -153,9 +154,9 @@ def pytest_pyfunc_call(pyfuncitem):
             verdict.unlink(missing_ok=True)
             try:
                 out = subprocess.run(cmd, env=env, cwd=pyfuncitem.config.rootpath, capture_output=True, text=True,
-                                     timeout=300)
+                                     timeout=HANG_S)
             except subprocess.TimeoutExpired as exc:
-                what = f"its GUI child hung for {exc.timeout} s"
+                what = f"its GUI child did not finish in {exc.timeout:.0f} s: a hang? (a hang detector, not a speed check)"
                 output = f"{_text(exc.stdout)[-4000:]}\n{_text(exc.stderr)[-2000:]}"
             else:
                 if verdict.exists():
@@ -215,14 +216,14 @@ def _gui_opens(display: str) -> bool:
 
     try:
         out = subprocess.run([sys.executable, "-c", _GUI_PROBE], env={**os.environ, "DISPLAY": display},
-                             capture_output=True, text=True, timeout=60)
+                             capture_output=True, text=True, timeout=180)  # generous: a loaded machine is slow to open it
     except subprocess.TimeoutExpired:
         return False
     return out.returncode == 0 and "gui ok" in out.stdout
 
 
 @contextlib.contextmanager
-def _xvfb(number: int, *args: str, wait_s: float = 20.0):
+def _xvfb(number: int, *args: str, wait_s: float = 120.0):
     """An Xvfb on ``:number`` (extra server ``args``), waited on until its socket answers (at
     most ``wait_s``), terminated on leaving."""
     import subprocess

@@ -341,6 +341,9 @@ KINDS: dict[str, str] = {
     "test_guidance.py::test_guided_free_missions_follow_the_exact_tour_on_the_path_costs": "formula",  # brute force over every order
     "test_guidance.py::test_guidance_off_keeps_the_observation_and_checkers_pass_with_it_on": "library",
     "test_guidance.py::test_an_unknown_guidance_is_refused_by_name": "contract",
+    # ---- test_hang.py
+    "test_hang.py::test_a_child_past_its_limit_fails_the_test_as_a_suspected_hang_with_its_output": "contract",
+    "test_hang.py::test_a_child_within_its_limit_gives_its_own_result": "hand",
     # ---- test_input_holes.py
     "test_input_holes.py::test_a_suite_policy_outside_the_allow_list_is_refused_naming_file_entry_and_value": "contract",
     "test_input_holes.py::test_the_runner_imports_no_class_outside_the_allow_list_even_from_a_hand_made_suite": "contract",
@@ -399,6 +402,11 @@ KINDS: dict[str, str] = {
     "test_limits.py::test_sweep_grid_is_refused_before_it_is_expanded": "hand",  # 10,000 trials pass, 10,001 refused
     "test_limits.py::test_mission_goals_option": "contract",
     "test_limits.py::test_tour_follows_the_goals_limit": "hand",
+    # ---- test_messages.py
+    # pybullet's own first import, run in the test, is the reference that the banner exists
+    "test_messages.py::test_pybullet_banner_never_reaches_the_terminal": "library",
+    "test_messages.py::test_yaml_errors_name_file_line_and_column": "hand",  # line 3, column 4 counted by hand
+    "test_messages.py::test_yaml_error_positions": "hand",  # positions counted by hand in each text
     # ---- test_mission.py
     "test_mission.py::test_a_drive_through_three_goals_earns_two_subgoals_then_the_goal": "hand",
     "test_mission.py::test_free_order_heads_for_the_nearest_goal_and_fixed_for_the_first": "hand",
@@ -503,6 +511,10 @@ KINDS: dict[str, str] = {
     "test_randomization.py::test_every_shift_field_and_world_parameter_is_randomizable": "contract",
     "test_randomization.py::test_a_hyperparameter_file_with_a_bad_randomize_block_names_file_and_key": "contract",
     "test_randomization.py::test_the_ablation_files_differ_from_the_shipped_settings_only_in_their_arm": "contract",
+    # ---- test_readme.py
+    "test_readme.py::test_the_block_reader_on_a_made_up_page": "hand",
+    # the output README shows under a block is the reference (recorded when the block was written)
+    "test_readme.py::test_every_readme_python_block_runs_alone_and_prints_what_readme_shows": "golden",
     # ---- test_reference_kinds.py
     "test_reference_kinds.py::test_every_test_function_has_a_kind_and_every_kind_a_test_function": "contract",
     "test_reference_kinds.py::test_every_kind_is_one_of_the_documented_ones": "contract",

@@ -32,6 +32,7 @@ import pybullet as p
 import pytest
 
 import bulletnav
+import hang
 from bulletnav.config import RobotConfig
 from bulletnav.geometry import robot_geometry
 
@@ -545,13 +546,12 @@ def test_every_module_imports_in_a_fresh_process_in_layer_order():
     """One fresh interpreter imports every module, lowest layer first; each import must work
     with only lower layers loaded and must load no module of a higher layer."""
     import json
-    import subprocess
     import sys
 
     layers = {m: layer_of(m) for m in MODULES}
     order = sorted(MODULES, key=lambda m: (layers[m], m))
-    done = subprocess.run([sys.executable, "-c", IMPORT_IN_LAYER_ORDER, json.dumps(order), json.dumps(layers)],
-                          capture_output=True, text=True, timeout=300, cwd=ROOT)
+    done = hang.run([sys.executable, "-c", IMPORT_IN_LAYER_ORDER, json.dumps(order), json.dumps(layers)],
+                    "importing every module in layer order", cwd=ROOT)
     assert done.returncode == 0, done.stderr[-3000:]
     assert int(done.stdout.split()[-1]) == len(MODULES)
 

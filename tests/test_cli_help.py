@@ -17,6 +17,7 @@ from pathlib import Path
 
 import pytest
 
+import hang
 from bulletnav.cli import build_parser
 
 SNAPSHOTS = Path(__file__).resolve().parent / "data" / "cli_help"
@@ -56,10 +57,8 @@ def test_help_is_the_snapshot_byte_for_byte(monkeypatch, name):
 
 def test_the_console_script_prints_the_snapshot():
     """The in-process help is the one a user sees (one command, as a subprocess)."""
-    import subprocess
-
-    done = subprocess.run([sys.executable, "-m", "bulletnav.cli", "map", "--help"], capture_output=True, text=True,
-                          env={**os.environ, "COLUMNS": COLUMNS}, timeout=600)
+    done = hang.run([sys.executable, "-m", "bulletnav.cli", "map", "--help"], "bulletnav map --help",
+                    env={**os.environ, "COLUMNS": COLUMNS})
     assert done.returncode == 0 and done.stdout == (SNAPSHOTS / "map.txt").read_text()
 
 

@@ -11,8 +11,10 @@ from pathlib import Path
 import imageio.v3 as iio
 import pytest
 
+import hang
 from bulletnav.cli import DEFAULT_MODEL, main
 from conftest import _text
+from hang import HANG_S, hang_message
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL = ROOT / DEFAULT_MODEL
@@ -35,19 +37,21 @@ def _x_start_failed(stderr: str | bytes | None) -> bool:
     return any(words in _text(stderr) for words in X_START_FAILURES)
 
 
-def _cli(*args: str, timeout: int = 150) -> subprocess.CompletedProcess:
+def _cli(*args: str) -> subprocess.CompletedProcess:
     """The command as a user runs it, under `xvfb-run -a`; started once more, on a new
     server, only when the X connection itself failed at start-up (whether the process then
-    exited or hung: a hang is killed after ``timeout`` s)."""
+    exited or hung: a hang is killed after ``hang.HANG_S`` s, a generous limit, and then the
+    test fails saying so)."""
     cmd = ["xvfb-run", "-a", sys.executable, "-m", "bulletnav.cli", *args]
     try:
-        done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=timeout)
+        done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=HANG_S)
         if done.returncode == 0 or not _x_start_failed(done.stderr):
             return done
     except subprocess.TimeoutExpired as exc:
         if not _x_start_failed(exc.stderr):
-            raise
-    return subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=timeout)
+            pytest.fail(hang_message(f"bulletnav {' '.join(args)} under xvfb-run", HANG_S, exc.stdout, exc.stderr),
+                        pytrace=False)
+    return hang.run(cmd, f"bulletnav {' '.join(args)} under xvfb-run (started again on a new server)", cwd=ROOT)
 
 
 @pytest.mark.slow

@@ -22,6 +22,7 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import bulletnav  # noqa: F401  (registers the env)
+import hang
 from bulletnav.bench.env_bench import bench_env
 from bulletnav.cli import main
 from bulletnav.config import EnvConfig, ImuConfig, LidarConfig, OdometryConfig, SensorsConfig, asset_path
@@ -469,7 +470,7 @@ def test_same_seed_gives_the_same_trajectory_in_two_processes():
                               env={**os.environ, "PYTHONHASHSEED": str(k)}) for k in (1, 2)]
     results = []
     for proc in procs:
-        out, err = proc.communicate(timeout=300)
+        out, err = hang.communicate(proc, "the seeded rollout in a fresh interpreter")
         assert proc.returncode == 0, err
         digest, ends = out.strip().splitlines()[-1].split()
         results.append((digest, int(ends)))

@@ -8,13 +8,13 @@ from __future__ import annotations
 import contextlib
 import json
 import math
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+import hang
 from bulletnav.errors import ConfigError
 from bulletnav.fleet import fleet_v0
 from bulletnav.fleet.controllers import CoordinatedConfig, CoordinatedController, ErrandNavigator, ShieldedController, make_controller
@@ -574,9 +574,8 @@ def test_near_miss_entries():
 
 
 # ------------------------------------------------------------------ CLI
-def _cli(*args, timeout=120):
-    return subprocess.run([sys.executable, "-m", "bulletnav.cli", *args], capture_output=True, text=True,
-                          timeout=timeout, cwd=ROOT)
+def _cli(*args):
+    return hang.run([sys.executable, "-m", "bulletnav.cli", *args], f"bulletnav {' '.join(args)}", cwd=ROOT)
 
 
 def test_cli_fleet_json():

@@ -15,7 +15,6 @@ import json
 import math
 import os
 import shlex
-import subprocess
 import sys
 from pathlib import Path
 
@@ -23,6 +22,7 @@ import numpy as np
 import pytest
 import yaml
 
+import hang
 from bulletnav.cli import main
 from bulletnav.errors import BulletnavError, ConfigError, LimitError
 
@@ -382,7 +382,7 @@ def test_a_replay_command_from_a_report_replays_its_episode(tmp_path, monkeypatc
     assert "..." not in command and "trust_code=True" in command
     env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}",
            "PYTHONPATH": str(tmp_path)}
-    done = subprocess.run(["/bin/sh", "-c", command], capture_output=True, text=True, env=env, cwd=tmp_path, timeout=600)
+    done = hang.run(["/bin/sh", "-c", command], "the gallery's replay command", env=env, cwd=tmp_path)
     assert done.returncode == 0, done.stderr[-2000:]
     replayed = json.loads(done.stdout.strip().splitlines()[-1])
     for key in ("success", "collision", "steps", "seed", "timeout", "path_length_m"):

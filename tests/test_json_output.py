@@ -24,6 +24,7 @@ from __future__ import annotations
 import ast
 import json
 import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -31,14 +32,15 @@ from pathlib import Path
 import pytest
 import yaml
 
+import hang
 from bulletnav.cli import build_parser
+from hang import HANG_S, hang_message
 
 ROOT = Path(__file__).resolve().parents[1]
 SHORT = {"name": "short", "size": [6.0, 6.0], "obstacles": [], "start": [0.0, 0.0, 0.0], "goal": [0.8, 0.0]}
 """An empty room with the goal 0.8 m ahead of the start: an episode of about 20 steps."""
 SHIPPED = str(ROOT / "models" / "ppo_warehouse.zip")
 RUNS = ROOT / "docs" / "results" / "compare"
-HANG_S = 600
 
 SUITE = {"name": "json", "episodes": 1, "seed": 7000,
          "worlds": [{"name": "short", "env": "bulletnav/Warehouse-v0", "kwargs": {"world": "{tmp}/short.yaml"}}],
@@ -153,9 +155,9 @@ def driven(tmp_path_factory) -> dict:
     steps += [{"name": c, "argv": [*(a.format(tmp=folder) for a in argv), "--json"]} for c, argv in CASES.items()]
     for s in steps:
         s["out"], s["err"] = str(folder / f"{s['name']}.stdout"), str(folder / f"{s['name']}.stderr")
-    plan = {"steps": steps, "preload": PRELOAD, "hang_s": HANG_S, "result": str(folder / "result.json")}
-    driver = subprocess.run([sys.executable, "-c", DRIVER, json.dumps(plan)], cwd=ROOT, capture_output=True, text=True,
-                            timeout=HANG_S * 3)
+    plan = {"steps": steps, "preload": PRELOAD, "hang_s": int(HANG_S), "result": str(folder / "result.json")}
+    driver = hang.run([sys.executable, "-c", DRIVER, json.dumps(plan)], "the JSON driver's commands", cwd=ROOT,
+                      timeout=HANG_S * 3)
     assert driver.returncode == 0, driver.stderr[-3000:]
     status = json.loads((folder / "result.json").read_text())
     assert status["record"]["code"] == 0, (folder / "record.stderr").read_text()[-3000:]
@@ -164,6 +166,7 @@ def driven(tmp_path_factory) -> dict:
 
 
 def _one_document(code: int, stdout: str, stderr: str):
+    assert code != -signal.SIGALRM, hang_message("the command (its SIGALRM hang limit)", HANG_S, stdout, stderr)
     assert code == 0, stderr[-3000:]
     try:
         return json.loads(stdout)
@@ -172,8 +175,8 @@ def _one_document(code: int, stdout: str, stderr: str):
 
 
 def _run(argv: list[str], env: dict | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "bulletnav.cli", *argv, "--json"], cwd=ROOT, capture_output=True,
-                          text=True, timeout=HANG_S, env=env)
+    return hang.run([sys.executable, "-m", "bulletnav.cli", *argv, "--json"], f"bulletnav {argv[0]} --json", cwd=ROOT,
+                    env=env)
 
 
 FRESH = "navigate-fresh-process"

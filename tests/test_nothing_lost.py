@@ -16,6 +16,9 @@ from pathlib import Path
 
 import pytest
 
+import hang
+from hang import HANG_S
+
 ROOT = Path(__file__).resolve().parents[1]
 TINY = ROOT / "tests" / "data" / "benchmark_tiny.yaml"
 GOLDEN = ROOT / "tests" / "golden" / "benchmark_tiny.json"
@@ -37,14 +40,17 @@ def _kill(proc: subprocess.Popen) -> bool:
         os.killpg(proc.pid, signal.SIGKILL)
     except ProcessLookupError:
         pass  # it had finished
-    proc.communicate(timeout=30)
+    hang.communicate(proc, "a SIGKILLed run (its pipes never closed)")
     return running
 
 
-def _wait_for(proc: subprocess.Popen, ready, timeout: float = 60.0) -> None:
+def _wait_for(proc: subprocess.Popen, ready, timeout: float = HANG_S) -> None:
     t_end = time.monotonic() + timeout
     while not ready() and proc.poll() is None:
-        assert time.monotonic() < t_end, "the run never got there"
+        if time.monotonic() >= t_end:
+            _kill(proc)
+            pytest.fail(f"the run never got to the point to kill it in {timeout:.0f} s: a hang? (a hang detector, "
+                        "not a speed check)", pytrace=False)
         time.sleep(0.02)
 
 
@@ -92,7 +98,7 @@ def test_a_killed_training_leaves_whole_files_and_resumes(tmp_path):
         killed.append(_kill(proc))
         _check_whole(out)
     done = _start(*TRAIN, "--out", str(out), "--resume")
-    _, err = done.communicate(timeout=120)
+    _, err = hang.communicate(done, "the resumed training")
     assert done.returncode == 0, err[-2000:]
     assert _check_whole(out) >= 5
     assert json.loads((out / "run.json").read_text())["total_timesteps"] >= 4096
@@ -117,7 +123,7 @@ def test_a_killed_benchmark_leaves_whole_files_and_resumes_to_the_same_rows(tmp_
         assert not (out / "results.json").exists() or json.loads((out / "results.json").read_text())
         _check_whole(out)
     done = _start(*argv, "--resume")
-    _, err = done.communicate(timeout=180)
+    _, err = hang.communicate(done, "the resumed benchmark")
     assert done.returncode == 0, err[-2000:]
     _check_whole(out)
     expected = json.loads(GOLDEN.read_text())["episodes"]

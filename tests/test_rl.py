@@ -69,7 +69,7 @@ def _evaluate_json(capsys, model: Path, episodes: int, seed: int) -> dict:
 
 
 def _head_commit() -> str:
-    done = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True, timeout=10)
+    done = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True, timeout=120)
     return done.stdout.strip() if done.returncode == 0 else "unknown"
 
 
@@ -78,7 +78,7 @@ def _landed_between(commit: str, first: str) -> bool:
     land while a run trains)."""
     def ancestor(a: str, b: str) -> bool:
         return subprocess.run(["git", "merge-base", "--is-ancestor", a, b], cwd=ROOT, capture_output=True,
-                              timeout=10).returncode == 0
+                              timeout=120).returncode == 0
 
     return commit == first or (ancestor(first, commit) and ancestor(commit, "HEAD"))
 

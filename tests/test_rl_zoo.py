@@ -4,7 +4,6 @@ with them as they are."""
 
 from __future__ import annotations
 
-import subprocess
 import sys
 from pathlib import Path
 
@@ -13,6 +12,7 @@ import pytest
 import torch
 
 import bulletnav  # noqa: F401
+import hang
 from bulletnav.rl.algos import algo_class
 from bulletnav.rl.features import ClearanceFeatures
 from bulletnav.rl.hyperparams import load_hyperparams, model_kwargs, policy_class
@@ -53,7 +53,7 @@ def test_rl_zoo_trains_ppo_with_the_projects_hyperparameter_file(tmp_path):
     cmd = [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", "bulletnav/Warehouse-v0",
            "--gym-packages", "bulletnav", "-conf", str(conf), "-n", "2048", "--seed", "0", "-f", str(tmp_path / "logs"),
            "--eval-freq", "-1", "--vec-env", "dummy"]
-    done = subprocess.run(cmd, capture_output=True, text=True, timeout=600, cwd=tmp_path)
+    done = hang.run(cmd, "RL Zoo's train", cwd=tmp_path)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     (model_path,) = (tmp_path / "logs" / "ppo").glob("bulletnav-Warehouse-v0_*/bulletnav-Warehouse-v0.zip")
     assert (model_path.parent / "bulletnav-Warehouse-v0" / "vecnormalize.pkl").is_file()  # normalize: from the file

@@ -17,9 +17,11 @@ import numpy as np
 import pytest
 import yaml
 
+import hang
 from bulletnav.errors import ConfigError, RunError
 from bulletnav.sweep.results import bootstrap_ci, summarize_configs
 from bulletnav.sweep.spec import SweepSpec
+from hang import HANG_S
 from rollouts import episode_rows
 
 # a budget that trains for real but in seconds: 1 env, PPO updates every 64 steps, and episodes
@@ -215,7 +217,7 @@ def test_sweep_interrupted_with_ctrl_c_resumes_without_rerunning_finished_trials
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
     exp = out / "resume"
     first = None
-    deadline = time.time() + 240
+    deadline = time.time() + HANG_S  # a hang detector, not a speed check: a loaded machine is slow to get there
     try:  # one CPU: the seed-0 trial runs first; interrupt once it is done and seed 1 has a checkpoint
         while time.time() < deadline and proc.poll() is None:
             done = list(exp.glob("*_seed0/checkpoint_*/heldout.json"))
@@ -228,9 +230,10 @@ def test_sweep_interrupted_with_ctrl_c_resumes_without_rerunning_finished_trials
             time.sleep(0.1)
         if first is None:
             proc.kill()
-            pytest.fail("the sweep never reached the point to interrupt:\n" + proc.communicate(timeout=60)[0][-3000:])
+            pytest.fail(f"the sweep never reached the point to interrupt in {HANG_S:.0f} s: a hang? (a hang detector, not a "
+                        "speed check)\n" + hang.communicate(proc, "the killed sweep", timeout=60)[0][-3000:], pytrace=False)
         proc.send_signal(signal.SIGINT)
-        out_text, _ = proc.communicate(timeout=120)
+        out_text, _ = hang.communicate(proc, "the sweep after its Ctrl-C")
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
@@ -238,7 +241,7 @@ def test_sweep_interrupted_with_ctrl_c_resumes_without_rerunning_finished_trials
     assert not list(exp.glob("*_seed1/checkpoint_*/heldout.json"))  # seed 1 really was cut short
     finished_at = first.stat().st_mtime_ns
     # a guard against a hang, not a timing check: on a loaded 2-core machine the resumed trial took over 300 s
-    resumed = subprocess.run([*cmd, "--resume", "--json"], capture_output=True, text=True, timeout=900)
+    resumed = hang.run([*cmd, "--resume", "--json"], "the resumed sweep")
     assert resumed.returncode == 0, resumed.stdout[-2000:] + resumed.stderr[-2000:]
     record = json.loads(resumed.stdout)  # --json: the whole of stdout is the one document (test_json_output)
     assert [r["status"] for r in record["trials"]] == ["finished", "finished"]
