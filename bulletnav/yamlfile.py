@@ -56,6 +56,14 @@ class _Loader(yaml.SafeLoader):
             self._sizes[id(node)] = size
         return node
 
+    def construct_object(self, node, deep=False):  # type: ignore[no-untyped-def]
+        """PyYAML's, with the position of a value its constructor refuses (``!!int x``: a
+        ``ValueError`` without a mark) as a ``ConstructorError`` at the node."""
+        try:
+            return super().construct_object(node, deep)
+        except (ValueError, TypeError, OverflowError) as exc:
+            raise yaml.constructor.ConstructorError(None, None, str(exc), node.start_mark) from None
+
 
 def safe_load(text: str) -> Any:
     """``yaml.safe_load`` with the nesting limit :data:`MAX_DEPTH`."""
@@ -86,8 +94,10 @@ def read_yaml(path: str | Path, what: str, error: type[Exception], data: bytes |
         error: the exception type to raise (the caller's own, e.g. ``LayoutError``).
 
     Raises:
-        error: ``"<path>: cannot read <what> (...)"``, ``"<path>: not UTF-8 text (...)"`` or
-            ``"<path>: not valid YAML (...)"``, on one line.
+        error: ``"<path>: cannot read <what> (...)"``, ``"<path>: not UTF-8 text (...)"``,
+            ``"<path>:<line>:<column>: not valid YAML: ..."`` (a syntax error, or a tag, alias or
+            nesting refused where it stands) or ``"<path>: not valid YAML (...)"`` (a value no
+            constructor takes), on one line.
     """
     path = Path(path)
     if data is None:
@@ -101,8 +111,26 @@ def read_yaml(path: str | Path, what: str, error: type[Exception], data: bytes |
         raise error(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     try:
         return safe_load(text)
+    except yaml.MarkedYAMLError as exc:
+        raise error(yaml_message(path, exc)) from None
     except (yaml.YAMLError, ValueError, TypeError, OverflowError) as exc:  # PyYAML's constructors raise the
         # last three for explicit tags on bad values (`!!int x`)
         raise error(f"{path}: not valid YAML ({' '.join(str(exc).split())})") from None
     except RecursionError:
         raise error(f"{path}: not valid YAML (nested too deeply)") from None
+
+
+def yaml_message(path: str | Path, exc: yaml.MarkedYAMLError) -> str:
+    """``FILE:LINE:COL: not valid YAML: problem (context at line L, column C)`` for a PyYAML error
+    with a position (lines and columns from 1, as editors and compilers count them), where PyYAML's
+    own text names ``"<unicode string>"`` and spreads over several lines."""
+    mark = exc.problem_mark or exc.context_mark
+    problem = " ".join(str(exc.problem or exc.context or "error").split())
+    where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark is not None else str(path)
+    context = ""
+    if exc.context and exc.problem and exc.context_mark is not None:
+        cm = exc.context_mark
+        context = f" ({' '.join(exc.context.split())} that starts at line {cm.line + 1}, column {cm.column + 1})"
+    elif exc.context and exc.problem:
+        context = f" ({' '.join(exc.context.split())})"
+    return f"{where}: not valid YAML: {problem}{context}"

@@ -29,11 +29,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from bulletnav.errors import ConfigError, LayoutError
 from bulletnav.sim.layout import Layout, parse_layout
 from bulletnav.sim.sampler import FreeSpace
+from bulletnav.yamlfile import read_yaml
 
 Point = tuple[float, float]
 
@@ -70,12 +70,7 @@ def load_world(path: str | Path) -> tuple[Layout, dict[str, tuple[Point, ...]]]:
         LayoutError: the file is missing or malformed (the message names the file and field).
     """
     path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise LayoutError(f"{path}: cannot read the layout file ({exc.strerror or exc})") from None
-    except yaml.YAMLError as exc:
-        raise LayoutError(f"{path}: not valid YAML ({exc})") from None
+    data = read_yaml(path, "layout file", LayoutError)
     named: dict[str, tuple[Point, ...]] = {}
     if isinstance(data, dict) and "stations" in data:
         data = dict(data)

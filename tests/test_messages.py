@@ -1,0 +1,97 @@
+"""What the user reads: no PyBullet build banner from bulletnav, YAML errors as ``FILE:LINE:COL:``
+for every kind of user YAML file, one meaning (simulated seconds) for ``--frame-at``."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import bulletnav
+from bulletnav.errors import ConfigError, LayoutError
+
+ROOT = Path(bulletnav.__file__).resolve().parent.parent
+BANNER = "pybullet build time"
+HANG_S = 120
+"""A generous hang detector for a fresh interpreter that imports bulletnav (about a second alone)."""
+
+
+def _fresh(*argv: str) -> subprocess.CompletedProcess:
+    """``python argv`` in a fresh interpreter, stdout and stderr captured (pipes: C stdio fully buffered)."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONSTARTUP"}
+    try:
+        return subprocess.run([sys.executable, *argv], capture_output=True, text=True, cwd=ROOT, env=env,
+                              timeout=HANG_S)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"hang: python {' '.join(argv)} did not end in {HANG_S} s")
+
+
+def test_pybullet_banner_never_reaches_the_terminal(tmp_path):
+    # the reference: pybullet itself prints its banner on a first import (else this test proves nothing)
+    plain = _fresh("-c", "import pybullet")
+    assert BANNER in plain.stdout + plain.stderr
+    runs = {
+        "help": (_fresh("-m", "bulletnav.cli", "--help"), 0),
+        "failing command": (_fresh("-m", "bulletnav.cli", "map", str(tmp_path / "missing.mcap")), 2),
+        "import": (_fresh("-c", "import bulletnav, pybullet; print('imported')"), 0),
+    }
+    for name, (run, rc) in runs.items():
+        assert run.returncode == rc, (name, run.stderr)
+        assert BANNER not in run.stdout and BANNER not in run.stderr, name
+    assert runs["help"][0].stdout.startswith("usage: bulletnav")
+    assert runs["failing command"][0].stderr.strip() == f"bulletnav map: error: {tmp_path / 'missing.mcap'}: no such bag file"
+    # what the program prints itself still arrives, on both streams
+    both = _fresh("-c", "import sys; print('out'); print('err', file=sys.stderr); import bulletnav; print('after')")
+    assert both.stdout.split() == ["out", "after"] and both.stderr.split() == ["err"]
+
+
+# A syntax error at a position counted by hand: line 3 (``  c: 3``), column 4 (the ``:`` after ``c``)
+# breaks the flow sequence opened on line 2, column 8.
+BROKEN = "name: x\nitems: [1, 2\n  c: 3\n"
+
+
+def _loaders(tmp_path: Path) -> dict[str, tuple]:
+    from bulletnav.benchmark.suite import SuiteError, load_suite
+    from bulletnav.fleet.stations import load_world
+    from bulletnav.rl.hyperparams import load_hyperparams
+    from bulletnav.sim.layout import load_layout
+    from bulletnav.sweep.spec import SweepSpec
+
+    return {
+        "layout": (load_layout, LayoutError),
+        "fleet world with stations": (load_world, LayoutError),
+        "suite": (lambda p: load_suite(str(p)), SuiteError),
+        "sweep": (SweepSpec.from_file, ConfigError),
+        "hyperparameters": (lambda p: load_hyperparams("ppo", path=p), ConfigError),
+    }
+
+
+def test_yaml_errors_name_file_line_and_column(tmp_path):
+    for kind, (load, error) in _loaders(tmp_path).items():
+        path = tmp_path / f"{kind.replace(' ', '_')}.yaml"
+        path.write_text(BROKEN)
+        with pytest.raises(error) as caught:
+            load(path)
+        message = str(caught.value)
+        assert message.startswith(f"{path}:3:4: not valid YAML: "), (kind, message)
+        assert "line 2, column 8" in message and "<unicode string>" not in message and "\n" not in message, message
+
+
+@pytest.mark.parametrize("text, where", [
+    ("a: 1\n  b: 2\n", "2:4"),                       # a mapping value where none may stand
+    ("a: 1\nb: *nowhere\n", "2:4"),                  # an alias never defined
+    ("a: 1\nb: !!python/object:os.system x\n", "2:4"),  # a Python tag, refused by safe_load
+    ("a: [1,\n    !!int many]\n", "2:5"),           # a value the tag's constructor refuses
+    ('a: "open\n', "2:1"),                           # a quoted scalar the file ends inside
+])
+def test_yaml_error_positions(tmp_path, text, where):
+    from bulletnav.sim.layout import load_layout
+
+    path = tmp_path / "world.yaml"
+    path.write_text(text)
+    with pytest.raises(LayoutError, match="^" + re.escape(f"{path}:{where}: not valid YAML: ")):
+        load_layout(path)
