@@ -155,7 +155,7 @@ class CoordinatedConfig:
     seed 3104, dynamic, N = 8, 76-96 s. With it, on development seeds (N = 8, 120 s), 770
     errands and 44 deadlock events in 120 dynamic episodes (3000-3039, 3100-3119, 3200-3219,
     3300-3339) against 770 and 52, and 342 and 1 in 40 episodes without movers (3100-3119,
-    3200-3219) against 326 and 6 (docs/fleet-deadlocks.md)."""
+    3200-3219) against 326 and 6 (docs/design/fleet-deadlocks.md)."""
     controller: ControllerConfig = field(default_factory=lambda: ControllerConfig(safety_distance=0.35, side_margin=0.1))
     """The PID go-to-point controller that tracks the path (its lidar blends kept short: the
     plan keeps robots a cell apart)."""
