@@ -79,6 +79,20 @@ KINDS: dict[str, str] = {
     "test_architecture.py::test_a_failed_rename_removes_the_temp_file": "contract",
     # the standard library's json.dumps and Pillow reading the PNG back
     "test_architecture.py::test_the_writers_write_what_they_are_given": "library",
+    # ---- test_barn_data.py
+    # cylinder poses by a regex written in the test on BARN's own world files; paths against BARN's .npy
+    "test_barn_data.py::test_shipped_worlds_match_the_world_files_text": "formula",
+    "test_barn_data.py::test_counts_path_endpoints_and_cylinder_size": "hand",  # counts from a regex scan of BARN's files
+    "test_barn_data.py::test_reference_paths_avoid_the_cylinders": "formula",  # distances by numpy in the test
+    "test_barn_data.py::test_path_cells_convert_to_metres_as_barn_does": "hand",  # run.py's conversion worked by hand
+    "test_barn_data.py::test_bad_world_index_is_named": "contract",
+    "test_barn_data.py::test_converter_refuses_what_it_cannot_convert": "contract",
+    # ---- test_barn_metric.py
+    "test_barn_metric.py::test_dwa_rows_summary_matches_barns_report_script": "hand",  # BARN's report_test.py run once by hand
+    "test_barn_metric.py::test_reference_lengths_agree_with_barns_2022_sixth_column": "golden",  # BARN's own 2022 numbers
+    "test_barn_metric.py::test_barn_metric_by_hand": "hand",
+    "test_barn_metric.py::test_reference_path_length_by_hand": "hand",
+    "test_barn_metric.py::test_bad_out_line_is_named": "contract",
     # ---- test_bench_against.py
     "test_bench_against.py::test_a_bogus_commit_is_refused_in_one_line": "contract",
     "test_bench_against.py::test_an_option_is_not_taken_for_a_commit": "contract",

@@ -333,7 +333,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("sensors",),
     ("planning",),
     ("tasks",),
-    ("envs",),
+    ("envs", "barn"),                               # barn: the BARN worlds, score and env (reads sim, tasks, envs)
     ("control",),
     ("policy", "evaluation"),
     ("rl",),

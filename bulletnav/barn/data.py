@@ -1,0 +1,84 @@
+"""BARN's 300 static worlds as shipped in ``bulletnav/assets/barn/`` (converted by scripts/convert_barn.py).
+
+``barn.npz`` (never pickled; read with ``allow_pickle=False``) holds, for worlds 0-299 in order:
+
+- ``cylinders_um``: every obstacle cylinder's centre (x, y) in micrometres (int32), as the world
+  file's ``<pose>`` writes it (6 decimals of a metre), all worlds one after another;
+- ``cylinder_offsets``: world ``i``'s cylinders are rows ``cylinder_offsets[i]:cylinder_offsets[i + 1]``;
+- ``path_cells``: the reference paths' grid cells (int16) exactly as in BARN's ``path_N.npy``;
+- ``path_offsets``: world ``i``'s path is rows ``path_offsets[i]:path_offsets[i + 1]``;
+- ``source``: the BARN repository and commit the data was converted from.
+
+``dwa_out.txt`` is BARN's ``res/dwa_out.txt`` verbatim: move_base DWA's 500 runs (10 on each of
+the 50 test worlds) measured by BARN in Gazebo.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from bulletnav.barn.metric import START, OutRow, optimal_time, parse_out
+from bulletnav.errors import LayoutError
+
+ASSETS = Path(__file__).resolve().parent.parent / "assets" / "barn"
+"""Folder of the shipped BARN data."""
+DATA_FILE = ASSETS / "barn.npz"
+"""The converted worlds and reference paths."""
+DWA_FILE = ASSETS / "dwa_out.txt"
+"""BARN's published DWA rows."""
+N_WORLDS = 300
+"""BARN's static worlds: indices 0-299."""
+
+
+@dataclass(frozen=True)
+class BarnWorld:
+    """One static BARN world."""
+
+    index: int
+    """World index, 0-299."""
+    cylinders: np.ndarray
+    """Obstacle cylinders' centres, n x 2 (m), in the world frame."""
+    path_cells: np.ndarray
+    """The reference path as BARN's grid cells, k x 2 integers (see :func:`bulletnav.barn.metric.path_cells_to_metres`)."""
+
+    @property
+    def t_opt(self) -> float:
+        """BARN's optimal time (s) from run.py's start: reference path with both legs, over 2 m/s."""
+        return optimal_time(self.path_cells, START[:2])
+
+
+@functools.lru_cache(maxsize=1)
+def _arrays() -> dict[str, np.ndarray]:
+    with np.load(DATA_FILE, allow_pickle=False) as npz:
+        return {k: npz[k] for k in npz.files}
+
+
+def check_index(world_idx: object) -> int:
+    """``world_idx`` as an int in 0-299, or a :class:`~bulletnav.errors.LayoutError` naming it."""
+    if isinstance(world_idx, bool) or not isinstance(world_idx, (int, np.integer)) or not 0 <= world_idx < N_WORLDS:
+        raise LayoutError(f"BARN world_idx {world_idx!r} is not a BARN static world (an integer 0-{N_WORLDS - 1})")
+    return int(world_idx)
+
+
+def load_world(world_idx: int) -> BarnWorld:
+    """BARN world ``world_idx`` (0-299) from the shipped data."""
+    i = check_index(world_idx)
+    a = _arrays()
+    c0, c1 = a["cylinder_offsets"][i:i + 2]
+    p0, p1 = a["path_offsets"][i:i + 2]
+    cylinders = a["cylinders_um"][c0:c1].astype(np.float64) / 1e6
+    return BarnWorld(i, cylinders, a["path_cells"][p0:p1].astype(np.int64))
+
+
+def source() -> str:
+    """The BARN repository and commit the shipped data was converted from."""
+    return str(_arrays()["source"])
+
+
+def dwa_rows() -> list[OutRow]:
+    """BARN's published move_base DWA rows (``res/dwa_out.txt``)."""
+    return parse_out(DWA_FILE.read_text(), str(DWA_FILE))
