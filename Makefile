@@ -1,4 +1,5 @@
-# The two commands: `make demo` and `make test` (and `make fuzz`, a longer fuzzing run). Both create .venv on first use.
+# The two commands: `make demo` and `make test` (and `make check`, lint and the fast tests for day-to-day
+# work; `make fuzz`, a longer fuzzing run). Each creates .venv on first use.
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
@@ -6,7 +7,7 @@ STAMP := $(VENV)/.installed
 # pytest-xdist processes of `make test`, each running whole test modules (2: the CI machine's cores)
 TEST_WORKERS ?= 2
 
-.PHONY: demo test fuzz install clean
+.PHONY: demo test check fuzz install clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -22,6 +23,12 @@ test: $(STAMP)
 	$(BIN)/ruff check bulletnav tests
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet --site-dir build/site
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+
+# Day-to-day: ruff and the tests not marked slow or gui (a few minutes on 2 cores); `make test`,
+# which CI runs, stays the whole suite.
+check: $(STAMP)
+	$(BIN)/ruff check bulletnav tests
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile -m "not slow and not gui"
 
 # Property-based fuzzing of every parser, the env's kwargs and actions and the CLI with 20 times the
 # examples of `make test`'s derandomized run, on random seeds; prints the examples per property.
