@@ -542,6 +542,7 @@ print(len(order))
 """
 
 
+@pytest.mark.slow
 def test_every_module_imports_in_a_fresh_process_in_layer_order():
     """One fresh interpreter imports every module, lowest layer first; each import must work
     with only lower layers loaded and must load no module of a higher layer."""

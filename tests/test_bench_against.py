@@ -63,6 +63,7 @@ def test_the_probe_imports_nothing_of_the_tree_but_the_package():
                                "import time"]
 
 
+@pytest.mark.slow
 def test_against_head_measures_both_sides(capsys):
     """The measuring script on this checkout and on HEAD's exported tree: every figure is there
     and positive (no timing is compared)."""

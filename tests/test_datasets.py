@@ -27,6 +27,7 @@ def store(tmp_path, monkeypatch):
     return tmp_path / "minari"
 
 
+@pytest.mark.slow
 def test_navigate_dataset_round_trip(store, capsys):
     assert main(["navigate", "--env", "bulletnav/WarehouseAisles-v0", "--planner", "astar", "--episodes", "2",
                  "--seed", "5", "--json", "--dataset", NAME]) == 0
@@ -89,6 +90,7 @@ def test_names_are_checked_before_running(store, capsys):
     assert "already exists" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_behaviour_cloning_from_a_dataset(store, tmp_path, capsys):
     """``train --algo bc``: PPO's network fitted to the expert's actions; the validation loss
     falls, and the model is saved like every model (evaluate runs it)."""

@@ -56,6 +56,7 @@ def test_parse_entries_names_and_errors():
         parse_entries(["independent"], "sometimes")
 
 
+@pytest.mark.slow
 def test_every_entry_meets_the_same_episodes_and_workers_do_not_change_rows(tmp_path):
     entries = parse_entries(["independent", "coordinated", "policy=models/ppo_dynamic.zip"], "off")
     one = run_comparison(tmp_path / "one", entries, robots=(2,), episodes=2, seed=31, env_kwargs=ENV, workers=1)
@@ -73,6 +74,7 @@ def test_every_entry_meets_the_same_episodes_and_workers_do_not_change_rows(tmp_
     _check_cells_from_rows(one, ENV["duration_s"])
 
 
+@pytest.mark.slow
 def test_an_interrupted_run_resumes_to_the_same_rows(tmp_path):
     entries = parse_entries(["independent"], "both")
     full = run_comparison(tmp_path / "full", entries, robots=(2,), episodes=3, seed=7, env_kwargs=ENV)
@@ -128,6 +130,7 @@ def test_chunks_cover_every_entry_block_by_block():
         ("independent", 8, [4, 5]), ("coordinated", 8, [4, 5]), ("independent", 4, [4, 5]), ("coordinated", 4, [4, 5])]
 
 
+@pytest.mark.slow
 def test_tables_of_a_stopped_run_cover_the_episodes_every_entry_has(tmp_path):
     """A run stopped early: ``run=False`` runs nothing and tabulates only the episodes that
     every entry has, each cell saying how many; the shielded entry's settings record its shield."""

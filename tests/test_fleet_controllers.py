@@ -308,6 +308,7 @@ def _dependencies_met(ctl):
                 assert ctl.progress[j] > t, (i, u, j, t)
 
 
+@pytest.mark.slow
 def test_coordinated_crowded_dynamic_episode_keeps_the_plan_order():
     """Eight robots among forklifts, workers and pallet events: they drive their errands at
     their own pace (no lockstep), each entering a cell only after the robots planned there
@@ -330,6 +331,7 @@ def test_coordinated_crowded_dynamic_episode_keeps_the_plan_order():
     assert ctls[0].replans > 10
 
 
+@pytest.mark.slow
 def test_restarts_plan_the_boxed_in_robots_first():
     """Prioritized planning with restarts: a robot that finds no path (the plans of robots
     ahead of it cross its cell) is planned first at the next try. In a crowded episode the

@@ -91,6 +91,7 @@ def _expect(exc: BaseException, kinds: tuple[type[BaseException], ...], path: Pa
 @given(raw_files(mutated(layouts)))
 # inputs that once failed (kept as regressions): UnicodeDecodeError, RecursionError after 2 s,
 # ValueError from PyYAML's int constructor, TypeError from a list as a mover type
+@pytest.mark.slow
 @example(b"size: [10, 10]\nname: \xff\xfe\xfa\n")
 @example(b"[" * 3000 + b"]" * 3000)
 @example(b"!<tag:yaml.org,2002:int> x\n")

@@ -21,6 +21,7 @@ MODEL = ROOT / SHIPPED_MODELS["bulletnav/WarehouseMission-v0"]
 needs_model = pytest.mark.skipif(not MODEL.is_file(), reason=f"{MODEL.name} is not in this checkout")
 
 
+@pytest.mark.slow
 @needs_model
 def test_the_shipped_mission_policy_completes_unseen_missions():
     model, meta, vecnorm = load_model(str(MODEL))

@@ -246,6 +246,7 @@ def test_pallet_events_never_disconnect_the_robot_from_its_goal():
     env.close()
 
 
+@pytest.mark.slow
 def test_same_seed_same_mover_trajectories_in_two_processes():
     code = (
         "import hashlib, numpy as np, gymnasium as gym, bulletnav\n"

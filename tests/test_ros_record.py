@@ -176,6 +176,7 @@ def test_refusals_and_abort_leave_nothing(tmp_path):
         env.close()
 
 
+@pytest.mark.slow
 def test_cli_navigate_records(tmp_path, capsys):
     out = tmp_path / "nav.mcap"
     assert main(["navigate", "--env", "bulletnav/WarehouseAisles-v0", "--planner", "astar", "--episodes", "2",

@@ -38,6 +38,7 @@ def recorded(tmp_path_factory):
     return d
 
 
+@pytest.mark.slow
 def test_replay_draws_the_live_frames(recorded, capsys):
     d = recorded
     capsys.readouterr()

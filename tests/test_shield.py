@@ -242,6 +242,7 @@ def test_navigate_and_evaluate_take_shield_and_report_it(capsys):
     assert plain["shield"] is False and plain["shield_rate"] == 0.0
 
 
+@pytest.mark.slow
 def test_train_with_the_shield_in_the_loop_steps_every_training_step_through_it(tmp_path, capsys, monkeypatch):
     """``train --shield``: every step the learner takes goes through a ShieldWrapper, and the run
     records it. One env, --timesteps 256 and ppo.yml's n_steps of 512: one whole rollout, so

@@ -47,6 +47,7 @@ def expected_frames(steps: int, stride: int) -> int:
     return 1 + steps // stride + (1 if steps % stride else 0)
 
 
+@pytest.mark.slow
 def test_video_frames_are_composed_and_counted(tmp_path):
     env = gym.make(ENV_ID, world=EMPTY, max_episode_steps=60)
     mp4, gif = tmp_path / "episodes.mp4", tmp_path / "episodes.gif"
