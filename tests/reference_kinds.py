@@ -118,6 +118,11 @@ KINDS: dict[str, str] = {
     "test_benchmark.py::test_pool_raises_a_jobs_error_without_starting_the_queued_jobs": "contract",
     # SciPy's percentile bootstrap; two cases by hand (was reproducibility only)
     "test_benchmark.py::test_bootstrap_interval_matches_scipys_percentile_bootstrap": "library",
+    # the report's re-created movers against the live simulation's after 600 steps with yielding (the same kinematics code)
+    "test_benchmark.py::test_report_movers_are_where_the_simulation_put_them": "self",
+    # the drawn artists' colours against the legend's samples and the palette written in the module; movers at the kinematics' poses
+    "test_benchmark.py::test_report_maps_draw_in_the_legend_colours_and_movers_in_dynamic_worlds": "hand",
+    "test_benchmark.py::test_report_replay_commands_break_only_between_arguments": "library",  # shlex splits the words back
     # ---- test_cli_env.py
     "test_cli_env.py::test_every_env_subcommand_defaults_to_warehouse_v0_and_takes_env": "contract",
     # start and goal clear of every rack footprint and inside the floor by Shapely
@@ -378,6 +383,14 @@ KINDS: dict[str, str] = {
     "test_input_holes.py::test_a_sidecar_of_the_shipped_sizes_still_loads": "contract",
     "test_input_holes.py::test_buffer_size_and_n_envs_are_bounded": "contract",
     "test_input_holes.py::test_fleet_duration_and_robots_are_limits": "contract",
+    # ---- test_interrupts.py
+    "test_interrupts.py::test_benchmark_ctrl_c_says_how_to_resume_and_the_resume_reports_the_whole_run": "contract",
+    "test_interrupts.py::test_benchmark_sigterm_with_two_workers_stops_them_and_keeps_whole_rows": "contract",
+    "test_interrupts.py::test_benchmark_ctrl_c_with_two_workers_prints_nothing_from_them": "contract",
+    "test_interrupts.py::test_train_ctrl_c_keeps_the_checkpoint_and_resumes_from_it": "contract",
+    "test_interrupts.py::test_fleet_compare_ctrl_c_says_how_to_resume_and_resumes": "contract",
+    "test_interrupts.py::test_navigate_ctrl_c_says_what_ran_and_that_nothing_resumes": "contract",
+    "test_interrupts.py::test_evaluate_sigterm_says_what_ran": "contract",
     "test_input_holes.py::test_the_suite_limits_are_in_the_one_table_and_raisable": "contract",
     "test_input_holes.py::test_dataset_ids_follow_minaris_rule": "library",  # Minari's own id parser
     "test_input_holes.py::test_a_bad_dataset_id_stops_navigate_before_any_episode": "contract",
@@ -536,6 +549,11 @@ KINDS: dict[str, str] = {
     "test_reference_kinds.py::test_the_table_keeps_within_ruffs_line_length": "contract",
     # ---- test_report_browser.py
     "test_report_browser.py::test_report_in_chromium": "library",  # a real Chromium through Playwright
+    # Chromium's layout boxes against the window's width (1,400 and 390 px)
+    "test_report_browser.py::test_report_fits_the_window_with_every_controller_visible": "library",
+    # the colours Chromium paints the legend in against the palette written in the module
+    "test_report_browser.py::test_report_legend_shows_the_colours_the_maps_are_drawn_in": "library",
+    "test_report_browser.py::test_report_replay_command_wraps_between_arguments_and_copies_as_one_line": "library",
     # ---- test_reset_kernels.py
     # the array code the kernels replaced
     "test_reset_kernels.py::test_compiled_footprint_distance_is_the_array_codes_to_the_bit": "formula",

@@ -303,3 +303,140 @@ def test_pool_raises_a_jobs_error_without_starting_the_queued_jobs(tmp_path):
         run_in_pool(jobs, 1, kept.append)
     assert kept == []  # the failing job was the only one handed over: no result was kept
     assert not any(p.exists() for p in made)  # one worker: nothing else was handed over before the failure
+
+
+# ------------------------------------------------------------------ the report's maps
+def test_report_movers_are_where_the_simulation_put_them():
+    """The report re-creates a dynamic episode's movers from its seed and the robot's recorded
+    track; against the simulation itself (the scene's movers after 600 steps of PID + A* that
+    make forklifts and workers yield to the robot) the poses agree to the bit, from every pose
+    and from the row's one-in-three path alike."""
+    import gymnasium as gym
+
+    from bulletnav.benchmark.report import robot_track
+    from bulletnav.control.navigator import Navigator, NavigatorConfig
+    from bulletnav.sim.movers import kinematic_poses
+
+    env = gym.make("bulletnav/WarehouseDynamic-v0")
+    try:
+        obs, info = env.reset(seed=4000000)
+        scene = env.unwrapped.scene
+        nav = Navigator(scene, NavigatorConfig(planner="astar"))
+        nav.reset(info)
+        specs = scene.mover_specs
+        assert len(specs) == len(scene.movers) >= 2
+        xy, yields = [scene.pose[:2]], 0
+        for _ in range(600):
+            obs, _, terminated, truncated, info = env.step(nav.act(obs, info))
+            yields += sum(m.yielding for m in scene.movers)
+            xy.append(scene.pose[:2])
+            if terminated or truncated:
+                break
+        assert yields > 0  # the movers' motion depends on where the robot was
+        steps = len(xy) - 1
+        truth = [m.pose for m in scene.movers]
+        full = kinematic_poses(specs, xy[:steps], scene.control_dt, scene.geometry.radius)
+        assert [track[-1] for track in full] == truth
+        row = {"steps": steps, "path": [[round(x, 3), round(y, 3)] for x, y in xy[:: max(1, len(xy) // 200)]]}
+        assert len(row["path"]) < len(xy) / 2
+        from_row = kinematic_poses(specs, robot_track(row), scene.control_dt, scene.geometry.radius)
+        assert max(math.dist(track[-1][:2], pose[:2]) for track, pose in zip(from_row, truth)) < 0.01
+    finally:
+        env.close()
+
+
+def _legend_colours(legend: str) -> dict[str, set[str]]:
+    """Legend entry -> the colours (``#rrggbb``, lower case) its sample draws with."""
+    import re
+
+    out = {}
+    for key, body in re.findall(r"<li data-key=(\w+)>(.*?)</li>", legend):
+        out[key] = {c.lower() for c in re.findall(r"(?:stroke|fill)='(#[0-9A-Fa-f]{6})'", body)}
+    return out
+
+
+def test_report_maps_draw_in_the_legend_colours_and_movers_in_dynamic_worlds():
+    """A dynamic world's map, drawn as the report draws it: every path outcome, the goal, the
+    racks, each forklift and worker are drawn in the colour the legend's sample shows and names,
+    the three outcomes and the goal, racks and movers in distinct colours; movers sit where
+    :func:`kinematic_poses` puts them at the episode's end."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.colors import to_hex
+    from matplotlib.figure import Figure
+
+    from bulletnav.benchmark import report
+    from bulletnav.sim.movers import kinematic_poses
+    from bulletnav.viz.plots import draw_layout
+
+    scenes = report.Scenes()
+    try:
+        scene = scenes.get({"name": "dynamic", "env": "bulletnav/WarehouseDynamic-v0", "kwargs": {}}, 4000001)
+    finally:
+        scenes.close()
+    assert scene.mover_specs
+    sx, sy, _ = scene.start
+    path = [[sx + 0.01 * i, sy] for i in range(51)]  # 50 steps east
+    legend = _legend_colours(report.legend_html(movers=True))
+    assert set(legend) >= {"success", "collision", "timeout", "goal", "obstacle", "forklift", "worker", "start"}
+    html_legend = report.legend_html(movers=True)
+    for key, name in report.COLOUR_NAMES.items():
+        if key in legend:
+            assert report.PALETTE[key].lower() in legend[key], key
+            assert name in html_legend
+    drawn = {}
+    for outcome in ("success", "collision", "timeout"):
+        row = {"success": int(outcome == "success"), "collision": int(outcome == "collision"), "steps": 50, "path": path}
+        fig = Figure()
+        ax = fig.add_subplot()
+        report.draw_episode(ax, scene, row, draw_layout)
+        lines = {line.get_gid(): line for line in ax.get_lines()}
+        drawn[outcome] = to_hex(lines[f"path_{outcome}"].get_color())
+        patches = ax.patches
+        goal = [p for p in patches if p.get_gid() == "goal"]
+        drawn["goal"] = {to_hex(p.get_facecolor() if p.get_fill() else p.get_edgecolor()) for p in goal}
+        # the zone's fill as pale as the legend's sample of it
+        assert [p.get_alpha() for p in goal if p.get_fill()] == [report.GOAL_ALPHA]
+        assert f"fill-opacity='{report.GOAL_ALPHA}'" in report.legend_html(movers=False)
+        movers = [p for p in patches if p.get_gid() in ("forklift", "worker")]
+        assert len(movers) == len(scene.mover_specs)
+        for kind in ("forklift", "worker"):
+            drawn[kind] = {to_hex(p.get_facecolor()) for p in movers if p.get_gid() == kind}
+        obstacles = {to_hex(p.get_facecolor()) for p in patches if p.get_gid() is None and p.get_zorder() == 1}
+        drawn["obstacle"] = obstacles
+    for outcome in ("success", "collision", "timeout"):
+        assert drawn[outcome] in legend[outcome], outcome
+    assert drawn["goal"] == {report.PALETTE["goal"].lower()} and drawn["goal"] <= legend["goal"]
+    assert drawn["obstacle"] == {report.PALETTE["obstacle"].lower()} and drawn["obstacle"] <= legend["obstacle"]
+    kinds = {s.kind for s in scene.mover_specs}
+    for kind in kinds:
+        assert drawn[kind] == {report.PALETTE[kind].lower()} and drawn[kind] <= legend[kind]
+    distinct = [report.PALETTE[k] for k in ("success", "collision", "timeout", "goal", "obstacle", "forklift", "worker")]
+    assert len(set(distinct)) == len(distinct)
+    # the movers' footprints are centred where the kinematics put them after the 50 steps
+    ends = [track[-1] for track in kinematic_poses(scene.mover_specs, report.robot_track(row), scene.control_dt,
+                                                   scene.robot_radius)]
+    centres = [np.mean(p.get_xy()[:4], axis=0) if p.get_gid() == "forklift" else np.array(p.center) for p in movers]
+    assert max(math.dist(c, e[:2]) for c, e in zip(centres, ends)) < 1e-9
+
+
+def test_report_replay_commands_break_only_between_arguments():
+    """A replay command as the report shows it: one span per shell argument, quoted arguments
+    with blanks kept whole, the text (what a copy gives) the command itself on one line."""
+    import html
+    import re
+    import shlex
+
+    from bulletnav.benchmark.report import command_html, shell_words
+
+    command = shlex.join(["python", "-c", "import json; print(json.dumps(1))", "--world", "a b/it's.yaml", "--seed", "7"])
+    words = shell_words(command)
+    assert [shlex.split(w)[0] for w in words] == ["python", "-c", "import json; print(json.dumps(1))", "--world",
+                                                    "a b/it's.yaml", "--seed", "7"]
+    assert " ".join(words) == command
+    code = command_html(command)
+    spans = re.findall(r"<span>(.*?)</span>", code)
+    assert len(spans) == 7
+    text = html.unescape(re.sub(r"<[^>]+>", "", code))
+    assert text == command and "\n" not in text

@@ -273,29 +273,40 @@ def run_suite(suite: Suite, out: Path, workers: int = 1, address: str | None = N
 
 class RowLog:
     """The rows of a run as they finish: each batch appended to ``path`` (one JSON line per
-    row, flushed), added to ``rows`` and reported through ``progress(done, total)``. Use as a
-    context manager; the object it gives is the ``keep(new_rows)`` function."""
+    row) in one ``write`` call, added to ``rows`` and reported through ``progress(done, total)``.
+    Use as a context manager; the object it gives is the ``keep(new_rows)`` function.
+
+    One ``write`` of the whole batch to a file opened for appending: a Ctrl-C or SIGTERM (their
+    handlers run between Python steps, after a system call returns) never leaves half a row."""
 
     def __init__(self, path: Path, rows: list[dict[str, Any]], total: int,
                  progress: Callable[[int, int], None] | None = None) -> None:
         self.path, self.rows, self.total, self.progress = path, rows, total, progress
 
     def __enter__(self) -> Callable[[list[dict[str, Any]]], None]:
-        self.file = self.path.open("a")
+        self.fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
         if self.progress is not None:
             self.progress(len(self.rows), self.total)
         return self.keep
 
     def keep(self, new: list[dict[str, Any]]) -> None:
-        for row in new:
-            self.file.write(json.dumps(row, allow_nan=True) + "\n")
-        self.file.flush()
+        data = memoryview("".join(json.dumps(row, allow_nan=True) + "\n" for row in new).encode())
+        while data:  # a regular file takes it all at once; a short write (a full disk) goes on
+            data = data[os.write(self.fd, data):]
         self.rows.extend(new)
         if self.progress is not None:
             self.progress(len(self.rows), self.total)
 
     def __exit__(self, *exc: object) -> None:
-        self.file.close()
+        os.close(self.fd)
+
+
+def ignore_interrupts() -> None:
+    """A worker process's start: ignore SIGINT. A Ctrl-C at the terminal reaches the whole
+    process group; the parent alone handles it and stops its workers (no traceback from each)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def run_in_pool(jobs: list[tuple[Callable, tuple]], workers: int, keep: Callable[[Any], None]) -> None:
@@ -304,18 +315,35 @@ def run_in_pool(jobs: list[tuple[Callable, tuple]], workers: int, keep: Callable
     finishes. At most ``workers`` jobs are handed to the pool at a time, so a job's exception
     is raised here at once: the jobs not yet handed over never start (the running ones finish
     first). ``ProcessPoolExecutor`` would otherwise queue jobs ahead of its workers, and those
-    would run after the failure."""
+    would run after the failure. The workers ignore SIGINT (:func:`ignore_interrupts`); a
+    ``KeyboardInterrupt`` here (Ctrl-C, or SIGTERM made one by the CLI) terminates them at once."""
     import multiprocessing
 
     ctx = multiprocessing.get_context("forkserver")
     queue = iter(jobs)
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=ignore_interrupts)
+    try:
         pending = {pool.submit(fn, *args) for fn, args in islice(queue, workers)}
         while pending:
             finished, pending = wait(pending, return_when=FIRST_COMPLETED)
             for future in finished:
                 keep(future.result())
                 pending.update(pool.submit(fn, *args) for fn, args in islice(queue, 1))
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: stop the workers now, not after their chunks
+        stop_workers(pool)
+        raise
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def stop_workers(pool: ProcessPoolExecutor) -> None:
+    """Terminate a pool's worker processes (their unfinished jobs are lost; nothing of theirs
+    was written) and wait for them."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())  # no public way before Python 3.14
+    for process in processes:
+        process.terminate()
+    for process in processes:
+        process.join()
 
 
 def _run_ray(suite: Suite, root: Path, chunks: list, address: str, keep: Callable) -> None:

@@ -15,7 +15,7 @@ import logging
 import sys
 from collections.abc import Sequence
 
-from bulletnav.cli import bench, benchmark, evaluate, fleet, models, navigate, ros, sweep, train, view
+from bulletnav.cli import bench, benchmark, evaluate, fleet, interrupts, models, navigate, ros, sweep, train, view
 from bulletnav.cli.args import DEFAULT_ENV_ID, Parser
 from bulletnav.cli.envs import bulletnav_env_ids, check_env_id
 from bulletnav.cli.evaluate import DEFAULT_MODEL, SHIPPED_MODELS
@@ -44,15 +44,23 @@ def build_parser() -> Parser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``bulletnav`` with ``argv`` (default ``sys.argv[1:]``); the exit status: 0, 2 on a
-    library error (one line on stderr), or the command's own (130: interrupted)."""
+    library error (one line on stderr), or 130 when interrupted (Ctrl-C or SIGTERM: one line on
+    stderr saying what was kept and how to go on, :mod:`~bulletnav.cli.interrupts`)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    interrupts.start(argv)
     try:
-        if getattr(args, "env_id", None) is not None:
-            check_env_id(args.env_id)
-        with json_mode() if getattr(args, "json", False) else contextlib.nullcontext():
-            return int(args.func(args) or 0)
+        with interrupts.sigterm_as_interrupt():
+            if getattr(args, "env_id", None) is not None:
+                check_env_id(args.env_id)
+            with json_mode() if getattr(args, "json", False) else contextlib.nullcontext():
+                return int(args.func(args) or 0)
     except BulletnavError as exc:
         print(f"bulletnav {args.command}: error: {' '.join(str(exc).split())}", file=sys.stderr)  # one line
         return 2
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: what was kept and how to go on, one line
+        with interrupts.deferred():
+            print(interrupts.interrupted_line(args.command), file=sys.stderr, flush=True)
+        return interrupts.EXIT_INTERRUPTED

@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 
+from bulletnav.cli import interrupts
 from bulletnav.cli.args import COUNT, NON_NEGATIVE, add_command
 from bulletnav.cli.output import print_json
 from bulletnav.errors import BulletnavError
@@ -41,11 +42,12 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else suite.out_dir("runs/benchmark")
     if args.report_only:  # the report (and screenshots) again from DIR/results.json
         return _report_only(args, out)
-    results, report = _run(args, suite, out)
+    earlier: list[int] = []  # the episodes an earlier run had finished (the progress's first count)
+    results, report = _run(args, suite, out, earlier)
     if args.json:
         print_json(results)
     else:
-        _print_table(args, suite, results, out, report)
+        _print_table(args, suite, results, out, report, earlier[0] if earlier else 0)
     _screenshots(args, report, out)
     return 0
 
@@ -75,8 +77,22 @@ def _screenshots(args: argparse.Namespace, report, out) -> None:
         print(f"screenshot: {shot}", file=sys.stderr if args.json else sys.stdout)
 
 
-def _run(args: argparse.Namespace, suite, out):
-    """Run the suite (a progress bar on stderr, none with ``--json``); ``(results, report path)``."""
+def interrupted_note(log, total: int, what: str = "episodes") -> str:
+    """The line of an interrupted run that keeps its rows in ``log`` (an ``episodes.jsonl``; a
+    ``benchmark`` or ``fleet-compare``): how many of ``total`` are kept and the command that goes on."""
+    from bulletnav.benchmark.runner import read_rows
+
+    if not log.is_file():
+        return (f"interrupted before the first of {total} {what} finished; nothing kept; run again with: "
+                f"{interrupts.rerun_command()}")
+    kept = len(read_rows(log))
+    return (f"interrupted after {kept} of {total} {what}; rows kept in {log}; continue with: "
+            f"{interrupts.continue_command()}")
+
+
+def _run(args: argparse.Namespace, suite, out, earlier: list[int]):
+    """Run the suite (a progress bar on stderr, none with ``--json``); ``(results, report path)``.
+    ``earlier`` gets the number of episodes an earlier run had finished."""
     from tqdm import tqdm
 
     from bulletnav.benchmark.report import write_report
@@ -87,28 +103,37 @@ def _run(args: argparse.Namespace, suite, out):
 
     def progress(done: int, total: int) -> None:
         nonlocal bar
+        if not earlier:
+            earlier.append(done)
         if args.json:
             return
         if bar is None:
             bar = tqdm(total=total, initial=done, unit="episode", desc=f"benchmark {suite.name}", file=sys.stderr)
         bar.update(done - bar.n)
 
+    interrupts.on_interrupt(lambda: interrupted_note(out / "episodes.jsonl", suite.total))
     try:
         results = run_suite(suite, out, workers=args.workers, address=args.address, resume=args.resume, progress=progress)
+    except KeyboardInterrupt:
+        if bar is not None:
+            bar.leave = False  # the interrupted line says where it stopped
+        raise
     finally:
         if bar is not None:
             bar.close()
     return results, write_report(results, out / "report.html", draw_layout)
 
 
-def _print_table(args: argparse.Namespace, suite, results: dict, out, report) -> None:
+def _print_table(args: argparse.Namespace, suite, results: dict, out, report, earlier: int = 0) -> None:
     from bulletnav.benchmark.report import best_controllers
 
     controllers = [c["name"] for c in results["suite"]["controllers"]]
     cells = {(c["world"], c["controller"]): c["summary"] for c in results["cells"]}
     best = best_controllers(results)
-    print(f"\nbenchmark {suite.name}: {suite.total} episodes in {results['provenance']['wall_time_s']:.0f} s "
-          f"({args.workers} workers); success / collisions / SPL per world and controller")
+    wall, workers = results["provenance"]["wall_time_s"], results["provenance"]["workers"]
+    timing = (f"{suite.total} episodes ({earlier} from the earlier run), {wall:.0f} s this run" if earlier
+              else f"{suite.total} episodes in {wall:.0f} s")
+    print(f"\nbenchmark {suite.name}: {timing} ({workers} workers); success / collisions / SPL per world and controller")
     print("| world | " + " | ".join(controllers) + " |")
     print("|---" * (len(controllers) + 1) + "|")
     for w in results["suite"]["worlds"]:

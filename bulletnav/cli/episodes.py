@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 
+from bulletnav.cli import interrupts
 from bulletnav.cli.args import DEFAULT_ENV_ID
 from bulletnav.cli.envs import check_env_id, shielded, world_kwargs, world_label
 from bulletnav.cli.output import print_json, safety_line, shield_line
@@ -83,9 +84,12 @@ def run_with_visuals(args, env, policy, line, title: str):
             sizes.append([float(x) for x in env.unwrapped.scene.layout.size])
         visuals.on_reset(env, info)
 
+    finished: list = []
+
     def on_episode(r) -> None:
         visuals.on_episode(r)
         line(r)
+        finished.append(r)
 
     recorder = dataset = None
     if getattr(args, "dataset", None):
@@ -96,6 +100,10 @@ def run_with_visuals(args, env, policy, line, title: str):
         from bulletnav.ros.record import McapRecorder
 
         env = recorder = McapRecorder(env, args.record, plan=lambda: planned_path(policy), overwrite=True)
+    outputs = [name for name, given in (("video", getattr(args, "video", None)), ("plot", getattr(args, "plot", None)),
+                                        ("recording", getattr(args, "record", None)), ("dataset", getattr(args, "dataset", None)))
+               if given]
+    interrupts.on_interrupt(lambda: interrupted_note(len(finished), args.episodes, outputs))
     ok = False
     try:
         results = run_episodes(env, policy, args.episodes, args.seed, on_episode=on_episode,
@@ -115,6 +123,14 @@ def run_with_visuals(args, env, policy, line, title: str):
     if dataset is not None:
         written = [*written, f"dataset: {args.dataset} (Minari, {len(dataset.buffers)} episodes)"]
     return results, written, (sizes[0] if sizes else None)
+
+
+def interrupted_note(done: int, episodes: int, outputs: list[str]) -> str:
+    """The line of an interrupted ``navigate``, ``evaluate`` or ``demo``: the episodes finished
+    (their lines are above), that their files are not written, and the command to run again."""
+    dropped = (f"; no {' / '.join(outputs)} written (an unfinished run's are dropped)" if outputs else "")
+    return (f"interrupted after {done} of {episodes} episodes{dropped}; nothing can be resumed; run again with: "
+            f"{interrupts.rerun_command()}")
 
 
 def planned_path(policy):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from bulletnav.cli import interrupts
 from bulletnav.cli.args import (
     COUNT,
     FLEET_ROBOTS,
@@ -251,10 +252,19 @@ def cmd_fleet_compare(args: argparse.Namespace) -> int:
                        disable=args.json)
         bar.update(done - bar.n)
 
+    if not args.tables_only:
+        from bulletnav.cli.benchmark import interrupted_note
+
+        total = len(entries) * len(args.robots) * args.episodes
+        interrupts.on_interrupt(lambda: interrupted_note(Path(args.out) / "episodes.jsonl", total))
     try:
         results = run_comparison(Path(args.out), entries, robots=args.robots, episodes=args.episodes, seed=args.seed,
                                  env_kwargs=env_kwargs, workers=args.workers, resume=args.resume, progress=progress,
                                  run=not args.tables_only)
+    except KeyboardInterrupt:
+        if bar is not None:
+            bar.leave = False  # the interrupted line says where it stopped
+        raise
     finally:
         if bar is not None:
             bar.close()
@@ -291,6 +301,9 @@ def cmd_fleet_train(args: argparse.Namespace) -> int:
         hyperparams=Path(args.hyperparams) if args.hyperparams else None, env_overrides=overrides or None,
         resume=args.resume, checkpoint_freq=args.checkpoint_freq, command=command_line(),
         progress_bar=not args.no_progress)
+    from bulletnav.cli.train import interrupted_note
+
+    interrupts.on_interrupt(lambda: interrupted_note(out))
     record = train_fleet(cfg)
     print(f"fleet-trained PPO for {record['total_timesteps']} agent steps in {record['wall_time_s']:.0f} s "
           f"({record['fleets']} fleet(s) of {args.robots} robots, seed {record['seed']})")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from bulletnav.cli import interrupts
 from bulletnav.cli.args import COUNT, add_command
 from bulletnav.cli.output import print_json
 
@@ -38,22 +39,21 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     spec = SweepSpec.from_file(args.file)
     opts = SweepOptions(out=Path(args.out), address=args.address, storage=args.storage, resume=args.resume,
                         optimize=args.optimize, num_cpus=args.num_cpus, command=command_line())
-    resume_hint = f"bulletnav sweep: interrupted; continue with: bulletnav sweep {args.file} --out {args.out} --resume"
-    try:
-        record = run_sweep(spec, opts)
-    except KeyboardInterrupt:  # a second Ctrl-C, while Ray Tune was saving its state
-        print(resume_hint, file=sys.stderr)
-        return 130
+    experiment = f"{(args.storage or str(Path(args.out).resolve())).rstrip('/')}/{spec.name}"
+    # a second Ctrl-C, while Ray Tune was saving its state, or a SIGTERM: the trials' own checkpoints are kept
+    interrupts.on_interrupt(lambda: f"interrupted; finished trials and checkpoints kept in {experiment}; "
+                                    f"continue with: {interrupts.continue_command()}")
+    record = run_sweep(spec, opts)
     if args.json:
         print_json(record)
-        if record["interrupted"]:
-            print(resume_hint, file=sys.stderr)
-        return 130 if record["interrupted"] else 0
-    _print_tables(spec, record)
-    if record["interrupted"]:
-        print(f"{record['interrupted']} trial(s) unfinished", file=sys.stderr)
-        print(resume_hint, file=sys.stderr)
-        return 130
+    else:
+        _print_tables(spec, record)
+    if record["interrupted"]:  # Ray Tune ends fit() quietly on the first Ctrl-C
+        unfinished = record["interrupted"]
+        print(f"bulletnav sweep: interrupted with {unfinished} of {len(record['trials'])} trials unfinished; "
+              f"finished trials and checkpoints kept in {record['experiment']}; continue with: "
+              f"{interrupts.continue_command()}", file=sys.stderr)
+        return interrupts.EXIT_INTERRUPTED
     return 0
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from bulletnav.cli import interrupts
 from bulletnav.cli.args import (
     COUNT,
     FRACTION,
@@ -154,14 +155,51 @@ def cmd_train(args: argparse.Namespace) -> int:
         init_from=Path(args.init_from) if args.init_from else None, trust_pickle=args.trust_pickle,
         stop_at_success=args.stop_at_success, **extra,
     )
+    interrupts.on_interrupt(lambda: interrupted_note(out))
     _print_record(args, cfg, train(cfg, plot_curve=plot_learning_curve))
     return 0
 
 
+def kept_checkpoint(out) -> int | None:
+    """The step count of the checkpoint a resume of ``out`` would start from (a committed set
+    still in ``checkpoints/.pending`` is completed first), or None without one."""
+    import json
+
+    for path in (out / "checkpoints" / ".pending" / "COMMIT", out / "checkpoints" / "last.json"):
+        try:
+            return int(json.loads(path.read_text())["timesteps"])
+        except (OSError, ValueError, KeyError, TypeError):
+            continue
+    return None
+
+
+def interrupted_note(out) -> str:
+    """The line of an interrupted ``train`` (and ``fleet-train``): the checkpoint kept and the
+    command that goes on from it, or that there is none yet."""
+    import json
+
+    try:
+        total = int(json.loads((out / "config.json").read_text())["timesteps"])
+        of = f" of {total:,}"
+    except (OSError, ValueError, KeyError, TypeError):
+        of = ""
+    steps = kept_checkpoint(out)
+    if steps is None:
+        again = interrupts.rerun_command(add=["--overwrite"] if holds_run(out) else [])
+        return f"interrupted before the first checkpoint; nothing to resume; run again with: {again}"
+    return (f"interrupted; checkpoint at {steps:,}{of} steps kept in {out / 'checkpoints' / 'last.zip'}; "
+            f"continue with: {interrupts.continue_command()}")
+
+
 def _print_record(args: argparse.Namespace, cfg, record: dict) -> None:
     final = record.get("final_eval") or {}
-    print(f"trained {args.algo.upper()} for {record['total_timesteps']} timesteps in {record['wall_time_s']:.0f} s "
-          f"({record['n_envs']} envs, seed {args.seed})")
+    if record.get("resumed_from"):  # the whole run's steps, and this run's time apart from the whole's
+        print(f"trained {args.algo.upper()} for {record['total_timesteps']} timesteps ({record['resumed_from']} from "
+              f"the earlier run), {record['wall_time_s']:.0f} s this run, {record['wall_time_total_s']:.0f} s in all "
+              f"({record['n_envs']} envs, seed {args.seed})")
+    else:
+        print(f"trained {args.algo.upper()} for {record['total_timesteps']} timesteps in {record['wall_time_s']:.0f} s "
+              f"({record['n_envs']} envs, seed {args.seed})")
     if record.get("throughput"):
         t = record["throughput"]
         print(f"throughput     {t['env_steps_per_s']:.0f} env steps/s; wall time in env {t['env_share'] * 100:.0f} %, "

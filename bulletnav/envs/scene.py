@@ -35,6 +35,7 @@ from bulletnav.sim.movers import Movers, MoverView
 from bulletnav.sim.robot import RobotState
 from bulletnav.sim.sampler import FreeSpace
 from bulletnav.sim.simulation import Simulation
+from bulletnav.sim.specs import MoverSpec
 from bulletnav.sim.world import World
 
 if TYPE_CHECKING:
@@ -343,6 +344,12 @@ class SceneReader:
     def movers(self) -> tuple[MoverView, ...]:
         """Moving obstacles now (kind, pose, speed, size, route, yielding); none in static worlds."""
         return self._scene.movers.views() if self._scene.dynamic else ()
+
+    @property
+    def mover_specs(self) -> tuple[MoverSpec, ...]:
+        """This episode's movers as specified (frozen specs, in :attr:`movers` order; none in
+        static worlds): what their kinematics follow (:func:`bulletnav.sim.movers.kinematic_poses`)."""
+        return tuple(m.spec for m in self._scene.movers.active) if self._scene.dynamic else ()
 
     @property
     def events(self) -> tuple[dict, ...]:

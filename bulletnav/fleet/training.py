@@ -198,9 +198,13 @@ def train_fleet(cfg: FleetTrainConfig) -> dict[str, Any]:
                  FleetEpisodeCallback(out, slots, episodes)]
     t0 = time.time()
     remaining = max(cfg.timesteps - start_steps, 0)
-    if remaining:
-        model.learn(total_timesteps=remaining, callback=callbacks, progress_bar=cfg.progress_bar,
-                    reset_num_timesteps=not cfg.resume)
+    try:
+        if remaining:
+            model.learn(total_timesteps=remaining, callback=callbacks, progress_bar=cfg.progress_bar,
+                        reset_num_timesteps=not cfg.resume)
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the last checkpoint stands; the fleets' simulations end
+        venv.close()
+        raise
     wall = time.time() - t0
     _save_final(cfg, model, venv, vecnorm, state(), env_kwargs, record)
     record.update(throughput=throughput.summary() if remaining else None, wall_time_s=round(wall, 1),

@@ -106,10 +106,46 @@ def _make_vec_env(cfg: TrainConfig, env_kwargs: dict[str, Any], n_envs: int, shi
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
 
     fns = [make_env_fn(env_kwargs, cfg.env_id, shield) for _ in range(n_envs)]
-    venv = SubprocVecEnv(fns, start_method="forkserver") if resolve_vec_env(cfg.vec_env, n_envs) == "subproc" \
-        else DummyVecEnv(fns)
+    if resolve_vec_env(cfg.vec_env, n_envs) == "subproc":
+        venv = SubprocVecEnv([IgnoringInterrupts(fn) for fn in fns], start_method="forkserver")
+    else:
+        venv = DummyVecEnv(fns)
     venv.seed(cfg.seed)
     return VecMonitor(TimedVecEnv(venv))
+
+
+class IgnoringInterrupts:
+    """An env factory for a worker process that first makes the process ignore SIGINT: a
+    Ctrl-C at the terminal reaches the whole process group, and the training process alone
+    handles it (it stops the workers; none prints a traceback)."""
+
+    def __init__(self, fn: Callable[[], Any]) -> None:
+        self.fn = fn
+
+    def __call__(self) -> Any:
+        import signal
+
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        return self.fn()
+
+
+def stop_workers(venv: Any) -> None:
+    """Stop the env worker processes under ``venv``'s wrappers at once (after a Ctrl-C the
+    training process may be half-way through a step's replies, so ``close`` could wait on a
+    reply that never comes); nothing for envs in this process."""
+    inner = venv
+    while inner is not None and not hasattr(inner, "processes"):
+        inner = getattr(inner, "venv", None)
+    if inner is None:
+        venv.close()
+        return
+    for process in inner.processes:
+        process.terminate()
+    for process in inner.processes:
+        process.join()
+    for remote in inner.remotes:
+        remote.close()
+    inner.closed = True
 
 
 def _timer(venv: Any) -> TimedVecEnv:
@@ -178,9 +214,14 @@ def train(cfg: TrainConfig, plot_curve: PlotCurve | None = None) -> dict[str, An
     write_json(cfg.out / "config.json", record)
     t0 = time.time()
     remaining = max(timesteps - start_steps, 0)
-    if remaining:
-        model.learn(total_timesteps=remaining, callback=[checkpoints, *callbacks], progress_bar=cfg.progress_bar,
-                    reset_num_timesteps=not cfg.resume, tb_log_name=cfg.algo)
+    try:
+        if remaining:
+            model.learn(total_timesteps=remaining, callback=[checkpoints, *callbacks], progress_bar=cfg.progress_bar,
+                        reset_num_timesteps=not cfg.resume, tb_log_name=cfg.algo)
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the last checkpoint stands; workers and envs stopped
+        stop_workers(venv)
+        evaluation.close()
+        raise
     wall = time.time() - t0
     timing = throughput.summary() if remaining else None
     save_checkpoint(model, cfg.out, vecnorm, state())

@@ -363,6 +363,22 @@ def yield_target(spec: MoverSpec, pose: tuple[float, float, float], turning: boo
     return min(robots_xy, key=field_gap)
 
 
+def kinematic_poses(specs: Sequence[MoverSpec], robot_xy: Sequence[tuple[float, float]], dt: float,
+                    robot_radius: float) -> list[list[tuple[float, float, float]]]:
+    """Each mover's pose (x m, y m, yaw rad) at the start and after each control period ``dt``
+    (s), the robot's centre at ``robot_xy[k]`` during period ``k``: the kinematics and yielding
+    that :meth:`Movers.plan_step` gives a single robot's movers, without bodies or PyBullet.
+    With an episode's specs (``scene.mover_specs`` after its reset) and the robot's recorded
+    track, it re-creates where the movers were (the benchmark report draws them so)."""
+    movers = [_Mover(spec, -1) for spec in specs]
+    poses = [[m.pose] for m in movers]
+    for xy in robot_xy:
+        for m, track in zip(movers, poses):
+            m.step(dt, xy, robot_radius)
+            track.append(m.pose)
+    return poses
+
+
 def box_corners(center: tuple[float, float], yaw: float, length: float, width: float) -> list[tuple[float, float]]:
     """Corners (counter-clockwise) of a ``length`` x ``width`` rectangle at ``center`` turned by ``yaw``."""
     c, s = math.cos(yaw), math.sin(yaw)

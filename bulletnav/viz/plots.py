@@ -310,16 +310,20 @@ def _grid(n: int) -> tuple[int, int]:
     return cols, max(1, math.ceil(n / cols))
 
 
-def draw_layout(ax: Any, layout: Layout) -> None:
-    """Draw ``layout`` (walls, floor, obstacles in their category colours) on matplotlib axes ``ax``, to scale."""
+def draw_layout(ax: Any, layout: Layout, obstacle: Any = None, wall: Any = None) -> None:
+    """Draw ``layout`` (walls, floor, obstacles in their category colours) on matplotlib axes ``ax``, to scale.
+
+    ``obstacle`` and ``wall``, matplotlib colours, draw every obstacle and the walls in one
+    colour instead (the benchmark report keeps colour for its paths and movers)."""
     from matplotlib.patches import Circle, Polygon, Rectangle
 
     hx, hy = layout.half_extents
     t = WALL_THICKNESS
-    ax.add_patch(Rectangle((-hx - t, -hy - t), 2 * (hx + t), 2 * (hy + t), color=COLOURS["wall"][:3], zorder=0))
+    ax.add_patch(Rectangle((-hx - t, -hy - t), 2 * (hx + t), 2 * (hy + t), color=COLOURS["wall"][:3] if wall is None else wall,
+                           zorder=0))
     ax.add_patch(Rectangle((-hx, -hy), 2 * hx, 2 * hy, color=(0.93, 0.93, 0.94), zorder=0))
     for o in layout.obstacles:
-        colour = COLOURS.get(o.label, COLOURS["box"])[:3]
+        colour = COLOURS.get(o.label, COLOURS["box"])[:3] if obstacle is None else obstacle
         if o.kind == "cylinder":
             patch = Circle(o.center, o.radius, facecolor=colour, edgecolor="0.3", lw=0.5)
         else:
