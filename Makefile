@@ -24,10 +24,11 @@ test: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet --site-dir build/site
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
-# Day-to-day: ruff and the tests not marked slow or gui (a few minutes on 2 cores); `make test`,
-# which CI runs, stays the whole suite.
+# Day-to-day: ruff, the docs build and the tests not marked slow or gui (a few minutes on 2 cores);
+# `make test`, which CI runs, stays the whole suite.
 check: $(STAMP)
 	$(BIN)/ruff check bulletnav tests
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet --site-dir build/site
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile -m "not slow and not gui"
 
 # Property-based fuzzing of every parser, the env's kwargs and actions and the CLI with 20 times the
