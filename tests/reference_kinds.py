@@ -391,14 +391,6 @@ KINDS: dict[str, str] = {
     "test_interrupts.py::test_fleet_compare_ctrl_c_says_how_to_resume_and_resumes": "contract",
     "test_interrupts.py::test_navigate_ctrl_c_says_what_ran_and_that_nothing_resumes": "contract",
     "test_interrupts.py::test_evaluate_sigterm_says_what_ran": "contract",
-    # ---- test_interrupts.py
-    "test_interrupts.py::test_benchmark_ctrl_c_says_how_to_resume_and_the_resume_reports_the_whole_run": "contract",
-    "test_interrupts.py::test_benchmark_sigterm_with_two_workers_stops_them_and_keeps_whole_rows": "contract",
-    "test_interrupts.py::test_benchmark_ctrl_c_with_two_workers_prints_nothing_from_them": "contract",
-    "test_interrupts.py::test_train_ctrl_c_keeps_the_checkpoint_and_resumes_from_it": "contract",
-    "test_interrupts.py::test_fleet_compare_ctrl_c_says_how_to_resume_and_resumes": "contract",
-    "test_interrupts.py::test_navigate_ctrl_c_says_what_ran_and_that_nothing_resumes": "contract",
-    "test_interrupts.py::test_evaluate_sigterm_says_what_ran": "contract",
     "test_input_holes.py::test_the_suite_limits_are_in_the_one_table_and_raisable": "contract",
     "test_input_holes.py::test_dataset_ids_follow_minaris_rule": "library",  # Minari's own id parser
     "test_input_holes.py::test_a_bad_dataset_id_stops_navigate_before_any_episode": "contract",
