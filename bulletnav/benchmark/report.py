@@ -122,6 +122,10 @@ code { font-size: 0.8rem; background: var(--alt); padding: 1px 4px; }
 code.cmd { display: block; overflow-x: auto; white-space: normal; overflow-wrap: normal; word-break: normal; padding: 4px 6px;
            margin-top: 4px; }
 code.cmd > span { white-space: pre; }
+.charts { display: grid; grid-template-columns: repeat(auto-fill, minmax(min(300px, 100%), 1fr)); gap: 8px 16px; }
+.charts figure { margin: 0; min-width: 0; } .charts figcaption { font-weight: 600; margin: 0 0 2px; }
+.charts svg { width: 100%; height: auto; display: block; font-size: 11px; fill: var(--fg); }
+.charts .tick { fill: var(--muted); font-size: 10px; }
 ul.legend { list-style: none; padding: 0; margin: 8px 0; display: flex; flex-wrap: wrap; gap: 4px 18px; font-size: 0.9rem; }
 ul.legend li { display: flex; align-items: center; gap: 6px; }
 ul.legend svg { flex: none; }
@@ -461,6 +465,36 @@ def _page_head(results: dict[str, Any], results_name: str, controllers: list[str
     return out
 
 
+def _success_chart(w: dict[str, Any], controllers: list[str], cells: dict[tuple[str, str], Any],
+                   best: dict[str, str]) -> str:
+    """World ``w``'s success rate of every controller as a dot with its 95 % interval (inline SVG,
+    0-100 %), the best starred."""
+    esc = html.escape
+    left, right, row, top = 128, 298, 20, 8
+    height = top + row * len(controllers) + 22
+
+    def x(rate: float) -> float:
+        return left + (right - left) * rate
+
+    parts = [f"<line x1={x(t):.1f} y1={top - 4} x2={x(t):.1f} y2={height - 20} stroke='#d0d3d9' />"
+             f"<text x={x(t):.1f} y={height - 6} text-anchor=middle class=tick>{t * 100:.0f} %</text>" for t in (0, 0.5, 1)]
+    for i, c in enumerate(controllers):
+        y = top + row * i + row / 2
+        s = cells.get((w["name"], c))
+        star = "&#9733; " if best.get(w["name"]) == c else ""
+        parts.append(f"<text x={left - 8} y={y + 4:.1f} text-anchor=end>{star}{esc(c)}</text>")
+        if not s or not s["episodes"] or s["success"]["mean"] is None:
+            continue
+        cell = s["success"]
+        if cell.get("lo") is not None:
+            parts.append(f"<line x1={x(cell['lo']):.1f} y1={y:.1f} x2={x(cell['hi']):.1f} y2={y:.1f} "
+                         f"stroke='{PALETTE['success']}' stroke-width=2.5 />")
+        parts.append(f"<circle cx={x(cell['mean']):.1f} cy={y:.1f} r=4 fill='{PALETTE['success']}'>"
+                     f"<title>{esc(c)}: {cell['mean'] * 100:.1f} %</title></circle>")
+    return (f"<figure><figcaption>{esc(w['name'])}: success</figcaption><svg viewBox='0 0 320 {height}' role=img "
+            f"aria-label='success of every controller in {esc(w['name'], quote=True)}'>{''.join(parts)}</svg></figure>")
+
+
 def _headline(worlds: list[dict[str, Any]], controllers: list[str], cells: dict[tuple[str, str], Any],
               best: dict[str, str]) -> list[str]:
     """The headline tab's lines: a row per controller, a column per world, each cell its
@@ -468,6 +502,8 @@ def _headline(worlds: list[dict[str, Any]], controllers: list[str], cells: dict[
     esc = html.escape
     out = ["<section role=tabpanel id=panel-headline aria-labelledby=tab-headline>"
            "<h2>Headline: success, collisions and SPL (95 % bootstrap intervals)</h2>"
+           "<div class=charts>" + "".join(_success_chart(w, controllers, cells, best) for w in worlds) + "</div>"
+           "<p class=note>Dots: success rate; bars: its 95 % interval.</p>"
            "<table id=headline><thead><tr><th scope=col>controller</th>"]
     for w in worlds:
         out.append(f"<th scope=col>{esc(w['name'])}<br><span class=ci>{esc(w['env'])}"

@@ -25,7 +25,9 @@ def register(sub) -> None:
     bm.add_argument("--json", action="store_true", help="print the results record as JSON")
     bm.add_argument("--report-only", action="store_true", help="rebuild DIR/report.html from DIR/results.json, run nothing")
     bm.add_argument("--screenshots", action="store_true",
-                    help="also save DIR/headline.png and DIR/world.png, the report in Chromium (needs playwright and chromium)")
+                    help="also save the report as Chromium shows it: DIR/headline.png and DIR/world.png at 1280 px, "
+                         "DIR/report_1400.png and DIR/report_390.png (the headline at 1400 and 390 px); needs playwright "
+                         "and chromium")
     bm.add_argument("--screenshot-tab", type=NON_NEGATIVE, default=0, metavar="K", help="the world tab of world.png (default 0)")
     bm.add_argument("--trust-code", action="store_true",
                     help="import and run the module named by a suite's class: entries (it runs that module's code)")
