@@ -163,6 +163,7 @@ def train_fleet(cfg: FleetTrainConfig) -> dict[str, Any]:
 
     from bulletnav.files import write_json
     from bulletnav.rl.callbacks import CheckpointCallback, ThroughputCallback, TimedVecEnv
+    from bulletnav.rl.train import close_progress_bar, progress_bar_callback
 
     torch.set_num_threads(1)  # 2 cores: more threads slow PPO down
     out = Path(cfg.out)
@@ -198,11 +199,13 @@ def train_fleet(cfg: FleetTrainConfig) -> dict[str, Any]:
                  FleetEpisodeCallback(out, slots, episodes)]
     t0 = time.time()
     remaining = max(cfg.timesteps - start_steps, 0)
+    bar = progress_bar_callback() if cfg.progress_bar else None
     try:
         if remaining:
-            model.learn(total_timesteps=remaining, callback=callbacks, progress_bar=cfg.progress_bar,
+            model.learn(total_timesteps=remaining, callback=[*callbacks, *([bar] if bar else [])],
                         reset_num_timesteps=not cfg.resume)
     except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the last checkpoint stands; the fleets' simulations end
+        close_progress_bar(bar)
         venv.close()
         raise
     wall = time.time() - t0

@@ -59,13 +59,14 @@ def save_checkpoint(model: Any, out: Path, vecnorm: Any, extra: dict[str, Any] |
         names.insert(0, stats.name)
     write_json(pending / "last.json", {"timesteps": int(model.num_timesteps), **(extra or {})})
     write_json(pending / _COMMIT, {"files": names, "timesteps": int(model.num_timesteps)})
-    finish_checkpoint(out)
+    finish_checkpoint(out, interrupted=False)
 
 
-def finish_checkpoint(out: Path) -> bool:
+def finish_checkpoint(out: Path, interrupted: bool = True) -> bool:
     """Complete a checkpoint whose writing was interrupted (see :func:`save_checkpoint`): a
     committed set is moved into place (files of the older set it does not name are removed), an
-    uncommitted one is dropped. Safe to repeat; returns whether a committed set was completed."""
+    uncommitted one is dropped. Safe to repeat; returns whether a committed set was completed.
+    ``interrupted`` off: :func:`save_checkpoint` completing its own set (no warning)."""
     folder = out / "checkpoints"
     pending = folder / _PENDING
     if not pending.is_dir():
@@ -85,7 +86,8 @@ def finish_checkpoint(out: Path) -> bool:
         for name in set(CHECKPOINT_NAMES) - set(names):
             (folder / name).unlink(missing_ok=True)
         commit.unlink()
-        log.warning("%s: completed a checkpoint whose writing was interrupted", folder)
+        if interrupted:
+            log.warning("%s: completed a checkpoint whose writing was interrupted", folder)
     shutil.rmtree(pending, ignore_errors=True)
     return done
 

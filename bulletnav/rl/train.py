@@ -148,6 +148,22 @@ def stop_workers(venv: Any) -> None:
     inner.closed = True
 
 
+def progress_bar_callback() -> Any:
+    """SB3's progress bar as a callback of ours (``learn(progress_bar=True)`` keeps its own out of
+    reach), so an interrupted run can close it (:func:`close_progress_bar`) before the command
+    says where it stopped."""
+    from stable_baselines3.common.callbacks import ProgressBarCallback
+
+    return ProgressBarCallback()
+
+
+def close_progress_bar(bar: Any) -> None:
+    """Draw an interrupted run's progress bar a last time and stop it (nothing for None, or a bar not started)."""
+    pbar = getattr(bar, "pbar", None)
+    if pbar is not None:
+        pbar.close()
+
+
 def _timer(venv: Any) -> TimedVecEnv:
     """The :class:`TimedVecEnv` under the run's wrappers (VecNormalize, VecMonitor)."""
     while not isinstance(venv, TimedVecEnv):
@@ -214,11 +230,13 @@ def train(cfg: TrainConfig, plot_curve: PlotCurve | None = None) -> dict[str, An
     write_json(cfg.out / "config.json", record)
     t0 = time.time()
     remaining = max(timesteps - start_steps, 0)
+    bar = progress_bar_callback() if cfg.progress_bar else None
     try:
         if remaining:
-            model.learn(total_timesteps=remaining, callback=[checkpoints, *callbacks], progress_bar=cfg.progress_bar,
+            model.learn(total_timesteps=remaining, callback=[checkpoints, *callbacks, *([bar] if bar else [])],
                         reset_num_timesteps=not cfg.resume, tb_log_name=cfg.algo)
     except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the last checkpoint stands; workers and envs stopped
+        close_progress_bar(bar)
         stop_workers(venv)
         evaluation.close()
         raise
