@@ -390,7 +390,7 @@ KINDS: dict[str, str] = {
     "test_interrupts.py::test_train_ctrl_c_keeps_the_checkpoint_and_resumes_from_it": "contract",
     "test_interrupts.py::test_fleet_compare_ctrl_c_says_how_to_resume_and_resumes": "contract",
     "test_interrupts.py::test_navigate_ctrl_c_says_what_ran_and_that_nothing_resumes": "contract",
-    "test_interrupts.py::test_evaluate_sigterm_says_what_ran": "contract",
+    "test_interrupts.py::test_dataset_recording_sigterm_writes_no_half_dataset": "contract",
     "test_input_holes.py::test_the_suite_limits_are_in_the_one_table_and_raisable": "contract",
     "test_input_holes.py::test_dataset_ids_follow_minaris_rule": "library",  # Minari's own id parser
     "test_input_holes.py::test_a_bad_dataset_id_stops_navigate_before_any_episode": "contract",

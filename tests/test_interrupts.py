@@ -226,20 +226,20 @@ def test_train_ctrl_c_keeps_the_checkpoint_and_resumes_from_it(tmp_path):
 def test_fleet_compare_ctrl_c_says_how_to_resume_and_resumes(tmp_path):
     out = tmp_path / "compare"
     log = out / "episodes.jsonl"
-    argv = ["fleet-compare", "--robots", "2", "--controllers", "independent", "--shield", "off", "--episodes", "4",
-            "--duration", "20", "--out", str(out)]
+    argv = ["fleet-compare", "--robots", "2", "--controllers", "independent", "--shield", "off", "--episodes", "3",
+            "--duration", "10", "--out", str(out)]
     run = Run(tmp_path, *argv)
     run.wait_for(rows_ready(log, 1), "its first rows")
     run.signal(signal.SIGINT)
     match = interrupted(run, "fleet-compare")
     kept = len(rows_of(log))
-    assert 0 < kept < 4
-    assert match["what"] == f" after {kept} of 4 episodes; rows kept in {log}"
+    assert 0 < kept < 3
+    assert match["what"] == f" after {kept} of 3 episodes; rows kept in {log}"
     assert match["again"] == "bulletnav " + " ".join([*argv, "--resume"])
     whole_json(out)
     done = hang.run([sys.executable, "-m", "bulletnav.cli", *argv, "--resume", "--json"], "the resumed comparison", cwd=ROOT)
     assert done.returncode == 0, done.stderr[-3000:]
-    assert sorted(r["episode"] for r in rows_of(log)) == [0, 1, 2, 3]
+    assert sorted(r["episode"] for r in rows_of(log)) == [0, 1, 2]  # each once: none lost, none run twice
 
 
 def test_navigate_ctrl_c_says_what_ran_and_that_nothing_resumes(tmp_path):
@@ -255,12 +255,16 @@ def test_navigate_ctrl_c_says_what_ran_and_that_nothing_resumes(tmp_path):
     assert not (tmp_path / "paths.png").exists()
 
 
-def test_evaluate_sigterm_says_what_ran(tmp_path):
-    argv = ["evaluate", "--model", "models/ppo_dynamic.zip", "--episodes", "50"]
+def test_dataset_recording_sigterm_writes_no_half_dataset(tmp_path, monkeypatch):
+    minari = tmp_path / "minari"
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(minari))  # the child's datasets folder
+    argv = ["evaluate", "--model", "models/ppo_warehouse.zip", "--episodes", "50", "--dataset", "bulletnav/interrupt-test-v0"]
     run = Run(tmp_path, *argv)
     run.wait_for(lambda: "--- Episode 1/50 " in run.out.read_text(), "its first episode")
     run.signal(signal.SIGTERM, group=False)
     match = interrupted(run, "evaluate")
     done = run.out.read_text().count("--- Episode ")
-    assert match["what"] == f" after {done} of 50 episodes; nothing can be resumed"
+    assert match["what"] == (f" after {done} of 50 episodes; no dataset written (an unfinished run's are dropped); "
+                             "nothing can be resumed")
     assert match["again"] == "bulletnav " + " ".join(argv)
+    assert not (minari / "bulletnav" / "interrupt-test-v0").exists()
