@@ -119,3 +119,10 @@ the task truncates after 1,200 steps per goal."""
 if MISSION_ENV_ID not in gym.registry:
     gym.register(id=MISSION_ENV_ID, entry_point="bulletnav.envs.warehouse:WarehouseEnv", max_episode_steps=None,
                  kwargs=MISSION_KWARGS)
+
+BARN_ENV_ID = "bulletnav/BARN-v0"
+"""``BARN-v0``: the BARN challenge's 300 static worlds (``world_idx`` 0-299) with BARN's start, goal,
+rules and score (``bulletnav.barn``); BARN's own 100 s clock ends an episode, not a step limit."""
+
+if BARN_ENV_ID not in gym.registry:
+    gym.register(id=BARN_ENV_ID, entry_point="bulletnav.barn.env:BarnEnv", max_episode_steps=None)

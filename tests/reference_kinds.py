@@ -87,6 +87,15 @@ KINDS: dict[str, str] = {
     "test_barn_data.py::test_path_cells_convert_to_metres_as_barn_does": "hand",  # run.py's conversion worked by hand
     "test_barn_data.py::test_bad_world_index_is_named": "contract",
     "test_barn_data.py::test_converter_refuses_what_it_cannot_convert": "contract",
+    # ---- test_barn_env.py
+    # positions read back from PyBullet against the world file's text (the test's regex); a ray's hit 0.075 m off the centre
+    "test_barn_env.py::test_cylinders_stand_where_the_world_file_puts_them": "formula",
+    # run.py's start, goal, 0.1 m clock, 1 m goal and score written in the test; t_opt from BARN's .npy
+    "test_barn_env.py::test_start_goal_clock_success_and_score_follow_run_py": "formula",
+    "test_barn_env.py::test_any_contact_ends_in_a_collision_with_no_score": "library",  # PyBullet's contact points
+    "test_barn_env.py::test_time_limit_counts_from_the_first_tenth_of_a_metre": "hand",  # 100 s, 0.1 m / 0.2 m/s
+    "test_barn_env.py::test_world_index_by_make_and_by_reset_and_bad_ones_named": "formula",  # counts and t_opt from BARN's files
+    "test_barn_env.py::test_check_env_passes": "library",
     # ---- test_barn_metric.py
     "test_barn_metric.py::test_dwa_rows_summary_matches_barns_report_script": "hand",  # BARN's report_test.py run once by hand
     "test_barn_metric.py::test_reference_lengths_agree_with_barns_2022_sixth_column": "golden",  # BARN's own 2022 numbers

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 import bulletnav  # noqa: F401  (registers the ids)
+from bulletnav.errors import ConfigError
 from bulletnav.evaluation import run_episodes, summarize
 from bulletnav.rl.envs import evaluation_env_kwargs, make_env
 from bulletnav.rl.hyperparams import load_hyperparams
@@ -28,10 +29,14 @@ RULES = {
     "bulletnav/WarehouseAisles-v0": (True, 2400),
     "bulletnav/WarehouseDynamic-v0": (True, 2400),
     "bulletnav/WarehouseMission-v0": (True, None),
+    "bulletnav/BARN-v0": (True, None),  # BARN's own 100 s clock ends an episode (bulletnav.barn.task)
 }
 """Per id, by hand from its documentation: does a collision terminate (else it truncates), and
 Gymnasium's time limit (the mission task truncates by itself, 1,200 steps per goal)."""
 
+
+NO_HYPERPARAMS = frozenset({"bulletnav/BARN-v0"})
+"""Ids the shipped hyperparameter files do not cover (yet): their models can only carry their sidecars' settings."""
 
 END_FIELDS = ("collision_terminates", "goal_radius", "goals", "goal_order", "steps_per_goal")
 """The :class:`~bulletnav.config.TaskConfig` fields that decide how an episode ends (the others
@@ -43,7 +48,10 @@ def _training_settings(env_id: str) -> list[dict]:
     forced, each shipped hyperparameter file's, and the shipped models' sidecars for the id."""
     settings = [{}, {"collision_terminates": True}, {"collision_terminates": False}]
     for algo in ("ppo", "sac", "td3", "a2c"):
-        settings.append(dict(load_hyperparams(algo, env_id).get("env_kwargs", {})))
+        try:
+            settings.append(dict(load_hyperparams(algo, env_id).get("env_kwargs", {})))
+        except ConfigError:
+            assert env_id in NO_HYPERPARAMS, f"{algo}.yml has no hyperparameters for {env_id}"
     for sidecar in sorted(MODELS.glob("ppo_*.json")):
         meta = json.loads(sidecar.read_text())
         if isinstance(meta, dict) and meta.get("env_id") == env_id:
