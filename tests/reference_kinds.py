@@ -336,6 +336,8 @@ KINDS: dict[str, str] = {
     "test_fleet_viz.py::test_cli_pictures_do_not_change_the_json": "library",  # video decoded by imageio: 1 + 24 frames by hand
     "test_fleet_viz.py::test_fleet_takes_the_world_arguments": "contract",
     "test_fleet_viz.py::test_view_robots_opens_the_gui_and_tints_every_robot": "contract",
+    "test_fleet_viz.py::test_marks_are_told_apart_and_the_legend_shows_each": "hand",  # a 3 px gap between words
+    "test_fleet_viz.py::test_fleet_table_leaves_out_the_rate_of_a_run_too_short": "hand",  # 4 errands in 120 s: 120.0/h
     # ---- test_fuzz.py
     "test_fuzz.py::test_layout_files": "contract",
     "test_fuzz.py::test_sweep_files": "contract",
@@ -443,6 +445,8 @@ KINDS: dict[str, str] = {
     "test_messages.py::test_pybullet_banner_never_reaches_the_terminal": "library",
     "test_messages.py::test_yaml_errors_name_file_line_and_column": "hand",  # line 3, column 4 counted by hand
     "test_messages.py::test_yaml_error_positions": "hand",  # positions counted by hand in each text
+    "test_messages.py::test_navigate_says_its_shortest_path_runs_to_the_goal_centre": "formula",  # the straight line
+    "test_messages.py::test_frame_at_means_simulated_seconds_in_every_command": "contract",
     # ---- test_mission.py
     "test_mission.py::test_a_drive_through_three_goals_earns_two_subgoals_then_the_goal": "hand",
     "test_mission.py::test_free_order_heads_for_the_nearest_goal_and_fixed_for_the_first": "hand",
@@ -609,6 +613,7 @@ KINDS: dict[str, str] = {
     "test_ros_bagmap.py::test_independent_bag_maps_the_known_room": "library",  # bag written by rosbags; walls by exact ray casts
     "test_ros_bagmap.py::test_bulletnav_bag_maps_onto_the_true_map": "formula",
     "test_ros_bagmap.py::test_bad_bags_are_refused": "contract",
+    "test_ros_bagmap.py::test_map_png_has_a_legend_and_start_end_marks": "formula",  # start from the odometry, by hand
     # ---- test_ros_record.py
     "test_ros_record.py::test_types_counts_and_stamps": "library",  # read back with mcap_ros2
     "test_ros_record.py::test_scan_equals_the_env_lidar": "library",
@@ -627,6 +632,7 @@ KINDS: dict[str, str] = {
     "test_ros_replay.py::test_replay_refuses_what_is_no_recording": "contract",
     # every topic the layout names is a channel of the recording, as mcap's reader lists them
     "test_ros_replay.py::test_foxglove_layout_and_panel": "library",
+    "test_ros_replay.py::test_replay_frame_has_no_depth_bar_and_frame_at_is_checked": "hand",  # 200 / 24 = 8.33 s
     # ---- test_rrt_fresh_process.py
     # every path clear of the occupied cells by Shapely
     "test_rrt_fresh_process.py::test_first_call_in_fresh_process_solves_narrow_passage": "library",
@@ -738,6 +744,7 @@ KINDS: dict[str, str] = {
     "test_viz.py::test_dashboard_throttles_and_replaces_in_place": "hand",
     "test_viz.py::test_trajectory_log_and_plots": "hand",
     "test_viz.py::test_bench_gui_reports_frame_rates": "hand",  # the documented render count
+    "test_viz.py::test_the_legend_names_the_robots_own_parts_the_camera_sees": "hand",  # diff_drive.urdf's materials
     # ---- test_viz_mission.py
     "test_viz_mission.py::test_visit_order_ranks_by_step": "hand",
     "test_viz_mission.py::test_mission_plot_numbers_goals_and_visit_order": "hand",

@@ -229,3 +229,52 @@ def test_view_robots_opens_the_gui_and_tints_every_robot(display, capsys, monkey
     assert seen["calls"] == 2 * 2  # a goal post and a robot-to-goal line per robot
     if seen.get("steps", 0) < 12:  # no goal changed so soon: no line redrawn before step 12
         assert seen.get("step_calls", seen["calls"]) == seen["calls"]
+
+
+def test_marks_are_told_apart_and_the_legend_shows_each(recorded):
+    """No robot's colour is the collision mark's (white) or near the lidar red of the other videos
+    for the first 15 robots; the legend draws each mark the map draws, and the strip's words are
+    spaced (a gap of at least 3 px between ``4`` and ``robots``)."""
+    from PIL import ImageDraw
+
+    from bulletnav.viz.fleet import STOPPED_RGB
+    from bulletnav.viz.video import LIDAR, draw_text, text_length, ui_font
+
+    assert STOPPED_RGB not in ROBOT_PALETTE and STOPPED_RGB == (255, 255, 255)
+    assert all(sum(abs(a - b) for a, b in zip(robot_colour(i), LIDAR)) > 100 for i in range(15))
+    _, visuals, _, _, _ = recorded
+    base = np.asarray(visuals.frames._render_base(ROBOTS))
+    legend = base[:720, 730:]
+    assert (legend == np.array(STOPPED_RGB)).all(axis=-1).sum() > 20  # the octagon sample
+    # the spaced text: "4 robots" as drawn is wider by the gap than "4robots", and the gap is blank
+    font = ui_font(11)
+    assert text_length("4 robots", font) - text_length("4robots", font) >= 3.0
+    img = Image.new("RGB", (80, 20), (0, 0, 0))
+    draw_text(ImageDraw.Draw(img), (2, 2), "4 robots", font, (255, 255, 255))
+    ink = np.asarray(img).max(axis=(0, 2)) > 60  # columns with any ink
+    four_end = 2 + int(ImageDraw.Draw(img).textlength("4", font=font))
+    assert not ink[four_end + 1:four_end + 3].any() and ink[four_end + 3:].any()
+
+
+def test_fleet_table_leaves_out_the_rate_of_a_run_too_short(capsys):
+    """errands/h is shown for runs of at least one typical errand (70 s), '-' and a reason below."""
+    import argparse
+
+    from bulletnav.cli.fleet import TYPICAL_ERRAND_S, _print_fleet_table
+
+    row = {"episode": 0, "seed": 7, "errands": 4, "collisions_robot_robot": 0, "collisions_static": 0,
+           "collisions_mover": 0, "collisions_person": 0, "deadlocks": 0, "min_separation_m": 0.5, "errand_time_s": 50.0}
+    summary = {"errands": 4, "collisions_robot_robot": 0, "collisions_static": 0, "collisions_mover": 0,
+               "collisions_person": 0, "deadlocks": 0, "min_separation_m": 0.5, "errand_time_s": 50.0}
+    assert TYPICAL_ERRAND_S == 70.0
+    for duration, robots, shown in ((120.0, 4, "120.0 errands/h (30.0 per robot)"),  # 4 errands in 1/30 h, by hand
+                                    (60.0, 8, "errands/h: run too short (60 s; an errand takes ~70 s), 4 errands")):
+        rate = 4 * 3600.0 / duration
+        args = argparse.Namespace(robots=robots, controller="independent", shield=False, episodes=1, duration=duration,
+                                  dynamic=True, seed=7)
+        _print_fleet_table(args, {"summary": {**summary, "throughput_per_hour": rate,
+                                              "throughput_per_robot_per_hour": rate / robots},
+                                  "episodes": [{**row, "throughput_per_hour": rate}]})
+        out = capsys.readouterr().out
+        assert f"all: {shown}, collisions" in out
+        assert ("  120.0 " in out) == (duration >= 70) and (" - " in out.splitlines()[2]) == (duration < 70)

@@ -95,3 +95,49 @@ def test_yaml_error_positions(tmp_path, text, where):
     path.write_text(text)
     with pytest.raises(LayoutError, match="^" + re.escape(f"{path}:{where}: not valid YAML: ")):
         load_layout(path)
+
+
+def test_navigate_says_its_shortest_path_runs_to_the_goal_centre(capsys):
+    """In the empty world the shortest path is the straight line from the start to the goal's
+    centre; the episode succeeds on entering the goal zone (0.5 m round the centre), so the robot
+    drives less than it, and the line says which shortest path it prints."""
+    import math
+
+    import gymnasium as gym
+
+    from bulletnav.cli import main
+    from bulletnav.config import asset_path
+
+    world = str(asset_path("worlds", "empty.yaml"))
+    env = gym.make("bulletnav/Warehouse-v0", world=world)
+    try:
+        env.reset(seed=0)
+        scene = env.unwrapped.scene
+        straight = math.dist(scene.start[:2], scene.goal)
+        zone = scene.goal_radius
+    finally:
+        env.close()
+    assert main(["navigate", "--world", world, "--episodes", "1", "--seed", "0"]) == 0
+    line = capsys.readouterr().out.splitlines()[0]
+    found = re.search(r"SUCCESS .* driven +([\d.]+) m +shortest to goal centre +([\d.]+) m +SPL 1\.00", line)
+    assert found, line
+    driven, shortest = float(found[1]), float(found[2])
+    assert shortest == pytest.approx(straight, abs=0.01)  # printed to 0.01 m
+    assert straight - zone - 0.1 <= driven < shortest
+
+
+def test_frame_at_means_simulated_seconds_in_every_command(capsys):
+    from bulletnav.cli import build_parser, main
+
+    parser = build_parser()
+    commands = {a.dest: a for a in parser._actions if a.dest == "command"}["command"].choices
+    users = {name: sub for name, sub in commands.items()
+             if any("--frame-at" in action.option_strings for action in sub._actions)}
+    assert set(users) == {"fleet", "replay"}
+    for name, sub in users.items():
+        action = next(a for a in sub._actions if "--frame-at" in a.option_strings)
+        assert action.metavar == "S" and "simulated seconds" in action.help, name
+        assert action.type("2.5") == 2.5 and action.type("0") == 0.0  # seconds, fractions too
+    for argv in (["replay", "x.mcap", "--frame-at", "2"], ["fleet", "--frame-at", "2"]):
+        assert main(argv) == 2  # a time without a --frame PNG
+        assert "--frame-at is the time of the --frame PNG: pass --frame too" in capsys.readouterr().err

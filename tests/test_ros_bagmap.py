@@ -195,3 +195,29 @@ def test_bad_bags_are_refused(room_bag, tmp_path, capsys):
         read_bag(tmp_path / "missing.mcap")
     assert main(["map", str(tmp_path / "missing.mcap")]) == 2
     assert "missing.mcap" in capsys.readouterr().err
+
+
+def test_map_png_has_a_legend_and_start_end_marks(room_bag, tmp_path):
+    """The map's legend names the three cell states, the trajectory, its start and end, the path
+    and the goal; the start mark stands where the first scan was taken, worked out here from the
+    bag's odometry (10 Hz from 1 s, the scan 20 ms after its pose, interpolated) and the mount."""
+    from bulletnav.ros.bagmap import MAP_GREYS, map_figure, write_map_png
+
+    bag_map = build_map(read_bag(room_bag, "/front_scan", "/wheel_odom"), resolution=0.1)
+    goal = (-2.2, 1.4)
+    fig = map_figure(bag_map, plan_path(bag_map, goal), goal)
+    ax = fig.axes[0]
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels == ["free cell", "occupied cell", "unknown cell", "lidar trajectory", "start (first scan)",
+                      "end (last scan)", "A* path (from the end)", "goal"]
+    greys = [p.get_facecolor()[0] for p in ax.get_legend().get_patches()[:3]]
+    assert greys == pytest.approx([MAP_GREYS["free"], MAP_GREYS["occupied"], MAP_GREYS["unknown"]])
+    marks = {line.get_gid(): (line.get_xdata()[0], line.get_ydata()[0]) for line in ax.get_lines() if line.get_gid()}
+    f = 0.2 / 59  # the first scan: a fifth of the way from odometry pose 0 to pose 1 (f = k / 59)
+    x, y, yaw = -1.8 + 3.6 * f, -0.6 + 1.2 * f, 0.3 * math.sin(4 * f)
+    start = (x + math.cos(yaw) * MOUNT[0] - math.sin(yaw) * MOUNT[1], y + math.sin(yaw) * MOUNT[0] + math.cos(yaw) * MOUNT[1])
+    assert marks["start"] == pytest.approx(start, abs=2e-3)
+    assert marks["end"] == pytest.approx(bag_map.trajectory[-1]) and marks["end"][0] > 1.8  # the far end of the drive
+    out = tmp_path / "map.png"
+    write_map_png(bag_map, out, plan_path(bag_map, goal), goal)
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -43,7 +43,7 @@ def test_replay_draws_the_live_frames(recorded, capsys):
     d = recorded
     capsys.readouterr()
     assert main(["replay", str(d / "run.mcap"), "--video", str(d / "replay.mp4"), "--plot", str(d / "paths.png"),
-                 "--frame", str(d / "frame.png"), "--frame-at", "150", "--json"]) == 0
+                 "--frame", str(d / "frame.png"), "--frame-at", "6.25", "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["episodes"] == 2 and summary["steps"] == [200, 200]
     live = list(iio.imiter(d / "live.mp4"))
@@ -55,9 +55,13 @@ def test_replay_draws_the_live_frames(recorded, capsys):
         # up to the video encoder's noise
         assert np.abs(a[:STRIP_Y, :MAP_PX] - b[:STRIP_Y, :MAP_PX]).mean() < 1.5, k
         assert np.abs(a[STRIP_Y:] - b[STRIP_Y:]).mean() < 1.5, k
+    # --frame-at is simulated seconds: 6.25 s at 24 control steps a second is step 150, the video's
+    # frame 150 (frame 0 is the reset)
+    assert (summary["frame_step"], summary["frame_time_s"]) == (150, 6.25)
     frame = iio.imread(d / "frame.png")
     assert frame.shape == live[0].shape
-    assert np.abs(frame[:STRIP_Y, :MAP_PX].astype(np.int16) - again[149][:STRIP_Y, :MAP_PX]).mean() < 1.5
+    near = [np.abs(frame[:STRIP_Y, :MAP_PX].astype(np.int16) - again[k][:STRIP_Y, :MAP_PX]).mean() for k in (140, 150, 160)]
+    assert near[1] < 1.5 and near[1] < min(near[0], near[2]), near
     assert (d / "paths.png").stat().st_size > 0
 
 
@@ -122,3 +126,19 @@ def test_foxglove_layout_and_panel(recorded, tmp_path, capsys):
     assert main(["replay", str(recorded / "run.mcap"), "--panel", str(out), "--panel-at", "4", "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["panel"]["step"] == 96 and out.stat().st_size > 10_000
+
+
+def test_replay_frame_has_no_depth_bar_and_frame_at_is_checked(recorded, tmp_path, capsys):
+    """No camera is recorded: the replayed frame's legend has no depth colour bar (the live one,
+    with its camera, has); a --frame-at after the first episode's end (200 steps of 1/24 s:
+    8.33 s) is refused before anything is drawn."""
+    d = recorded
+    live = next(iter(iio.imiter(d / "live.mp4"))).astype(int)
+    frame = iio.imread(d / "frame.png").astype(int)
+    bar = (slice(370, 460), slice(812, 828))  # where the live legend's depth bar runs (x: legend + 12 .. + 28 px)
+    assert live[bar].std(axis=(0, 1)).max() > 40  # the turbo scale: many colours
+    assert frame[bar].std(axis=(0, 1)).max() < 3  # the background only
+    out = tmp_path / "late.png"
+    assert main(["replay", str(d / "run.mcap"), "--frame", str(out), "--frame-at", "9"]) == 2
+    err = capsys.readouterr().err
+    assert "a frame at 9 s is outside the first episode (0 to 8.33 s, 200 steps)" in err and not out.exists()

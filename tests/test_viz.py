@@ -317,3 +317,32 @@ def test_bench_gui_reports_frame_rates(display, monkeypatch, report):
     # the quotient of the rounded figures differs by up to ratio * 0.005 * (1/fps_t + 1/fps_u) + 0.005)
     ft, fu = result["fps_throttled"], result["fps_unthrottled"]
     assert result["throttled_vs_unthrottled"] == pytest.approx(ft / fu, abs=ft / fu * 0.005 * (1 / ft + 1 / fu) + 0.006)
+
+
+def test_the_legend_names_the_robots_own_parts_the_camera_sees(tmp_path):
+    """The red cylinder and the blue block at the bottom of the camera image are the robot's own
+    lidar and base: the legend lists both in the colours diff_drive.urdf gives them (read here
+    from the URDF's materials), only when a camera is drawn; without one there is no depth bar."""
+    import xml.etree.ElementTree as ET
+
+    from bulletnav.viz.video import OWN_BODY, OWN_LIDAR, SIDE_X
+
+    robot = ET.parse(asset_path("diff_drive.urdf")).getroot()
+    materials = {m.get("name"): m.find("color").get("rgba") for m in robot.findall("material")}
+    links = {link.get("name"): link.find("visual/material").get("name") for link in robot.findall("link")
+             if link.find("visual/material") is not None}
+    urdf_rgb = {part: tuple(round(float(v) * 255) for v in materials[links[link]].split()[:3])
+                for part, link in (("body", "base_link"), ("lidar", "lidar_link"))}
+    assert urdf_rgb == {"body": OWN_BODY, "lidar": OWN_LIDAR}
+    rec = EpisodeRecorder(tmp_path / "x.mp4")
+    try:
+        with_camera, without = rec._render_base(camera=True), rec._render_base(camera=False)
+    finally:
+        rec.abort()
+    legend = (slice(0, MAP_PX), slice(SIDE_X, FRAME_SIZE[0]))
+    for colour in (OWN_BODY, OWN_LIDAR):
+        assert np.all(np.asarray(with_camera)[legend] == colour, axis=-1).sum() >= 100  # a 12 x 10 px swatch
+        assert not np.all(np.asarray(without)[legend] == colour, axis=-1).any()
+    # the depth bar's turbo colours: dozens of distinct ones with a camera, none without
+    count = lambda img: len({tuple(c) for c in np.asarray(img)[legend].reshape(-1, 3)})  # noqa: E731
+    assert count(with_camera) > count(without) + 50

@@ -52,7 +52,7 @@ def cmd_navigate(args: argparse.Namespace) -> int:
         if not args.json:
             plans = f"plan {fmt(float(np.median(r.plan_ms)), '.3f')} ms x{len(r.plan_ms)}" if r.plan_ms else "no planner"
             print(f"episode {r.episode:3d}/{args.episodes} seed {r.seed}: {outcome(r):9s} steps {r.steps:4d} "
-                  f"sim {r.sim_time:5.1f} s  driven {r.path_length:5.2f} m  shortest {r.shortest_path:5.2f} m  "
+                  f"sim {r.sim_time:5.1f} s  driven {r.path_length:5.2f} m  shortest to goal centre {r.shortest_path:5.2f} m  "
                   f"SPL {r.spl:.2f}  {plans}  replans {r.replans}")
 
     results, written, layout_size = run_with_visuals(args, env, nav, line, f"PID + {args.planner} (seed {args.seed})")

@@ -8,7 +8,14 @@ import math
 
 import numpy as np
 
-from bulletnav.cli.args import COUNT, PNG_FILE, VIDEO_FILE, add_command, add_overwrite_arg, positive_seconds
+from bulletnav.cli.args import (
+    PNG_FILE,
+    VIDEO_FILE,
+    add_command,
+    add_overwrite_arg,
+    non_negative_seconds,
+    positive_seconds,
+)
 from bulletnav.cli.output import print_json, refuse_existing_files
 
 
@@ -55,9 +62,10 @@ def _register_replay(sub) -> None:
     rp.add_argument("recording", metavar="PATH.mcap", help="a recording written by --record")
     rp.add_argument("--video", type=VIDEO_FILE, metavar="PATH", help="write the episodes' video (.mp4 or .gif)")
     rp.add_argument("--plot", type=PNG_FILE, metavar="PNG", help="write every episode's path over its map")
-    rp.add_argument("--frame", type=PNG_FILE, metavar="PNG", help="write one frame of the video (see --frame-at)")
-    rp.add_argument("--frame-at", type=COUNT, default=None, metavar="N",
-                    help="the video frame --frame writes (default: the middle one)")
+    rp.add_argument("--frame", type=PNG_FILE, metavar="PNG",
+                    help="write one frame of the first episode's video (see --frame-at)")
+    rp.add_argument("--frame-at", type=non_negative_seconds, default=None, metavar="S",
+                    help="simulated seconds into the first episode of the --frame (default: its middle)")
     rp.add_argument("--panel", type=PNG_FILE, metavar="PNG",
                     help="draw what docs/foxglove_layout.json's 3D panel shows (top-down, from the messages) at --panel-at")
     rp.add_argument("--panel-at", type=positive_seconds, default=None, metavar="S",
@@ -102,19 +110,6 @@ def cmd_map(args: argparse.Namespace) -> int:
     return 0
 
 
-def _write_frame(args: argparse.Namespace, video: str, summary: dict) -> None:
-    """``--frame``: one frame of the replay's video as a PNG (written atomically)."""
-    import imageio.v3 as iio
-
-    from bulletnav.files import save_image
-
-    frames = summary["frames"]
-    at = frames // 2 if args.frame_at is None else min(args.frame_at, frames) - 1
-    image = iio.imread(video, index=at)
-    save_image(image, args.frame)  # a PNG whatever the name's suffix
-    summary["frame"], summary["frame_index"] = args.frame, at
-
-
 def cmd_replay(args: argparse.Namespace) -> int:
     """Draw a recording's episodes from the file alone."""
     import tempfile
@@ -122,6 +117,10 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
     from bulletnav.ros.replay import panel_view, replay
 
+    if args.frame_at is not None and not args.frame:
+        from bulletnav.errors import ConfigError
+
+        raise ConfigError("--frame-at is the time of the --frame PNG: pass --frame too")
     refuse_existing_files(args, "video", "plot", "frame", "panel")
     if args.panel and not (args.video or args.plot or args.frame):
         summary = {"recording": args.recording, "panel": panel_view(args.recording, args.panel, at_s=args.panel_at)}
@@ -136,9 +135,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
         scratch = tempfile.mkdtemp(prefix="bulletnav-replay-")
         video = str(Path(scratch) / "replay.mp4")
     try:
-        summary = replay(args.recording, video=video, plot=args.plot)
-        if args.frame:
-            _write_frame(args, video, summary)
+        summary = replay(args.recording, video=video, plot=args.plot, frame=args.frame, frame_at_s=args.frame_at)
     finally:
         if scratch is not None:
             import shutil
@@ -154,5 +151,6 @@ def cmd_replay(args: argparse.Namespace) -> int:
     print(f"{args.recording}: {summary['episodes']} episodes, steps {summary['steps']}, outcomes {summary['outcomes']}")
     for key in ("video", "plot", "frame", "panel"):
         if summary.get(key):
-            print(f"{key}: {summary[key]}")
+            at = f" (episode 1 at {summary['frame_time_s']:.2f} s, step {summary['frame_step']})" if key == "frame" else ""
+            print(f"{key}: {summary[key]}{at}")
     return 0

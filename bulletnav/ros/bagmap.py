@@ -262,39 +262,59 @@ def plan_path(bag_map: BagMap, goal: tuple[float, float], radius: float = 0.2) -
     return astar(grid, bag_map.trajectory[-1], goal)
 
 
+MAP_GREYS = {"free": 1.0, "occupied": 0.0, "unknown": 0.75}
+"""The map PNG's cell shades (0 black .. 1 white), named in its legend."""
+START_COLOUR, END_COLOUR = "#009e73", "#d55e00"
+"""The first and last scan positions' marks (Okabe-Ito green and vermilion: told apart by
+colour-blind readers, and by shape: a ring and a filled square)."""
+
+
 def write_map_png(bag_map: BagMap, out: str | Path, path: list[tuple[float, float]] | None = None,
                   goal: tuple[float, float] | None = None, title: str = "") -> None:
-    """The map as a PNG (unknown grey, free white, occupied black), the lidar's trajectory and
-    the planned path drawn over it; written beside ``out`` and renamed."""
-    import matplotlib
+    """:func:`map_figure` as a PNG, written beside ``out`` and renamed."""
+    from bulletnav.files import save_figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    fig = map_figure(bag_map, path, goal, title)
+    save_figure(fig, out, format="png", dpi=100, bbox_inches="tight")  # the legend beside the map whole
+
+
+def map_figure(bag_map: BagMap, path: list[tuple[float, float]] | None = None,
+               goal: tuple[float, float] | None = None, title: str = "") -> Any:
+    """The map (unknown grey, free white, occupied black), the lidar's trajectory with its start
+    (first scan: ring) and end (last scan: square), the planned path and its goal, and a legend
+    beside the map naming each: a matplotlib ``Figure``, not attached to pyplot."""
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
 
     m = bag_map.mapper
     state = m.state()
-    img = np.where(state < 0, 0.75, np.where(state > 0, 0.0, 1.0)).T
+    img = np.where(state < 0, MAP_GREYS["unknown"], np.where(state > 0, MAP_GREYS["occupied"], MAP_GREYS["free"])).T
     extent = (m.x0, m.x0 + m.nx * m.resolution, m.y0, m.y0 + m.ny * m.resolution)
-    fig, ax = plt.subplots(figsize=(8, 8 * (extent[3] - extent[2]) / max(extent[1] - extent[0], 1e-9) + 0.6))
+    fig = Figure(figsize=(10.5, 8 * (extent[3] - extent[2]) / max(extent[1] - extent[0], 1e-9) + 0.6), layout="tight")
+    ax = fig.add_subplot()
     ax.imshow(img, origin="lower", extent=extent, cmap="gray", vmin=0.0, vmax=1.0, interpolation="nearest")
     tx, ty = zip(*bag_map.trajectory)
-    ax.plot(tx, ty, color="tab:blue", lw=1.2, label="lidar trajectory")
+    handles = [Patch(facecolor=str(MAP_GREYS[k]), edgecolor="0.3", label=f"{k} cell") for k in ("free", "occupied", "unknown")]
+    handles += ax.plot(tx, ty, color="#0072b2", lw=1.2, label="lidar trajectory")
+    ax.plot([tx[0]], [ty[0]], ls="none", marker="o", ms=10, mfc="none", mec=START_COLOUR, mew=2.5, zorder=5, gid="start")
+    ax.plot([tx[-1]], [ty[-1]], ls="none", marker="s", ms=8, mfc=END_COLOUR, mec="black", mew=0.8, zorder=5, gid="end")
+    handles += [Line2D([], [], ls="none", marker="o", ms=10, mfc="none", mec=START_COLOUR, mew=2.5,
+                       label="start (first scan)"),
+                Line2D([], [], ls="none", marker="s", ms=8, mfc=END_COLOUR, mec="black", mew=0.8,
+                       label="end (last scan)")]
     if path:
         px, py = zip(*path)
-        ax.plot(px, py, color="tab:red", lw=2.0, label="A* path")
+        handles += ax.plot(px, py, color="#cc79a7", lw=2.0, label="A* path (from the end)")
     if goal is not None:
-        ax.plot([goal[0]], [goal[1]], marker="*", color="tab:red", ms=14, ls="none", label="goal")
+        handles += ax.plot([goal[0]], [goal[1]], marker="*", color="#e69f00", mec="black", mew=0.6, ms=15, ls="none",
+                           label="goal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_title(title or f"{bag_map.scans_used} scans, {m.resolution:g} m cells")
-    ax.legend(loc="upper right", fontsize=8)
-    from bulletnav.files import save_figure
-
-    try:
-        fig.tight_layout()
-        save_figure(fig, out, format="png", dpi=100)
-    finally:
-        plt.close(fig)
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=9, frameon=False,
+              title=f"{m.resolution:g} m cells", title_fontsize=9)
+    return fig
 
 
-__all__ = ["BagData", "BagMap", "Scan", "build_map", "plan_path", "pose_at", "read_bag", "write_map_png"]
+__all__ = ["MAP_GREYS", "BagData", "BagMap", "Scan", "build_map", "map_figure", "plan_path", "pose_at", "read_bag", "write_map_png"]

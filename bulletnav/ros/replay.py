@@ -202,15 +202,45 @@ def _step(path: Path, t: int, msgs: dict[str, Any], goal: tuple[float, float] | 
             "reward": float(msgs["/reward"].data) if "/reward" in msgs else 0.0}
 
 
+def frame_step(episode: dict[str, Any], at_s: float | None) -> int:
+    """The step of ``episode`` (one of :func:`read_recording`'s) whose frame shows simulated time
+    ``at_s`` (0: the reset frame; the nearest step, ``at_s / control_dt`` rounded); None: the
+    middle step.
+
+    Raises:
+        ConfigError: ``at_s`` is after the episode's end or negative.
+    """
+    from bulletnav.errors import ConfigError
+
+    steps = len(episode["steps"])
+    dt = float(episode["control_dt"])
+    if at_s is None:
+        return steps // 2
+    if not 0.0 <= at_s <= steps * dt + 0.5 * dt:
+        raise ConfigError(f"a frame at {at_s:g} s is outside the first episode (0 to {steps * dt:.2f} s, {steps} steps)")
+    return min(int(round(at_s / dt)), steps)
+
+
 def replay(path: str | Path, video: str | Path | None = None, plot: str | Path | None = None,
-           stride: int = 1) -> dict[str, Any]:
+           stride: int = 1, frame: str | Path | None = None, frame_at_s: float | None = None) -> dict[str, Any]:
     """Draw every episode of the recording ``path``: the live video's frames into ``video``
-    (.mp4 or .gif) and the path plot into ``plot`` (.png). Returns a summary."""
+    (.mp4 or .gif), the path plot into ``plot`` (.png) and, with ``frame`` (a PNG), the first
+    episode's frame at ``frame_at_s`` simulated seconds (:func:`frame_step`; None: its middle),
+    exactly as composed (``video`` must be given with ``frame``: the frames are drawn for it).
+    Returns a summary (``frame_step``, ``frame_time_s``: where the frame was taken).
+
+    Raises:
+        ConfigError: ``frame_at_s`` is outside the first episode.
+    """
     from bulletnav.viz.video import EpisodeRecorder
 
+    if frame is not None and not video:
+        raise ValueError("replay(frame=...) draws the frame for the video: give video too")
     episodes = read_recording(path)
+    at_step = frame_step(episodes[0], frame_at_s) if frame is not None else -1
     recorder = EpisodeRecorder(video, stride=stride) if video else None
     tracks = []
+    taken = None
     ok = False
     try:
         for k, ep in enumerate(episodes):
@@ -219,6 +249,8 @@ def replay(path: str | Path, video: str | Path | None = None, plot: str | Path |
             steps, meta = ep["steps"], ep["meta"]
             if recorder is not None:
                 recorder.on_reset(env, {})
+                if k == 0 and at_step == 0:
+                    taken = recorder.last_frame
             track = [scene.start[:2]]
             for i, st in enumerate(steps, 1):
                 scene.steps = i
@@ -236,6 +268,8 @@ def replay(path: str | Path, video: str | Path | None = None, plot: str | Path |
                 track.append(st["pose"][:2])
                 if recorder is not None:
                     recorder.on_step(env, info, path=st["plan"])
+                    if k == 0 and i == at_step:
+                        taken = recorder.compose(env, path=st["plan"]) if i % stride else recorder.last_frame
             tracks.append({"episode": k, "layout": scene.layout, "start": scene.start, "goal": scene.goal,
                            "path": track, "outcome": meta.get("end_reason", "")})
         ok = True
@@ -244,9 +278,15 @@ def replay(path: str | Path, video: str | Path | None = None, plot: str | Path |
             recorder.close() if ok else recorder.abort()
     if plot:
         _plot(tracks, plot)
-    return {"recording": str(path), "episodes": len(episodes), "steps": [len(e["steps"]) for e in episodes],
-            "outcomes": [e["meta"].get("end_reason") for e in episodes], "video": str(video) if video else None,
-            "frames": recorder.frames_written if recorder is not None else 0, "plot": str(plot) if plot else None}
+    summary = {"recording": str(path), "episodes": len(episodes), "steps": [len(e["steps"]) for e in episodes],
+               "outcomes": [e["meta"].get("end_reason") for e in episodes], "video": str(video) if video else None,
+               "frames": recorder.frames_written if recorder is not None else 0, "plot": str(plot) if plot else None}
+    if frame is not None and taken is not None:
+        from bulletnav.files import save_image
+
+        save_image(taken, frame)  # a PNG whatever the name's suffix
+        summary.update(frame=str(frame), frame_step=at_step, frame_time_s=at_step * float(episodes[0]["control_dt"]))
+    return summary
 
 
 def _plot(tracks: list[dict[str, Any]], out: str | Path) -> None:
@@ -400,4 +440,4 @@ def _maps_until(path: str | Path, start_ns: int, t_ns: int) -> dict[str, tuple[n
     return out
 
 
-__all__ = ["ReplayScene", "panel_view", "read_recording", "replay"]
+__all__ = ["ReplayScene", "frame_step", "panel_view", "read_recording", "replay"]

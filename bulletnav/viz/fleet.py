@@ -17,13 +17,16 @@ resizing)::
     +--------------------------------------------------------------------------------+
 
 On the map: pick stations (hollow grey diamonds) and drop stations (filled grey squares);
-each robot as a disc in its colour with a dark heading line and its number beside it, ringed
-red while it serves a collision penalty; its trail over the last ``trail_s`` seconds; a line
-from the robot to its current goal, that goal ringed in the robot's colour and labelled with
-the errand id and leg (``#12 P`` going to pick, ``#12 D`` going to drop) and, on a pick leg,
-a faint line on to the errand's drop station (a small hollow square). Movers and events are
-drawn as in the single-robot video (:func:`bulletnav.viz.video.draw_movers`,
-:func:`bulletnav.viz.video.draw_events`).
+each robot as a disc in its colour with a dark heading line and its number beside it, inside a
+white octagon while it serves a collision penalty; its trail over the last ``trail_s`` seconds
+(solid); a thin pale dotted "to goal" line, straight from the robot to its current goal (where
+the goal is, not the way there: it crosses racks), that goal a ring with a cross in the robot's
+colour, labelled with the errand id and leg (``#12 P`` going to pick, ``#12 D`` going to drop)
+and, on a pick leg, a fainter dotted line on to the errand's drop station (a small hollow
+square). Movers and events are drawn as in the single-robot video
+(:func:`bulletnav.viz.video.draw_movers`, :func:`bulletnav.viz.video.draw_events`). The legend
+under the robot rows shows every one of these marks as the map draws it. Text is drawn with
+spaces a third of the font size wide (:func:`bulletnav.viz.video.draw_text`).
 
 The path plot (:func:`plot_fleet`) draws every robot's whole path in its colour over the
 static map with the stations, each robot's start (hollow circle), end (filled disc), the
@@ -62,13 +65,13 @@ from bulletnav.viz.video import (
     BACKGROUND,
     DIM_TEXT,
     EVENT_RGB,
-    LIDAR,
     TEXT,
     MapView,
     VideoWriter,
     category_rgb,
     draw_events,
     draw_movers,
+    draw_text,
     label_image,
     mix_colour,
     ui_font,
@@ -79,13 +82,14 @@ log = logging.getLogger(__name__)
 RGB = tuple[int, int, int]
 
 ROBOT_PALETTE: tuple[RGB, ...] = (
-    (230, 25, 75), (60, 180, 75), (245, 130, 48), (70, 240, 240), (240, 50, 230), (210, 245, 60),
-    (250, 190, 212), (0, 170, 160), (220, 190, 255), (170, 110, 40), (170, 255, 195), (255, 215, 180),
-    (128, 128, 0), (145, 30, 180), (0, 130, 200), (255, 225, 25),
+    (60, 180, 75), (245, 130, 48), (70, 240, 240), (240, 50, 230), (210, 245, 60), (250, 190, 212),
+    (0, 170, 160), (220, 190, 255), (170, 110, 40), (170, 255, 195), (255, 215, 180), (128, 128, 0),
+    (145, 30, 180), (0, 130, 200), (255, 225, 25), (230, 25, 75),
 )
 """Robot colours (0-255), robot 0 first: a fixed qualitative palette (after Sasha Trubetskoy's
-20 distinct colours, without black, white, grey, navy and maroon); the blues, violets and yellows
-of the movers come last."""
+20 distinct colours, without black, white, grey, navy and maroon). None is white, the colour of
+the collision-penalty mark; the blues, violets and yellows of the movers come late, red (the
+lidar hits' colour in the single-robot video) last, for a 16th robot only."""
 FLEET_FRAME_SIZE = (1024, 768)
 """Composed frame (width, height) in pixels."""
 FLEET_MAP_PX = 720
@@ -96,8 +100,12 @@ PICK_RGB: RGB = (150, 154, 162)
 """Pick stations: hollow diamonds."""
 DROP_RGB: RGB = (200, 204, 212)
 """Drop stations (the dock): filled squares."""
-STOPPED_RGB: RGB = LIDAR
-"""The ring around a robot serving a collision penalty."""
+STOPPED_RGB: RGB = (255, 255, 255)
+"""The octagon (a stop sign's outline) around a robot serving a collision penalty: white, a colour
+no robot has, and a shape no goal has (goals are round, in their robot's colour)."""
+TO_GOAL_SHARE = 0.7
+"""How much of a robot's colour its "to goal" line takes (the rest: the floor's): thinner and
+paler than the trail, dotted, a straight line that says where the goal is, not a path."""
 TRAIL_S = 15.0
 """Seconds of trail drawn behind each robot in the video."""
 
@@ -248,11 +256,11 @@ class FleetFrames:
                 drop = _point(errand["drop"])
                 (dx, dy), = view.to_px(drop)
                 faint = mix_colour(rgb, floor, 0.4)
-                _dashed(draw, (gx, gy), (dx, dy), faint, width=1, dash=4.0)
+                _dashed(draw, (gx, gy), (dx, dy), faint, width=1, dash=2.0, gap=6.0)
                 s = max(view.metres(0.15), 3.0)
                 draw.rectangle((dx - s, dy - s, dx + s, dy + s), outline=faint, width=1)
-            _dashed(draw, (rx, ry), (gx, gy), rgb, width=2, dash=7.0)
-            draw.ellipse((gx - ring, gy - ring, gx + ring, gy + ring), outline=rgb, width=2)
+            _dashed(draw, (rx, ry), (gx, gy), mix_colour(rgb, floor, TO_GOAL_SHARE), width=1, dash=3.0, gap=4.0)
+            _goal_mark(draw, (gx, gy), ring, rgb)
         for i, agent in enumerate(agents):  # goal labels over every goal line
             info = self._infos[agent]
             errand = info["errand"]
@@ -271,7 +279,7 @@ class FleetFrames:
             x, y, yaw = (float(v) for v in info["pose"])
             (cx, cy), = view.to_px((x, y))
             if info.get("stopped_s", 0.0) > 0.0:
-                draw.ellipse((cx - r - 4, cy - r - 4, cx + r + 4, cy + r + 4), outline=STOPPED_RGB, width=2)
+                draw.polygon(_octagon((cx, cy), r + 5), outline=STOPPED_RGB, width=2)
             draw.ellipse((cx - r, cy - r, cx + r, cy + r), fill=robot_colour(i), outline=BACKGROUND, width=1)
             tip = (cx + r * math.cos(yaw), cy - r * math.sin(yaw))
             draw.line(((cx, cy), tip), fill=BACKGROUND, width=2)
@@ -289,7 +297,8 @@ class FleetFrames:
             leg = "pick" if errand["leg"] == "pick" else "drop"
             line1 = f"#{errand['id']:<3d} {leg} ({gx:+5.1f}, {gy:+5.1f})"
             frame.paste(self._label(line1, TEXT), (x0 + 38, y))
-            line2 = f"{info['errands_completed']} errands, {info['legs_completed']} legs"
+            errands, legs = int(info["errands_completed"]), int(info["legs_completed"])
+            line2 = f"{errands} errand{'' if errands == 1 else 's'}, {legs} leg{'' if legs == 1 else 's'}"
             stopped = float(info.get("stopped_s", 0.0))
             frame.paste(self._label(line2, DIM_TEXT), (x0 + 38, y + 14))
             if stopped > 0.0:
@@ -303,35 +312,37 @@ class FleetFrames:
         line1 = (f"{self.episode_label}   t {t:6.1f} s   errands {total('errands_completed')}   "
                  f"legs {total('legs_completed')}   collisions: robot {total('collisions_robot')}  static "
                  f"{total('collisions_static')}  mover {total('collisions_mover')}  person {total('collisions_person')}")
-        ImageDraw.Draw(frame).text((10, FLEET_MAP_PX + 6), line1, fill=TEXT, font=self._font)
+        draw_text(ImageDraw.Draw(frame), (10, FLEET_MAP_PX + 6), line1, self._font, TEXT)
         name = fleet.layout.name or "layout"
         line2 = f"{self.title + '   ' if self.title else ''}{len(self._trails)} robots   {name}"
         if self._dynamic:
             line2 += (f"   movers: {movers_summary(m.kind for m in fleet.movers)}   "
                       f"last event: {self._event_text}")
-        ImageDraw.Draw(frame).text((10, FLEET_MAP_PX + 26), line2, fill=DIM_TEXT, font=self._small)
+        draw_text(ImageDraw.Draw(frame), (10, FLEET_MAP_PX + 26), line2, self._small, DIM_TEXT)
 
     def _row_height(self, n: int) -> int:
-        return 32 if n <= 14 else 30
+        return 32 if n <= 14 else 29  # 16 rows of 29 px leave the legend's 11 entries room
 
     def _render_base(self, n: int) -> Image.Image:
         """What stays the same for the episode: background, robot swatches, legend."""
         img = Image.new("RGB", FLEET_FRAME_SIZE, BACKGROUND)
         draw = ImageDraw.Draw(img)
         x0 = FLEET_MAP_PX + 10
-        draw.text((x0, 8), "robots: current errand", fill=TEXT, font=self._font)
+        draw_text(draw, (x0, 8), "robots: current errand", self._font, TEXT)
         y = 30
         row = self._row_height(n)
         for i in range(n):
             rgb = robot_colour(i)
             draw.ellipse((x0, y + 3, x0 + 20, y + 23), fill=rgb, outline=BACKGROUND)
-            draw.text((x0 + 24, y + 6), str(i), fill=TEXT, font=self._small)
+            draw_text(draw, (x0 + 24, y + 6), str(i), self._small, TEXT)
             y += row
         y += 6
         entries: list[tuple[str, RGB, str]] = [
             ("pick station", PICK_RGB, "diamond"), ("drop station (dock)", DROP_RGB, "square"),
-            ("goal, errand id, P/D leg", TEXT, "ring"), ("next drop (on a pick leg)", DIM_TEXT, "hollow"),
-            ("collision penalty", STOPPED_RGB, "ring"),
+            ("robot (its colour), heading", DIM_TEXT, "robot"), (f"trail, last {self.trail_s:g} s", DIM_TEXT, "trail"),
+            ("goal, errand id, P/D leg", DIM_TEXT, "goal"), ("to goal (straight, not a path)", DIM_TEXT, "to_goal"),
+            ("then to its drop (pick leg)", DIM_TEXT, "hollow"),
+            ("collision penalty (stopped)", STOPPED_RGB, "octagon"),
         ]
         if self._dynamic:
             entries += [("forklift", mover_colour("forklift", 0), "fill"), ("worker", mover_colour("worker", 0), "fill"),
@@ -339,16 +350,8 @@ class FleetFrames:
         for name, rgb, shape in entries:
             if y > FLEET_MAP_PX - 16:
                 break
-            box = (x0 + 4, y + 3, x0 + 14, y + 13)
-            if shape == "diamond":
-                draw.polygon([(x0 + 9, y + 2), (x0 + 15, y + 8), (x0 + 9, y + 14), (x0 + 3, y + 8)], outline=rgb)
-            elif shape == "ring":
-                draw.ellipse((x0 + 2, y + 1, x0 + 16, y + 15), outline=rgb, width=2)
-            elif shape == "hollow":
-                draw.rectangle(box, outline=rgb)
-            else:
-                draw.rectangle(box, fill=rgb)
-            draw.text((x0 + 24, y + 2), name, fill=TEXT, font=self._small)
+            _legend_swatch(draw, shape, x0, y, rgb)
+            draw_text(draw, (x0 + 24, y + 2), name, self._small, TEXT)
             y += 18
         draw.line((0, FLEET_MAP_PX, FLEET_FRAME_SIZE[0], FLEET_MAP_PX), fill=(60, 64, 70))
         draw.line((FLEET_MAP_PX, 0, FLEET_MAP_PX, FLEET_MAP_PX), fill=(60, 64, 70))
@@ -367,17 +370,58 @@ class FleetFrames:
 
 
 def _dashed(draw: ImageDraw.ImageDraw, a: tuple[float, float], b: tuple[float, float], fill: RGB, width: int,
-            dash: float) -> None:
-    """A dashed line from ``a`` to ``b`` (px): dashes and gaps of ``dash`` px."""
+            dash: float, gap: float | None = None) -> None:
+    """A dashed line from ``a`` to ``b`` (px): dashes of ``dash`` px, gaps of ``gap`` (default ``dash``)."""
     length = math.dist(a, b)
     if length < 1e-6:
         return
+    gap = dash if gap is None else gap
     ux, uy = (b[0] - a[0]) / length, (b[1] - a[1]) / length
     s = 0.0
     while s < length:
         e = min(s + dash, length)
         draw.line(((a[0] + ux * s, a[1] + uy * s), (a[0] + ux * e, a[1] + uy * e)), fill=fill, width=width)
-        s += 2 * dash
+        s += dash + gap
+
+
+def _octagon(centre: tuple[float, float], r: float) -> list[tuple[float, float]]:
+    """The corners (px) of a regular octagon of circumradius ``r`` with flat top and bottom (a stop sign)."""
+    cx, cy = centre
+    return [(cx + r * math.cos(math.pi / 8 + k * math.pi / 4), cy + r * math.sin(math.pi / 8 + k * math.pi / 4))
+            for k in range(8)]
+
+
+def _goal_mark(draw: ImageDraw.ImageDraw, centre: tuple[float, float], r: float, rgb: RGB) -> None:
+    """A goal: a ring in its robot's colour with a cross through its centre (round, unlike the
+    collision octagon; hollow, unlike the robots' filled discs)."""
+    gx, gy = centre
+    draw.ellipse((gx - r, gy - r, gx + r, gy + r), outline=rgb, width=2)
+    k = r * 0.45
+    draw.line(((gx - k, gy), (gx + k, gy)), fill=rgb, width=1)
+    draw.line(((gx, gy - k), (gx, gy + k)), fill=rgb, width=1)
+
+
+def _legend_swatch(draw: ImageDraw.ImageDraw, shape: str, x0: float, y: float, rgb: RGB) -> None:
+    """The legend's 16 px sample of a mark, drawn as the map draws it."""
+    box = (x0 + 4, y + 3, x0 + 14, y + 13)
+    if shape == "diamond":
+        draw.polygon([(x0 + 9, y + 2), (x0 + 15, y + 8), (x0 + 9, y + 14), (x0 + 3, y + 8)], outline=rgb)
+    elif shape == "goal":
+        _goal_mark(draw, (x0 + 9, y + 8), 7, rgb)
+    elif shape == "octagon":
+        draw.polygon(_octagon((x0 + 9, y + 8), 8), outline=rgb, width=2)
+    elif shape == "robot":
+        draw.ellipse((x0 + 3, y + 2, x0 + 15, y + 14), fill=rgb, outline=BACKGROUND)
+        draw.line(((x0 + 9, y + 8), (x0 + 15, y + 8)), fill=BACKGROUND, width=2)
+    elif shape == "trail":
+        draw.line(((x0, y + 8), (x0 + 18, y + 8)), fill=mix_colour(rgb, category_rgb("floor"), 0.55), width=2)
+    elif shape == "to_goal":
+        _dashed(draw, (x0, y + 8), (x0 + 18, y + 8), mix_colour(rgb, category_rgb("floor"), TO_GOAL_SHARE), width=1,
+                dash=3.0, gap=4.0)
+    elif shape == "hollow":
+        draw.rectangle(box, outline=rgb)
+    else:
+        draw.rectangle(box, fill=rgb)
 
 
 # ---------------------------------------------------------------------------------- paths

@@ -92,6 +92,12 @@ TARGET = (255, 245, 120)
 """Ring around a mission's current target."""
 SHIELD = (255, 120, 20)
 """The robot's colour on a step where the safety shield replaced the command."""
+OWN_BODY = (38, 89, 217)
+"""The robot's own base as its camera sees it at the bottom of the image (``diff_drive.urdf``'s
+``blue`` material, 0.15 0.35 0.85)."""
+OWN_LIDAR = (217, 38, 38)
+"""The robot's own lidar, the red cylinder in front of the camera (mounted 0.3 m ahead of it and
+0.14 m lower; ``diff_drive.urdf``'s ``red`` material, 0.85 0.15 0.15)."""
 
 
 def category_rgb(category: str) -> tuple[int, int, int]:
@@ -115,6 +121,34 @@ def ui_font(size: int) -> ImageFont.ImageFont | ImageFont.FreeTypeFont:
         return ImageFont.load_default(size=size)
     except (TypeError, OSError):  # older Pillow or no FreeType: the fixed bitmap font
         return ImageFont.load_default()
+
+
+WORD_GAP_EM = 0.3
+"""Width of a space in the frames' text, in font sizes. The bundled font's own space is 2-3 px at
+11-13 px, so ``8 robots`` read ``8robots``; the frames draw text word by word with this gap."""
+
+
+def _gap(font: Any) -> float:
+    return max(float(getattr(font, "size", 11)) * WORD_GAP_EM, 3.0)
+
+
+def text_length(text: str, font: Any) -> float:
+    """Width (px) of ``text`` as :func:`draw_text` draws it (spaces :data:`WORD_GAP_EM` wide)."""
+    draw = ImageDraw.Draw(Image.new("RGB", (1, 1)))
+    words = text.split(" ")
+    return sum(draw.textlength(w, font=font) for w in words) + _gap(font) * (len(words) - 1)
+
+
+def draw_text(draw: ImageDraw.ImageDraw, xy: tuple[float, float], text: str, font: Any,
+              fill: tuple[int, int, int]) -> None:
+    """``text`` at ``xy`` word by word, each space :data:`WORD_GAP_EM` of the font size wide."""
+    x, y = xy
+    gap = _gap(font)
+    for word in text.split(" "):
+        if word:
+            draw.text((x, y), word, fill=fill, font=font)
+            x += draw.textlength(word, font=font)
+        x += gap
 
 
 _DEPTH_LUT: np.ndarray | None = None
@@ -324,9 +358,7 @@ class EpisodeRecorder:
         self._small = ui_font(11)
         self._maps: OrderedDict[Layout, tuple[MapView, Image.Image]] = OrderedDict()
         self._labels: dict[tuple[str, tuple[int, int, int], bool], Image.Image] = {}
-        self._base = self._render_base()
-        self._base_dynamic: Image.Image | None = None  # drawn at the first dynamic episode
-        self._bases_mission: dict[bool, Image.Image] = {}  # by dynamic, drawn at the first mission
+        self._bases: dict[tuple[bool, bool, bool], Image.Image] = {}  # (dynamic, mission, camera): drawn when first needed
         self._goals: tuple[tuple[float, float], ...] = ()
         self._reached: tuple[bool, ...] = ()
         self.mission_text = ""
@@ -416,19 +448,13 @@ class EpisodeRecorder:
         self._step = scene.steps
         if self._dynamic:
             self._draw_new_events(scene, view)
-        if self._goals:
-            base = self._bases_mission.get(self._dynamic)
-            if base is None:
-                base = self._bases_mission[self._dynamic] = self._render_base(self._dynamic, mission=True)
-            frame = base.copy()
-        elif self._dynamic:
-            if self._base_dynamic is None:
-                self._base_dynamic = self._render_base(dynamic=True)
-            frame = self._base_dynamic.copy()
-        else:
-            frame = self._base.copy()
-        frame.paste(self._map_frame(scene, view, path), (0, 0))
         camera = scene.sensors.camera
+        key = (self._dynamic, bool(self._goals), camera is not None)
+        base = self._bases.get(key)
+        if base is None:
+            base = self._bases[key] = self._render_base(*key)
+        frame = base.copy()
+        frame.paste(self._map_frame(scene, view, path), (0, 0))
         if camera is not None:
             image = camera.read()  # cached per control step; no noise, no random draws
             rgb = Image.fromarray(image.rgb)
@@ -587,7 +613,7 @@ class EpisodeRecorder:
                  f"distance to goal {self._distance:5.2f} m   return {self._return:+8.2f}")
         if self.shield:
             line1 += f"   shield acted {self._vetoes} steps"
-        ImageDraw.Draw(frame).text((10, STRIP_Y + 6), line1, fill=TEXT, font=self._font)  # changes every frame
+        draw_text(ImageDraw.Draw(frame), (10, STRIP_Y + 6), line1, self._font, TEXT)  # changes every frame
         name = scene.layout.name or "layout"
         sx, sy, _ = scene.start
         if self._goals:
@@ -635,14 +661,15 @@ class EpisodeRecorder:
             self._labels[key] = img
         return img
 
-    def _render_base(self, dynamic: bool = False, mission: bool = False) -> Image.Image:
-        """Everything that never changes: background, legend, depth colour bar (with
-        ``dynamic``, the legend also lists forklift, worker and event; with ``mission``, goal
-        reached and current target)."""
+    def _render_base(self, dynamic: bool = False, mission: bool = False, camera: bool = True) -> Image.Image:
+        """Everything that never changes: background, legend and, with a ``camera``, the depth
+        colour bar and the robot's own parts its image shows (body and lidar). With ``dynamic``
+        the legend also lists forklift, worker and event; with ``mission``, goal reached and
+        current target. Without a camera there is no depth to explain: no colour bar."""
         img = Image.new("RGB", FRAME_SIZE, BACKGROUND)
         draw = ImageDraw.Draw(img)
         x = SIDE_X + 12
-        draw.text((x, 10), "legend", fill=TEXT, font=self._font)
+        draw_text(draw, (x, 10), "legend", self._font, TEXT)
         y = 34
         entries = [("goal zone", GOAL)]
         if mission:
@@ -656,13 +683,20 @@ class EpisodeRecorder:
             entries += [("forklift", mover_colour("forklift", 0)), ("worker", mover_colour("worker", 0)),
                         ("event (add / remove)", EVENT_RGB)]
         entries += [(name, category_rgb(name)) for name in ("rack", "pallet", "box", "column", "wall")]
+        if camera:
+            entries += [("own body (camera)", OWN_BODY), ("own lidar (camera)", OWN_LIDAR)]
+        # rows of 20 px, closer when many entries would squeeze the depth bar under 100 px
+        row = min(20, (MAP_PX - 16 - 100 - 24 - y) // len(entries)) if camera else 20
         for name, colour in entries:
             draw.rectangle((x, y + 2, x + 12, y + 12), fill=colour)
-            draw.text((x + 20, y), name, fill=TEXT, font=self._small)
-            y += 20
+            draw_text(draw, (x + 20, y), name, self._small, TEXT)
+            y += row
+        draw.line((0, STRIP_Y, FRAME_SIZE[0], STRIP_Y), fill=(60, 64, 70))
+        if not camera:
+            return img
         # depth colour bar: near (0 m) at the top, as in the panel's table
         top, bottom = y + 24, MAP_PX - 16
-        draw.text((x, y + 4), "depth (m)", fill=TEXT, font=self._small)
+        draw_text(draw, (x, y + 4), "depth (m)", self._small, TEXT)
         lut = depth_colours()
         rows = np.linspace(0, 255, bottom - top).astype(int)
         bar = np.repeat(lut[rows][:, None, :], 16, axis=1)
@@ -671,7 +705,6 @@ class EpisodeRecorder:
             ty = top + (bottom - top - 1) * d / DEPTH_MAX
             draw.line((x + 16, ty, x + 22, ty), fill=TEXT)
             draw.text((x + 26, ty - 6), f"{d}" + ("+" if d == int(DEPTH_MAX) else ""), fill=TEXT, font=self._small)
-        draw.line((0, STRIP_Y, FRAME_SIZE[0], STRIP_Y), fill=(60, 64, 70))
         return img
 
     def _write(self, frame: np.ndarray) -> None:
@@ -681,10 +714,12 @@ class EpisodeRecorder:
 
 
 def label_image(text: str, font: Any, colour: tuple[int, int, int] = TEXT) -> Image.Image:
-    """``text`` in ``colour`` on a background box 3 px wider on each side (the frames' labels)."""
+    """``text`` in ``colour`` on a background box 3 px wider on each side (the frames' labels),
+    its spaces :data:`WORD_GAP_EM` wide."""
     x0, y0, x1, y1 = ImageDraw.Draw(Image.new("RGB", (1, 1))).textbbox((0, 0), text, font=font)
-    img = Image.new("RGB", (int(x1) + 6, int(y1) + 4), BACKGROUND)
-    ImageDraw.Draw(img).text((3, 2), text, fill=colour, font=font)
+    width = max(x1, text_length(text, font))
+    img = Image.new("RGB", (int(math.ceil(width)) + 6, int(y1) + 4), BACKGROUND)
+    draw_text(ImageDraw.Draw(img), (3, 2), text, font, colour)
     return img
 
 
