@@ -38,12 +38,13 @@ def _t_opt(i: int) -> float:
 
 
 def _cylinders(env) -> dict[int, tuple[float, float, float]]:
-    """Every body whose one collision shape is a cylinder of BARN's size: id -> position. Bodies
+    """Every body whose one shape is a cylinder of BARN's size: id -> position (the rays and contacts
+    of the tests show the collision shapes are there too). Bodies
     made in a batch are missing from PyBullet's getNumBodies, so every id below the robot's (loaded
     last) is asked."""
     cid, out = env.unwrapped.scene.client, {}
     for body in range(env.unwrapped.scene.robot_body):
-        shapes = p.getCollisionShapeData(body, -1, physicsClientId=cid)
+        shapes = p.getVisualShapeData(body, physicsClientId=cid)  # (static rigid bodies report no collision shape data)
         if len(shapes) == 1 and shapes[0][2] == p.GEOM_CYLINDER and shapes[0][3][:2] == pytest.approx((1.0, 0.075)):
             out[body] = p.getBasePositionAndOrientation(body, physicsClientId=cid)[0]
     return out
