@@ -138,6 +138,9 @@ def test_world_index_by_make_and_by_reset_and_bad_ones_named(env):
         with pytest.raises(LayoutError, match=re.escape(repr(bad))):
             gym.make("bulletnav/BARN-v0", world_idx=bad)
     assert env.unwrapped.world_idx == 299  # a refused index leaves the world as it was
+    for kwargs in ({"world": "x.yaml"}, {"task_name": "navigation"}):
+        with pytest.raises(TypeError, match=f"not {next(iter(kwargs))}="):
+            gym.make("bulletnav/BARN-v0", **kwargs)
 
 
 def test_check_env_passes():

@@ -39,7 +39,7 @@ class BarnEnv(WarehouseEnv):
 
     ## Arguments
     ``gym.make("bulletnav/BARN-v0", world_idx=N)``, N in 0-299 (default 0), and Warehouse-v0's
-    keywords except ``world``. ``reset(options={"world_idx": N})`` switches world; a bad index raises
+    keywords except ``world`` and ``task_name``. ``reset(options={"world_idx": N})`` switches world; a bad index raises
     :class:`~bulletnav.errors.LayoutError` naming it.
 
     ## Version History
@@ -50,6 +50,8 @@ class BarnEnv(WarehouseEnv):
                  **kwargs: Any) -> None:
         if "world" in kwargs:
             raise TypeError(f"bulletnav/BARN-v0 takes world_idx (0-299), not world={show(kwargs['world'])}")
+        if kwargs.get("task_name", "barn") != "barn":
+            raise TypeError(f"bulletnav/BARN-v0 runs BARN's task only, not task_name={show(kwargs['task_name'])}")
         index = check_index(world_idx)
         super().__init__(render_mode, config, **{**BARN_KWARGS, **kwargs})
         scene = self._scene
