@@ -1,0 +1,165 @@
+"""ROS 1 ``.bag`` and ROS 2 ``.db3`` (sqlite3) bags for ``bulletnav map``, read with the
+``rosbags`` library (pure Python; no ROS installation).
+
+:func:`read_rosbag` gives the same :class:`~bulletnav.ros.bagmap.BagData` as the MCAP reader:
+``sensor_msgs/msg/LaserScan`` on the scan topic, the robot's pose from ``nav_msgs/msg/Odometry``
+(or, without it, the ``/tf`` chain to the scan's frame), sensor mounts from ``/tf_static``.
+Messages are decoded against the definitions the bag carries (a ROS 1 bag always does; a ROS 2
+bag's ``metadata.yaml`` may), else against ROS 2 Humble's standard definitions; nothing in a bag
+is executed.
+
+Accepted paths: a ROS 1 ``.bag`` file; a ROS 2 bag directory (with ``metadata.yaml``); a ``.db3``
+file inside one; or a ``.db3`` file alone (read with :mod:`sqlite3`: its ``topics`` and
+``messages`` tables, CDR messages decoded against Humble's definitions).
+"""
+
+from __future__ import annotations
+
+import sqlite3
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bulletnav.errors import BulletnavError
+from bulletnav.ros.bagmap import ODOM_TYPE, SCAN_TYPE, TF_TYPE, BagData, Scan, _tf_poses
+from bulletnav.ros.record import message_yaw
+
+SUFFIXES = (".bag", ".db3")
+
+
+def is_rosbag(path: str | Path) -> bool:
+    """True for a path :func:`read_rosbag` reads (``.bag``, ``.db3`` or a ROS 2 bag directory)."""
+    path = Path(path)
+    return path.suffix.lower() in SUFFIXES or (path.is_dir() and (path / "metadata.yaml").is_file())
+
+
+def _stamp_ns(header: Any) -> int:
+    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+
+
+def _decoder(decode: Any, path: Path, kind: str) -> Any:
+    """``decode`` with any failure (a corrupt or truncated message) as one BulletnavError naming the file."""
+    def run() -> Any:
+        try:
+            return decode()
+        except Exception as exc:  # rosbags' SerdeError, struct.error, IndexError ... on a bad message
+            raise BulletnavError(f"{path}: not a readable {kind}: a message does not decode ({type(exc).__name__}: {exc})") from None
+    return run
+
+
+def _any_reader(paths: list[Path], kind: str, path: Path) -> Iterator[tuple[str, str, Any]]:
+    """(topic, type, message) of every message, in time order, through ``rosbags.highlevel.AnyReader``."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    try:
+        with AnyReader(paths, default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
+            yield from (("", c.msgtype, c.topic) for c in reader.connections)  # announce every topic first
+            for connection, _t, raw in reader.messages(connections=reader.connections):
+                yield connection.topic, connection.msgtype, _decoder(lambda r=raw, c=connection: reader.deserialize(r, c.msgtype),
+                                                                     path, kind)
+    except BulletnavError:
+        raise
+    except Exception as exc:  # rosbags raises its own errors, and struct/KeyError on corrupt records
+        raise BulletnavError(f"{path}: not a readable {kind} ({type(exc).__name__}: {exc})") from None
+
+
+def _sqlite(path: Path) -> Iterator[tuple[str, str, Any]]:
+    """The same from a lone ``.db3`` (no ``metadata.yaml``): its tables, Humble's definitions."""
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    try:
+        db = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)
+    except sqlite3.Error as exc:
+        raise BulletnavError(f"{path}: not a readable ROS 2 sqlite3 bag ({exc})") from None
+    try:
+        topics = {tid: (name, typ) for tid, name, typ in db.execute("SELECT id, name, type FROM topics")}
+        yield from (("", typ, name) for name, typ in topics.values())
+        for tid, raw in db.execute("SELECT topic_id, data FROM messages ORDER BY timestamp, id"):
+            name, typ = topics.get(tid, ("", ""))
+            yield name, typ, _decoder(lambda r=raw, t=typ: store.deserialize_cdr(r, t), path, "ROS 2 sqlite3 bag")
+    except sqlite3.Error as exc:
+        raise BulletnavError(f"{path}: not a readable ROS 2 sqlite3 bag ({exc})") from None
+    except (KeyError, IndexError, ValueError) as exc:
+        raise BulletnavError(f"{path}: not a readable ROS 2 sqlite3 bag ({type(exc).__name__}: {exc})") from None
+    finally:
+        db.close()
+
+
+def read_rosbag(path: str | Path, scan_topic: str = "/scan", odom_topic: str = "/odom") -> BagData:
+    """Read scans and poses from a ROS 1 or ROS 2 (sqlite3) bag (module docstring).
+
+    Raises:
+        BulletnavError: the path is missing or not a readable bag; the scan topic is missing or not
+            ``LaserScan``; neither the odometry topic nor ``/tf`` gives a pose.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise BulletnavError(f"{path}: no such bag file")
+    if path.suffix.lower() == ".bag":
+        stream = _any_reader([path], "ROS 1 bag", path)
+    elif path.is_dir():
+        stream = _any_reader([path], "ROS 2 bag", path)
+    elif (path.parent / "metadata.yaml").is_file():
+        stream = _any_reader([path.parent], "ROS 2 bag", path)
+    else:
+        stream = _sqlite(path)
+    return _collect(stream, path, scan_topic, odom_topic)
+
+
+def _collect(stream: Iterator[tuple[str, str, Any]], path: Path, scan_topic: str, odom_topic: str) -> BagData:
+    scans: list[Scan] = []
+    odom: list[tuple[int, tuple[float, float, float]]] = []
+    odom_frames: tuple[str, str] | None = None
+    tf: dict[tuple[str, str], list[tuple[int, tuple[float, float, float]]]] = {}
+    mounts: dict[tuple[str, str], tuple[float, float, float]] = {}
+    types: dict[str, str] = {}
+    for topic, typ, decode in stream:
+        if not topic:  # a topic's announcement: (``""``, type, name)
+            types[decode] = typ
+            continue
+        if topic == scan_topic:
+            if typ != SCAN_TYPE:
+                raise BulletnavError(f"{path}: topic {scan_topic} holds {typ} messages, not {SCAN_TYPE}")
+            msg = decode()
+            n = len(msg.ranges)
+            angles = float(msg.angle_min) + float(msg.angle_increment) * np.arange(n)
+            scans.append(Scan(_stamp_ns(msg.header), msg.header.frame_id, angles, np.asarray(msg.ranges, dtype=np.float64),
+                              float(msg.range_min), float(msg.range_max)))
+        elif topic == odom_topic:
+            if typ != ODOM_TYPE:
+                raise BulletnavError(f"{path}: topic {odom_topic} holds {typ} messages, not {ODOM_TYPE}")
+            msg = decode()
+            p = msg.pose.pose
+            odom.append((_stamp_ns(msg.header), (float(p.position.x), float(p.position.y), message_yaw(p.orientation))))
+            odom_frames = (msg.header.frame_id, msg.child_frame_id)
+        elif topic in ("/tf", "/tf_static") and typ == TF_TYPE:
+            for t in decode().transforms:
+                tr = t.transform
+                pose2d = (float(tr.translation.x), float(tr.translation.y), message_yaw(tr.rotation))
+                key = (t.header.frame_id, t.child_frame_id)
+                if topic == "/tf_static":
+                    mounts[key] = pose2d
+                else:
+                    tf.setdefault(key, []).append((_stamp_ns(t.header), pose2d))
+    have = ", ".join(f"{t} ({k})" for t, k in sorted(types.items())) or "none"
+    if not scans:
+        raise BulletnavError(f"{path}: no {SCAN_TYPE} messages on {scan_topic} (topics: {have}); "
+                             "name the scan topic with --scan-topic")
+    scans.sort(key=lambda s: s.stamp_ns)
+    if odom:
+        fixed, base = odom_frames or ("odom", "base_link")
+        sensor_mounts = {child: pose for (parent, child), pose in mounts.items() if parent == base}
+        return BagData(scans, sorted(odom), sensor_mounts, base, fixed, "odometry")
+    poses = _tf_poses(tf, mounts, scans[0].frame)
+    if poses is None:
+        raise BulletnavError(f"{path}: no pose for the scans: no {ODOM_TYPE} on {odom_topic} and no /tf chain to the "
+                             f"scan frame {scans[0].frame!r} (topics: {have}); name the odometry topic with --odom-topic")
+    fixed, chain_poses = poses
+    return BagData(scans, chain_poses, {}, scans[0].frame, fixed, "tf")
+
+
+__all__ = ["is_rosbag", "read_rosbag"]
