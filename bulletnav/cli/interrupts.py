@@ -70,7 +70,9 @@ def sigterm_as_interrupt() -> Iterator[None]:
         raise KeyboardInterrupt(f"signal {signum}")
 
     old = signal.getsignal(signal.SIGTERM)
-    if old == signal.SIG_IGN:
+    if old is None:  # a handler set outside Python: put the default back after
+        old = signal.SIG_DFL
+    elif old == signal.SIG_IGN:
         yield
         return
     signal.signal(signal.SIGTERM, interrupt)
@@ -91,7 +93,7 @@ def deferred() -> Iterator[None]:
         yield
     finally:
         for sig, handler in old.items():
-            signal.signal(sig, handler)
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
 
 
 def interrupted_line(command: str) -> str:
