@@ -321,7 +321,7 @@ def draw_episode(ax: Any, scene: EpisodeScene, row: dict[str, Any] | None, draw_
                             gid="goal"))
         ax.add_patch(Circle(g, scene.goal_radius, fill=False, edgecolor=PALETTE["goal"], lw=1.4, zorder=2, gid="goal"))
     path = row.get("path") if row is not None else None
-    if scene.mover_specs and path:
+    if scene.mover_specs and path and "steps" in row:
         poses = kinematic_poses(scene.mover_specs, robot_track(row), scene.control_dt, scene.robot_radius)
         for spec, track in zip(scene.mover_specs, poses):
             route = spec.route if isinstance(spec, ForkliftSpec) else spec.waypoints
