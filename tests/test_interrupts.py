@@ -199,6 +199,7 @@ HYPERPARAMS = """bulletnav/Warehouse-v0:
 """PPO in rollouts of 128 steps per env, one pass each, 200-step episodes: a small training."""
 
 
+@pytest.mark.slow  # two trainings with env worker processes: ~20 s of CPU
 def test_train_ctrl_c_keeps_the_checkpoint_and_resumes_from_it(tmp_path):
     hp = tmp_path / "ppo.yml"
     hp.write_text(HYPERPARAMS)
