@@ -78,7 +78,8 @@ class Limits:
     span grown by the lidar's reach. Also any :class:`~bulletnav.planning.mapping.LidarMapper`."""
     map_cells: int = 16_777_216
     """Cells of a lidar map (2^24; 4 bytes of log-odds each, 64 MB): extent / resolution,
-    squared. The navigator's map of a 200 m floor at 0.05 m has 16 M."""
+    squared. The navigator's map of a 200 m floor at 0.05 m has 16 M. Also the pixels of a
+    map_server map's image given as a world (checked before the image is decoded)."""
     net_width: int = 4096
     """Units of one hidden layer of a saved model's network (the sidecar's ``net_arch``),
     built before its weights are read; the shipped models use 64-256."""

@@ -731,6 +731,19 @@ KINDS: dict[str, str] = {
     "test_tour.py::test_tour_matches_brute_force_on_random_matrices": "formula",
     "test_tour.py::test_free_order_beats_the_given_order_where_they_differ": "hand",
     "test_tour.py::test_tour_rejects_bad_input": "contract",
+    # ---- test_user_maps.py
+    "test_user_maps.py::test_thresholds_are_nav2s_on_hand_values": "hand",  # Nav2's formula worked by hand per pixel
+    "test_user_maps.py::test_image_rows_run_from_the_top": "hand",
+    "test_user_maps.py::test_merged_boxes_cover_exactly_the_occupied_cells": "formula",  # boxes rasterised in the test
+    "test_user_maps.py::test_walls_merge_into_few_boxes": "hand",
+    "test_user_maps.py::test_map_layout_frame_and_boxes": "hand",  # frame by hand; walls from the pixel values in the test
+    "test_user_maps.py::test_hand_made_map_driven_by_pid_astar": "hand",  # a PGM and YAML written by hand; the goal by hand
+    "test_user_maps.py::test_sdf_poses_compose": "hand",
+    "test_user_maps.py::test_sdf_state_is_applied_as_gazebo_loads_it": "hand",
+    "test_user_maps.py::test_hand_written_world_driven_by_pid_astar": "hand",  # SDF text written by hand; start and goal by hand
+    "test_user_maps.py::test_sdf_refusals_name_the_file_and_model": "contract",
+    "test_user_maps.py::test_map_server_refusals_name_the_file_and_field": "contract",
+    "test_user_maps.py::test_navigate_cli_refuses_a_mesh_world_in_one_line": "contract",
     # ---- test_vector.py
     # batched goal distances = hypot(goal - pose); autoreset reward 0
     "test_vector.py::test_make_vec_sync_is_seeded_autoresets_and_batches_info": "formula",

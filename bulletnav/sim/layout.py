@@ -61,6 +61,9 @@ class Layout:
     """Obstacles that appear or vanish at given times in every episode on this layout."""
     goals: tuple[tuple[float, float], ...] = ()
     """Mission goals (``goals:`` list), used by the mission task instead of sampled ones."""
+    frame: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Pose (x m, y m, yaw rad) of this layout's frame in the frame of the map it was read from
+    (a map_server map or a Gazebo world, :mod:`bulletnav.sim.userworld`); zero for layouts."""
 
     @property
     def half_extents(self) -> tuple[float, float]:
@@ -359,13 +362,20 @@ def _check_free(layout: Layout, xy: tuple[float, ...], where: str, field_name: s
 
 
 def load_layout(path: str | Path) -> Layout:
-    """Read and validate a YAML layout file.
+    """Read and validate a YAML layout file, a ROS map_server map YAML or a Gazebo SDF world
+    (the last two: :mod:`bulletnav.sim.userworld`).
 
     Raises:
         LayoutError: the file is missing, is not YAML, or a field is wrong (named in the message).
     """
+    from bulletnav.sim import userworld  # a user's own maps
+
     path = Path(path)
+    if userworld.is_sdf(path):
+        return Layout(**userworld.load_sdf(path))
     data = read_yaml(path, "layout file", LayoutError)
+    if userworld.is_user_map(data):
+        return Layout(**userworld.load_user_map(path, data))
     return parse_layout(data, str(path))
 
 

@@ -202,8 +202,8 @@ def merge_boxes(occupied: np.ndarray) -> list[tuple[int, int, int, int]]:
     by_rows = _merge_runs(occupied.T)  # runs along x, stacked along y
     by_cols = _merge_runs(occupied)  # runs along y, stacked along x
     if len(by_cols) < len(by_rows):
-        return [(r0, c0, r1, c1) for c0, r0, c1, r1 in by_cols]
-    return [(c0, r0, c1, r1) for r0, c0, r1, c1 in by_rows]
+        return by_cols  # rows of occupied are ix: (i0, j0, i1, j1) already
+    return [(i0, j0, i1, j1) for j0, i0, j1, i1 in by_rows]
 
 
 def _merge_runs(grid: np.ndarray) -> list[tuple[int, int, int, int]]:

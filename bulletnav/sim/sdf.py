@@ -15,7 +15,9 @@ whose normal is +z is the ground and builds nothing. Everything else is refused 
 model's name, never dropped: a mesh, sphere, capsule, ellipsoid, heightmap, polyline or other
 plane; a tilted shape; a shape wholly under the floor; an ``<include>`` (except Gazebo's own
 ``ground_plane`` and ``sun``, which hold a ground plane and a light); an ``<actor>`` or a
-``<population>``. Visuals are ignored (the collisions are what the robot meets); models that
+``<population>``. A ``<state>`` (a world saved from Gazebo) is applied as Gazebo applies it on
+loading: its model and link poses (world frame) replace the composed ones, its ``<insertions>``
+are built and its ``<deletions>`` are not. Visuals are ignored (the collisions are what the robot meets); models that
 are not ``<static>`` are built as static obstacles too (bulletnav has no pushable bodies).
 
 The file is parsed with :mod:`xml.etree.ElementTree` after refusing any ``<!DOCTYPE`` or
@@ -76,12 +78,34 @@ class Shape:
 
 
 class _World:
-    """What the walk found: the shapes, and whether a ground plane was among them."""
+    """What the walk found: the shapes, and whether a ground plane was among them; and the
+    world-frame poses of models and links that the world's ``<state>`` sets (Gazebo applies them
+    when it loads the world: a world saved from Gazebo has one)."""
 
     def __init__(self, where: str) -> None:
         self.where = where
         self.shapes: list[Shape] = []
         self.ground = False
+        self.state: dict[str, np.ndarray] = {}
+        """``model`` or ``model/link`` (scoped ``outer::inner`` names) -> world pose."""
+        self.deleted: set[str] = set()
+
+    def read_state(self, state: ET.Element) -> None:
+        for deletions in state.findall("deletions"):
+            self.deleted.update((n.text or "").strip() for n in deletions.findall("name"))
+
+        def walk(model: ET.Element, prefix: str) -> None:
+            name = prefix + _name(model, "")
+            if model.find("pose") is not None:
+                self.state[name] = _pose(model, self.where, f"state of model {name!r}")[0]
+            for link in model.findall("link"):
+                if link.find("pose") is not None:
+                    self.state[f"{name}/{_name(link, '')}"] = _pose(link, self.where, f"state of model {name!r}")[0]
+            for inner in model.findall("model"):
+                walk(inner, name + "::")
+
+        for model in state.findall("model"):
+            walk(model, "")
 
 
 def _refuse(where: str, who: str, what: str) -> LayoutError:
@@ -132,7 +156,7 @@ def _pose(elem: ET.Element | None, where: str, who: str) -> tuple[np.ndarray, st
     else:
         raise _refuse(where, who, f"<pose rotation_format={fmt!r}> is neither euler_rpy nor quat_xyzw")
     t[:3, 3] = (x, y, z)
-    return t, pose.get("relative_to", "").strip()
+    return t, (pose.get("relative_to") or pose.get("frame") or "").strip()  # SDF <= 1.6 named it frame
 
 
 def _name(elem: ET.Element, fallback: str) -> str:
@@ -195,10 +219,14 @@ def _include(elem: ET.Element, where: str, world: _World, who_prefix: str) -> No
 
 def _model(elem: ET.Element, where: str, world: _World, parent: _Scope, prefix: str) -> None:
     name = prefix + _name(elem, "<unnamed model>")
+    if name in world.deleted:
+        log.info("%s: model %r is deleted by the world's <state>: not built", where, name)
+        return
     who = f"model {name!r}"
     local, rel = _pose(elem, where, who)
     base = parent.frame(rel, who) if rel else (parent.model_t if parent.model_t is not None else np.eye(4))
-    scope = _Scope(where, who, base @ local, parent, _scope_elems(elem))
+    model_t = world.state.get(name, base @ local)
+    scope = _Scope(where, who, model_t, parent, _scope_elems(elem))
     if not _is_static(elem) and elem.find("link") is not None:
         log.info("%s: %s is not <static>: built as a static obstacle", where, who)
     for child in elem:
@@ -213,6 +241,7 @@ def _model(elem: ET.Element, where: str, world: _World, parent: _Scope, prefix: 
 def _link(elem: ET.Element, where: str, world: _World, scope: _Scope, model: str) -> None:
     link_name = _name(elem, "<unnamed link>")
     link_t = scope.frame(link_name, f"link {link_name!r}") if elem.get("name") else scope.model_t
+    link_t = world.state.get(f"{model}/{link_name}", link_t)
     for collision in elem.findall("collision"):
         cname = _name(collision, "<unnamed collision>")
         who = f"model {model!r} (link {link_name!r}, collision {cname!r})"
@@ -301,8 +330,11 @@ def read_shapes(path: str | Path) -> tuple[list[Shape], bool, str]:
         raise LayoutError(f"{where}: {len(worlds)} <world>s; bulletnav builds a file with one")
     top = worlds[0] if worlds else root
     world = _World(where)
+    for state in top.findall("state"):
+        world.read_state(state)
     scope = _Scope(where, f"world {top.get('name', '')!r}", None, None, _scope_elems(top))  # type: ignore[arg-type]
-    for child in top:
+    inserted = [m for state in top.findall("state") for ins in state.findall("insertions") for m in ins.findall("model")]
+    for child in [*top, *inserted]:
         if child.tag == "model":
             _model(child, where, world, scope, "")
         elif child.tag == "include":

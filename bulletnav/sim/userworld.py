@@ -1,0 +1,263 @@
+"""A user's own maps as bulletnav layouts: a ROS ``map_server`` / Nav2 map YAML (with its PGM or
+PNG image) or a Gazebo SDF world, given wherever a layout file is (``world=PATH``, ``--world PATH``).
+
+:func:`~bulletnav.sim.layout.load_layout` sends a file here when it is SDF (suffix ``.world`` or
+``.sdf``, or text starting ``<?xml`` or ``<sdf``) or a YAML mapping with ``image`` and
+``resolution`` (a map_server map) or with ``map`` and no ``size`` (a wrapper naming one); the
+functions here return the :class:`~bulletnav.sim.layout.Layout`'s fields, which ``load_layout``
+builds (so this module does not import the layout module that imports it)::
+
+    map: site.yaml          # a map_server map YAML or a Gazebo world, relative to this file
+    start: [1.0, 2.0, 0.0]  # optional x, y, yaw in the map's frame (else sampled as for any layout)
+    goal: [8.5, 3.0]        # optional x, y in the map's frame
+    unknown: free           # map_server maps: unknown cells are walls unless this says free
+    height: 2.0             # map_server maps: height of the walls built from occupied cells (m)
+    margin: 1.0             # Gazebo worlds: floor beyond the shapes' extent on every side (m)
+    name: my-site
+
+The same keys (all but ``map``) may stand in the map_server YAML itself: ``map_server`` reads only
+its own keys. A :class:`~bulletnav.sim.layout.Layout` is centred on the origin, so the map is
+translated (and, for a map whose ``origin`` has a yaw, turned): ``Layout.frame`` is the pose of the
+layout's frame in the map's, and :func:`to_map_frame` / :func:`from_map_frame` convert. Start and
+goal are given, and errors report them, in the map's frame.
+
+A map_server map: each cell's value as Nav2 reads it (:mod:`bulletnav.sim.mapserver`); walls where
+it is 100 (occupied) and, unless ``unknown: free``, -1 (unknown); values 1-99 (scale and raw modes)
+are free, as Nav2's static costmap layer takes them by default (``trinary_costmap: true``,
+``lethal_cost_threshold: 100``). The wall cells are merged into few boxes
+(:func:`~bulletnav.sim.mapserver.merge_boxes`); the floor is the image's extent.
+
+A Gazebo world: its box and cylinder collisions (:mod:`bulletnav.sim.sdf`); the floor is their
+extent grown by ``margin`` on every side (a stock ground plane is 100 m wide: taking its size
+would give a floor mostly empty).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bulletnav import limits
+from bulletnav.errors import LayoutError, LimitError
+from bulletnav.sim import mapserver, sdf
+from bulletnav.sim.specs import Obstacle
+from bulletnav.yamlfile import read_yaml, show
+
+SDF_SUFFIXES = (".world", ".sdf")
+OPTIONS = {"start", "goal", "unknown", "height", "margin", "name"}
+"""bulletnav's keys beside a map (in a wrapper, or in a map_server YAML)."""
+WRAPPER_KEYS = OPTIONS | {"map"}
+DEFAULT_HEIGHT = 2.0
+"""Height of the walls built from a map_server map's wall cells (m)."""
+DEFAULT_MARGIN = 1.0
+"""Floor beyond a Gazebo world's shapes on every side (m)."""
+
+
+def is_sdf(path: Path) -> bool:
+    """True for an SDF file: suffix ``.world`` / ``.sdf``, or text starting ``<?xml`` / ``<sdf``."""
+    if path.suffix.lower() in SDF_SUFFIXES:
+        return True
+    try:
+        with open(path, "rb") as f:
+            head = f.read(256)
+    except OSError:
+        return False  # the YAML reader names the problem
+    head = head.lstrip(b"\xef\xbb\xbf \t\r\n")
+    return head.startswith((b"<?xml", b"<sdf"))
+
+
+def is_user_map(data: Any) -> bool:
+    """True for a decoded YAML that is a map_server map or a wrapper naming a map."""
+    return isinstance(data, dict) and (("image" in data and "resolution" in data) or ("map" in data and "size" not in data))
+
+
+def to_map_frame(layout: Any, x: float, y: float) -> tuple[float, float]:
+    """A layout point (m) in the frame of the map it came from (``layout.frame``)."""
+    fx, fy, fyaw = layout.frame
+    c, s = math.cos(fyaw), math.sin(fyaw)
+    return fx + c * x - s * y, fy + s * x + c * y
+
+
+def from_map_frame(layout: Any, x: float, y: float) -> tuple[float, float]:
+    """A point of the map's frame (m) in the layout's frame (inverse of :func:`to_map_frame`)."""
+    fx, fy, fyaw = layout.frame
+    c, s = math.cos(fyaw), math.sin(fyaw)
+    dx, dy = x - fx, y - fy
+    return c * dx + s * dy, -s * dx + c * dy
+
+
+# --------------------------------------------------------------------------- loading
+
+
+def load_sdf(path: str | Path, options: dict[str, Any] | None = None, where: str | None = None) -> dict[str, Any]:
+    """A Gazebo SDF world as a layout's fields (module docstring); ``options`` are a wrapper's keys."""
+    path = Path(path)
+    options = options or {}
+    where = where or str(path)
+    _no_options(options, ("unknown", "height"), where, "a Gazebo world")
+    margin = _positive(options.get("margin", DEFAULT_MARGIN), where, "margin", allow_zero=True)
+    shapes, _ground, world_name = sdf.read_shapes(path)
+    if not shapes:
+        raise LayoutError(f"{path}: no box or cylinder collision to build (a world of a ground plane alone)")
+    _limit("obstacles", len(shapes), where, "shapes (box and cylinder collisions)")
+    points = np.vstack([s.corners() for s in shapes])
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    centre = (lo + hi) / 2
+    size = (float(hi[0] - lo[0] + 2 * margin), float(hi[1] - lo[1] + 2 * margin))
+    _floor(size, where)
+    obstacles = []
+    for s in shapes:
+        xy = (s.center[0] - float(centre[0]), s.center[1] - float(centre[1]))
+        if s.kind == "box":
+            obstacles.append(Obstacle("box", xy, size=(s.size[0], s.size[1], s.top), yaw=s.yaw, label=s.model))
+        else:
+            obstacles.append(Obstacle("cylinder", xy, radius=s.size[0] / 2, height=s.top, label=s.model))
+    name = options.get("name", world_name or path.stem)
+    layout = {"size": size, "obstacles": tuple(obstacles), "name": str(name), "source": where,
+              "frame": (float(centre[0]), float(centre[1]), 0.0)}
+    return _place(layout, options, where, None)
+
+
+def load_map_yaml(path: Path, data: dict[str, Any], options: dict[str, Any] | None = None,
+                  where: str | None = None) -> dict[str, Any]:
+    """A map_server map (its decoded YAML ``data``) as a layout's fields (module docstring)."""
+    where = where or str(path)
+    own = {k: v for k, v in data.items() if k in OPTIONS}
+    options = {**own, **(options or {})}
+    _no_options(options, ("margin",), where, "a map_server map")
+    unknown = options.get("unknown", "occupied")
+    if unknown not in ("occupied", "free"):
+        raise LayoutError(f"{where}: field 'unknown' must be 'occupied' (walls, the default) or 'free', got {show(unknown)}")
+    height = _positive(options.get("height", DEFAULT_HEIGHT), where, "height")
+    meta, grid = mapserver.read_grid(data, str(path))
+    walls = grid == mapserver.OCCUPIED
+    if unknown == "occupied":
+        walls |= grid == mapserver.UNKNOWN
+    boxes = mapserver.merge_boxes(walls)
+    _limit("obstacles", len(boxes), where, "boxes (merged wall cells)")
+    res = meta.resolution
+    nx, ny = grid.shape
+    size = (nx * res, ny * res)
+    _floor(size, where)
+    hx, hy = size[0] / 2, size[1] / 2
+    obstacles = tuple(Obstacle("box", (-hx + (i0 + i1) * res / 2, -hy + (j0 + j1) * res / 2),
+                               size=((i1 - i0) * res, (j1 - j0) * res, height), label="map")
+                      for i0, j0, i1, j1 in boxes)
+    ox, oy, oyaw = meta.origin
+    c, s = math.cos(oyaw), math.sin(oyaw)
+    frame = (ox + c * hx - s * hy, oy + s * hx + c * hy, oyaw)
+    layout = {"size": size, "obstacles": obstacles, "wall_height": max(height, 0.5),
+              "name": str(options.get("name", path.stem)), "source": where, "frame": frame}
+    return _place(layout, options, where, (grid, res))
+
+
+def load_user_map(path: Path, data: dict[str, Any]) -> dict[str, Any]:
+    """A map_server map YAML, or a wrapper (``map:`` plus options) naming one or a Gazebo world,
+    as a layout's fields."""
+    where = str(path)
+    if "map" not in data or ("image" in data and "resolution" in data):
+        return load_map_yaml(path, data)
+    unknown_keys = sorted(set(data) - WRAPPER_KEYS, key=str)
+    if unknown_keys:
+        raise LayoutError(f"{where}: unknown field(s) {unknown_keys}; a map wrapper has {sorted(WRAPPER_KEYS)}")
+    target = data["map"]
+    if not isinstance(target, str) or not target.strip():
+        raise LayoutError(f"{where}: field 'map' must name a map_server YAML or a Gazebo world file, got {show(target)}")
+    target_path = Path(target) if Path(target).is_absolute() else path.parent / target
+    options = {k: v for k, v in data.items() if k != "map"}
+    if not target_path.is_file():
+        raise LayoutError(f"{where}: field 'map' names {target_path}, which does not exist")
+    if is_sdf(target_path):
+        return load_sdf(target_path, options, where=f"{where} (map {target_path})")
+    inner = read_yaml(target_path, "map file", LayoutError)
+    if not (isinstance(inner, dict) and "image" in inner and "resolution" in inner):
+        raise LayoutError(f"{where}: field 'map' names {target_path}, neither a map_server map YAML "
+                          "(image, resolution, ...) nor a Gazebo world (.world, .sdf)")
+    return load_map_yaml(target_path, inner, options, where=f"{where} (map {target_path})")
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _no_options(options: dict[str, Any], keys: tuple[str, ...], where: str, kind: str) -> None:
+    given = [k for k in keys if k in options]
+    if given:
+        raise LayoutError(f"{where}: field '{given[0]}' does not apply to {kind}")
+
+
+def _positive(value: Any, where: str, field_name: str, allow_zero: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or (
+            value < 0 if allow_zero else value <= 0):
+        raise LayoutError(f"{where}: field '{field_name}' must be a {'non-negative' if allow_zero else 'positive'} "
+                          f"number of metres, got {show(value)}")
+    return float(value)
+
+
+def _limit(name: str, value: float, where: str, what: str) -> None:
+    try:
+        limits.check(name, value, what)
+    except LimitError as exc:
+        raise LayoutError(f"{where}: {exc}") from None
+
+
+def _floor(size: tuple[float, float], where: str) -> None:
+    for i, s in enumerate(size):
+        if s <= 2.0:
+            raise LayoutError(f"{where}: the map is {size[0]:.3g} x {size[1]:.3g} m; bulletnav needs a floor over 2 m "
+                              f"along {'xy'[i]}")
+        _limit("world_size", s, where, f"map extent along {'xy'[i]} (m)")
+
+
+def _point(value: Any, n: int, where: str, field_name: str) -> tuple[float, ...]:
+    if not isinstance(value, (list, tuple)) or len(value) != n or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value):
+        what = "[x, y, yaw]" if n == 3 else "[x, y]"
+        raise LayoutError(f"{where}: field '{field_name}' must be {what} (finite numbers, the map's frame), got {show(value)}")
+    return tuple(float(v) for v in value)
+
+
+class _Frame:
+    def __init__(self, frame: tuple[float, float, float]) -> None:
+        self.frame = frame
+
+
+def _place(layout: dict[str, Any], options: dict[str, Any], where: str,
+           grid: tuple[np.ndarray, float] | None) -> dict[str, Any]:
+    """``layout``'s fields with the start and goal the options give in the map's frame, checked free."""
+    start = goal = None
+    frame = _Frame(layout["frame"])
+    if options.get("start") is not None:
+        sx, sy, syaw = _point(options["start"], 3, where, "start")
+        lx, ly = from_map_frame(frame, sx, sy)
+        _check_free(layout, (lx, ly), (sx, sy), where, "start", grid)
+        start = (lx, ly, math.remainder(syaw - frame.frame[2], 2 * math.pi))
+    if options.get("goal") is not None:
+        gx, gy = _point(options["goal"], 2, where, "goal")
+        lx, ly = from_map_frame(frame, gx, gy)
+        _check_free(layout, (lx, ly), (gx, gy), where, "goal", grid)
+        goal = (lx, ly)
+    return {**layout, "start": start, "goal": goal}
+
+
+def _check_free(layout: dict[str, Any], xy: tuple[float, float], given: tuple[float, float], where: str, field_name: str,
+                grid: tuple[np.ndarray, float] | None) -> None:
+    hx, hy = layout["size"][0] / 2, layout["size"][1] / 2
+    at = f"field '{field_name}' [{given[0]:g}, {given[1]:g}] (map frame)"
+    if not (abs(xy[0]) < hx and abs(xy[1]) < hy):
+        raise LayoutError(f"{where}: {at} lies outside the map")
+    for o in layout["obstacles"]:
+        if float(o.distance(np.array(xy[0]), np.array(xy[1]))) <= 0.0:
+            what = f"model {o.label!r}"
+            if grid is not None:
+                values, res = grid
+                ix = min(max(int((xy[0] + hx) / res), 0), values.shape[0] - 1)
+                iy = min(max(int((xy[1] + hy) / res), 0), values.shape[1] - 1)
+                what = ("an unknown cell (a wall unless 'unknown: free')" if values[ix, iy] == mapserver.UNKNOWN
+                        else "a wall (occupied cells)")
+            raise LayoutError(f"{where}: {at} lies on or inside {what}")
+
+
+__all__ = ["from_map_frame", "is_sdf", "is_user_map", "load_map_yaml", "load_sdf", "load_user_map", "to_map_frame"]
