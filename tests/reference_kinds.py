@@ -96,6 +96,12 @@ KINDS: dict[str, str] = {
     "test_barn_env.py::test_time_limit_counts_from_the_first_tenth_of_a_metre": "hand",  # 100 s, 0.1 m / 0.2 m/s
     "test_barn_env.py::test_world_index_by_make_and_by_reset_and_bad_ones_named": "formula",  # counts and t_opt from BARN's files
     "test_barn_env.py::test_check_env_passes": "library",
+    # ---- test_barn_jackal.py
+    # Clearpath's numbers written in the test against what PyBullet loads (track, wheel radius) and the outline
+    "test_barn_jackal.py::test_geometry_wheels_and_rest_height_are_the_jackals": "hand",
+    "test_barn_jackal.py::test_top_speed_turn_rate_and_straight_driving": "hand",  # 2.0 m/s, 4.0 rad/s; speed from poses
+    "test_barn_jackal.py::test_lidar_is_the_ust10s_270_degrees_and_30_m": "hand",
+    "test_barn_jackal.py::test_robot_keyword_on_every_id_and_bad_names": "formula",  # the outline's corner by hypot
     # ---- test_barn_metric.py
     "test_barn_metric.py::test_dwa_rows_summary_matches_barns_report_script": "hand",  # BARN's report_test.py run once by hand
     "test_barn_metric.py::test_reference_lengths_agree_with_barns_2022_sixth_column": "golden",  # BARN's own 2022 numbers

@@ -11,9 +11,9 @@ from bulletnav.config import EnvConfig
 from bulletnav.envs.warehouse import WarehouseEnv
 from bulletnav.yamlfile import show
 
-BARN_KWARGS: dict[str, Any] = {"task_name": "barn", "goal_radius": 1.0, "collision_terminates": True}
+BARN_KWARGS: dict[str, Any] = {"task_name": "barn", "goal_radius": 1.0, "collision_terminates": True, "robot": "jackal"}
 """What BARN-v0 sets on top of Warehouse-v0's defaults: BARN's task, its 1 m goal radius, a
-collision ending the episode."""
+collision ending the episode, BARN's robot (a Jackal, :func:`bulletnav.config.robot_preset`)."""
 
 
 class BarnEnv(WarehouseEnv):
@@ -23,8 +23,10 @@ class BarnEnv(WarehouseEnv):
     World ``world_idx`` (0-299) of the BARN challenge (github.com/Daffan/the-barn-challenge, MIT
     license): 181-365 static cylinders (radius 0.075 m, 1 m tall) at the world file's poses, in
     BARN's frame. The robot starts at BARN's start (-2.25, 3) with yaw 1.57 rad and drives to
-    BARN's goal (-2.25, 13), as BARN's ``run.py`` sets them for static worlds. The robot, its
-    sensors, the observation, the action space and the reward are Warehouse-v0's.
+    BARN's goal (-2.25, 13), as BARN's ``run.py`` sets them for static worlds. The robot is a
+    Clearpath Jackal-sized one by default (``robot="jackal"``: 0.508 x 0.430 m, 2.0 m/s, 4.0 rad/s,
+    a 270-degree lidar seen as 72 rays; ``robot="article"`` gives Warehouse-v0's); the observation
+    and the reward are Warehouse-v0's for that robot (``lidar_rays + 7`` entries, 79 by default).
 
     ## Episode End
     By BARN's rules (:mod:`bulletnav.barn.task`): a collision (any contact) terminates; BARN's

@@ -39,7 +39,8 @@ LABEL = "barn_cylinder"
 def barn_layout(world_idx: int) -> Layout:
     """BARN world ``world_idx`` (0-299) as a layout with BARN's start and goal (run.py lines 44-47).
 
-    Cached: the same index gives the same object, so a reset on the same world never rebuilds."""
+    Cached: the same index gives the same object, so an unseeded reset on the same world moves the
+    robot back instead of rebuilding the world (a seeded reset rebuilds, as in every bulletnav env)."""
     world = load_world(world_idx)
     obstacles = tuple(Obstacle("cylinder", (float(x), float(y)), radius=CYLINDER_RADIUS_M, height=CYLINDER_HEIGHT_M,
                                label=LABEL) for x, y in world.cylinders)

@@ -15,7 +15,7 @@ import numpy as np
 import pybullet as p
 from gymnasium import spaces
 
-from bulletnav.config import EnvConfig, RewardConfig, ShiftConfig, physics_profile
+from bulletnav.config import EnvConfig, RewardConfig, ShiftConfig, physics_profile, robot_preset
 from bulletnav.envs.actions import ActionMap
 from bulletnav.envs.randomization import STREAM as DR_STREAM
 from bulletnav.envs.randomization import Distribution, draw, draw_world, parse_randomize
@@ -85,7 +85,8 @@ def make_config(config: EnvConfig | None = None, **kwargs: Any) -> EnvConfig:
     field (e.g. ``reward_collision=-20``), ``world`` names a YAML layout file and ``physics``
     a named physics profile (:data:`~bulletnav.config.PHYSICS_PROFILES`: ``"default"``,
     ``"fast"``), which replaces the physics section before ``physics_hz`` and the other
-    physics keywords apply.
+    physics keywords apply, and ``robot`` a named robot (:func:`~bulletnav.config.robot_preset`:
+    ``"article"``, ``"jackal"``), applied before the other keywords too.
 
     Raises:
         TypeError: an unknown keyword (the message lists the known ones).
@@ -97,6 +98,9 @@ def make_config(config: EnvConfig | None = None, **kwargs: Any) -> EnvConfig:
     if "physics" in kwargs:  # a named profile first, so physics_hz & co. apply on top in any order
         kwargs = dict(kwargs)
         cfg = _apply(cfg, "physics", kwargs.pop("physics"))
+    if "robot" in kwargs:  # a named robot first, so lidar_rays & co. apply on top in any order
+        kwargs = dict(kwargs)
+        cfg = _apply(cfg, "robot", kwargs.pop("robot"))
     for key, value in kwargs.items():
         cfg = _apply(cfg, key, value)
     return cfg
@@ -121,6 +125,8 @@ def _apply(cfg: EnvConfig, key: str, value: Any) -> EnvConfig:
 def _set(cfg: EnvConfig, key: str, value: Any) -> EnvConfig:
     if key == "physics":
         return replace(cfg, physics=physics_profile(value))
+    if key == "robot":
+        return robot_preset(cfg, value)
     if key == "world":
         if value is not None and not isinstance(value, (str, PathLike)):
             raise TypeError(f"must be a layout file path or None, got {type(value).__name__}")
@@ -144,7 +150,7 @@ def _set(cfg: EnvConfig, key: str, value: Any) -> EnvConfig:
         elif key in ("forklift_speed", "worker_speed"):
             value = (float(value), float(value)) if isinstance(value, (int, float)) else tuple(value)
         return _replace_at(cfg, path, name, value)
-    known = sorted([*_KWARGS, "world", "config", "render_mode", "perturb", "randomize", "physics",
+    known = sorted([*_KWARGS, "world", "config", "render_mode", "perturb", "randomize", "physics", "robot",
                     *(f"reward_{f}" for f in _REWARD_FIELDS), *(f"shift_{f}" for f in _SHIFT_FIELDS)])
     raise TypeError(f"bulletnav/Warehouse-v0 got an unknown keyword argument {key!r}; known: {', '.join(known)}")
 
@@ -305,6 +311,8 @@ class WarehouseEnv(gym.Env):
     e.g. ``("rack",)``), ``detour_share`` (1.0; share of planning episodes while either is on),
     ``aisles`` (an :class:`~bulletnav.config.AislesConfig` for ``layout_style="aisles"``),
     ``reward_<term>`` weights, ``guidance`` ("none"; "floorplan": see the observation table),
+    ``robot`` ("article": the robot above; "jackal": a Clearpath Jackal-sized robot, 0.508 x 0.430 m,
+    2.0 m/s, 4.0 rad/s, a 270-degree 30 m lidar of 72 rays; :func:`~bulletnav.config.robot_preset`),
     ``perturb`` (None; a named shift of :mod:`bulletnav.envs.shifts`: ``slippery``, ``heavy``,
     ``noisy``, ``miscalibrated``, ``laggy``), ``shift_<field>`` (a
     :class:`~bulletnav.config.ShiftConfig` field: friction, mass, motor force, odometry model,

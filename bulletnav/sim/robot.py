@@ -66,6 +66,7 @@ class Robot:
         self.wheelbase = 0.0
         """Distance between the wheel contact points, read from the URDF joints (m)."""
         self._com_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        self._rest_height = REST_HEIGHT
         self._nominal_mass: tuple[float, tuple[float, ...]] = (0.0, (0.0, 0.0, 0.0))
         self._held: tuple[float, float] | None = None  # wheel angles the parking brake holds (rad)
         self._urdf: str | None = None
@@ -108,6 +109,11 @@ class Robot:
         shape = p.getCollisionShapeData(self.body, self.left_joint, physicsClientId=cid)[0]
         # an implicit cylinder's dimensions are (length, radius, 0); a sphere's (radius, ...)
         self.wheel_radius = float(shape[3][1] if shape[2] == p.GEOM_CYLINDER else shape[3][0])
+        # the URDF origin's height at rest: wheel radius above the axle's height in the URDF frame
+        # (the joint's parent frame is given from the base's centre of mass); the shipped robot's
+        # is REST_HEIGHT exactly, as always
+        rest = self.wheel_radius - (left[2] + self._com_offset[2])
+        self._rest_height = REST_HEIGHT if math.isclose(rest, REST_HEIGHT, abs_tol=1e-9) else rest
         for link in (-1, *range(p.getNumJoints(self.body, physicsClientId=cid))):
             p.setCollisionFilterGroupMask(self.body, link, ROBOT_GROUP, 0xFFFF, physicsClientId=cid)
         # The wheel spheres are for rolling only; obstacles meet the base's wheel guard boxes,
@@ -144,7 +150,7 @@ class Robot:
         x, y, yaw = pose
         c, s = math.cos(yaw), math.sin(yaw)
         ox, oy, oz = self._com_offset
-        com = [x + c * ox - s * oy, y + s * ox + c * oy, REST_HEIGHT + oz]
+        com = [x + c * ox - s * oy, y + s * ox + c * oy, self._rest_height + oz]
         p.resetBasePositionAndOrientation(self.body, com, p.getQuaternionFromEuler([0, 0, yaw]), physicsClientId=cid)
         p.resetBaseVelocity(self.body, [0, 0, 0], [0, 0, 0], physicsClientId=cid)
         for j in (self.left_joint, self.right_joint):
