@@ -232,16 +232,18 @@ def test_view_robots_opens_the_gui_and_tints_every_robot(display, capsys, monkey
 
 
 def test_marks_are_told_apart_and_the_legend_shows_each(recorded):
-    """No robot's colour is the collision mark's (white) or near the lidar red of the other videos
-    for the first 15 robots; the legend draws each mark the map draws, and the strip's words are
-    spaced (a gap of at least 3 px between ``4`` and ``robots``)."""
+    """No robot's colour is near the collision mark's (white: the channels together off by at least
+    100 of 765); red, the old robot 0 that looked like the old red collision ring, is left to a
+    16th robot; the legend draws the octagon, and the strip's words are spaced (a gap of at least
+    3 px between ``4`` and ``robots``)."""
     from PIL import ImageDraw
 
     from bulletnav.viz.fleet import STOPPED_RGB
-    from bulletnav.viz.video import LIDAR, draw_text, text_length, ui_font
+    from bulletnav.viz.video import draw_text, text_length, ui_font
 
-    assert STOPPED_RGB not in ROBOT_PALETTE and STOPPED_RGB == (255, 255, 255)
-    assert all(sum(abs(a - b) for a, b in zip(robot_colour(i), LIDAR)) > 100 for i in range(15))
+    assert STOPPED_RGB == (255, 255, 255)
+    assert all(sum(abs(a - b) for a, b in zip(rgb, STOPPED_RGB)) >= 100 for rgb in ROBOT_PALETTE)
+    assert ROBOT_PALETTE.index((230, 25, 75)) == 15 and robot_colour(0) == (60, 180, 75)  # robot 0 green
     _, visuals, _, _, _ = recorded
     base = np.asarray(visuals.frames._render_base(ROBOTS))
     legend = base[:720, 730:]

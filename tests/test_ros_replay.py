@@ -60,8 +60,10 @@ def test_replay_draws_the_live_frames(recorded, capsys):
     assert (summary["frame_step"], summary["frame_time_s"]) == (150, 6.25)
     frame = iio.imread(d / "frame.png")
     assert frame.shape == live[0].shape
+    # the PNG is the frame as composed, the video's the encoder's copy of it (2.8 of 255 apart here): nearer
+    # to the video's frame 150 than to the frames 10 steps either side
     near = [np.abs(frame[:STRIP_Y, :MAP_PX].astype(np.int16) - again[k][:STRIP_Y, :MAP_PX]).mean() for k in (140, 150, 160)]
-    assert near[1] < 1.5 and near[1] < min(near[0], near[2]), near
+    assert near[1] < 4.0 and near[1] < min(near[0], near[2]), near
     assert (d / "paths.png").stat().st_size > 0
 
 

@@ -12,6 +12,12 @@ Frame layout (960 x 528 px, both divisible by 16 so H.264 needs no resizing)::
     | text strip 960 x 48: episode, step, distance, return, outcome |
     +--------------------------------------------------------------+
 
+The legend names every mark of the map and, when the scene has a camera, the depth colour
+scale and the robot's own body (blue) and lidar (the red cylinder just ahead of the camera) that
+its image shows; without a camera (a replayed recording) the camera panels read "camera
+disabled" and the legend has no depth scale. Text is drawn word by word with spaces of
+:data:`WORD_GAP_EM` (the bundled font's own are 2-3 px).
+
 Frames are drawn with PIL and NumPy only (matplotlib is used once, for the depth colour
 table). Recording only reads the robot's pose and its cached sensor readings, so an episode
 with a recorder attached is bit-identical to one without.
