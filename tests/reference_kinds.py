@@ -750,6 +750,7 @@ KINDS: dict[str, str] = {
     "test_user_maps.py::test_sdf_refusals_name_the_file_and_model": "contract",
     "test_user_maps.py::test_map_server_refusals_name_the_file_and_field": "contract",
     "test_user_maps.py::test_navigate_cli_refuses_a_mesh_world_in_one_line": "contract",
+    "test_user_maps.py::test_mutated_maps_and_worlds_load_or_fail_with_a_layout_error": "contract",
     # ---- test_vector.py
     # batched goal distances = hypot(goal - pose); autoreset reward 0
     "test_vector.py::test_make_vec_sync_is_seeded_autoresets_and_batches_info": "formula",

@@ -381,3 +381,47 @@ def test_navigate_cli_refuses_a_mesh_world_in_one_line(tmp_path, capsys):
     assert main(["navigate", "--world", str(path), "--episodes", "1"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and err.startswith("bulletnav navigate: error:") and "robot_arm" in err and str(path) in err
+
+
+# ----------------------------------------------------------------------------- fuzz: only a LayoutError escapes
+
+MAP_DOC = {"image": "m.pgm", "resolution": 0.1, "origin": [0.0, 0.0, 0.0], "negate": 0, "occupied_thresh": 0.65,
+           "free_thresh": 0.196, "mode": "trinary", "start": [1.0, 1.0, 0.0], "goal": [3.0, 3.0], "unknown": "free"}
+
+
+def _only_layout_errors(path: Path) -> None:
+    try:
+        load_layout(path)
+    except LayoutError as exc:
+        assert str(path.name) in str(exc) and "\n" not in str(exc), str(exc)
+
+
+@pytest.mark.slow  # as test_fuzz's file properties: make test runs it, make check leaves it out
+def test_mutated_maps_and_worlds_load_or_fail_with_a_layout_error(tmp_path):
+    """Mutated map YAMLs (fuzz_strategies' edits) beside a good PGM, and SDF text with bytes
+    flipped, cut or repeated: each loads or fails with one LayoutError line naming the file."""
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as st
+
+    from fuzz_strategies import examples, mutated
+
+    _pgm(tmp_path / "m.pgm", np.pad(np.full((38, 38), 254), 1))
+    world = WORLD.encode()
+
+    @settings(max_examples=examples(25), deadline=None, suppress_health_check=list(HealthCheck))
+    @given(mutated(st.just(MAP_DOC)), st.lists(st.tuples(st.integers(0, len(world) - 1), st.integers(0, 255)), max_size=4),
+           st.integers(0, len(world)))
+    def check(doc, flips, cut):
+        import yaml
+
+        path = tmp_path / "map.yaml"
+        path.write_text(yaml.safe_dump(doc))
+        _only_layout_errors(path)
+        data = bytearray(world[:cut] + world[cut // 2:])  # a cut and a repeat
+        for i, b in flips:
+            data[i % len(data)] = b
+        path = tmp_path / "fuzz.world"
+        path.write_bytes(bytes(data))
+        _only_layout_errors(path)
+
+    check()

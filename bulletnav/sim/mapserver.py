@@ -61,9 +61,17 @@ class MapMeta:
     mode: str = "trinary"
 
 
+def finite(value: float) -> bool:
+    """``math.isfinite``, False for an int too large for a float (instead of OverflowError)."""
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
+
+
 def _number(data: dict, key: str, where: str) -> float:
     value = data[key]
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not finite(value):
         raise LayoutError(f"{where}: field '{key}' must be a finite number, got {show(value)}")
     return float(value)
 

@@ -43,6 +43,7 @@ import numpy as np
 from bulletnav import limits
 from bulletnav.errors import LayoutError, LimitError
 from bulletnav.sim import mapserver, sdf
+from bulletnav.sim.mapserver import finite
 from bulletnav.sim.specs import Obstacle
 from bulletnav.yamlfile import read_yaml, show
 
@@ -189,7 +190,7 @@ def _no_options(options: dict[str, Any], keys: tuple[str, ...], where: str, kind
 
 
 def _positive(value: Any, where: str, field_name: str, allow_zero: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or (
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not finite(value) or (
             value < 0 if allow_zero else value <= 0):
         raise LayoutError(f"{where}: field '{field_name}' must be a {'non-negative' if allow_zero else 'positive'} "
                           f"number of metres, got {show(value)}")
@@ -213,7 +214,7 @@ def _floor(size: tuple[float, float], where: str) -> None:
 
 def _point(value: Any, n: int, where: str, field_name: str) -> tuple[float, ...]:
     if not isinstance(value, (list, tuple)) or len(value) != n or not all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value):
+            isinstance(v, (int, float)) and not isinstance(v, bool) and finite(v) for v in value):
         what = "[x, y, yaw]" if n == 3 else "[x, y]"
         raise LayoutError(f"{where}: field '{field_name}' must be {what} (finite numbers, the map's frame), got {show(value)}")
     return tuple(float(v) for v in value)
