@@ -162,6 +162,7 @@ def test_train_prints_the_note_and_refuses_a_folder_holding_a_run(monkeypatch, t
 # ------------------------------------------------------------------ a model and its env
 
 
+@pytest.mark.slow
 def test_evaluate_without_env_uses_the_models_own_env(capsys):
     assert main(["evaluate", "--model", str(MODELS / "ppo_mission.zip"), "--episodes", "1", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)

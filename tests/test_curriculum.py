@@ -93,6 +93,7 @@ def test_set_episode_config_changes_the_next_episodes_and_restores():
     env.close()
 
 
+@pytest.mark.slow
 def test_stages_reach_subprocess_envs_during_training():
     """Stage 0 makes every episode succeed at once, stage 1 (heavy robot, far goals, 10-step
     episodes) makes none: the curriculum promotes, the envs report the shift, it demotes."""

@@ -213,6 +213,7 @@ def test_gui_connect_holds_its_own_x_connection_until_pybullet_has_opened_one(mo
     assert calls == ["XOpenDisplay"] * 3 + ["pybullet.connect", "XCloseDisplay"]
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("Xvfb") is None or _xlib() is None, reason="needs Xvfb and libX11")
 def test_a_held_x_connection_keeps_a_resetting_server_from_refusing_clients(report):
     """The premise of the hold above, on a real Xvfb started as `xvfb-run` starts it (it resets

@@ -103,6 +103,7 @@ def _follow(obs):
     return np.array([0.5 * max(0.0, math.cos(bearing)) ** 4, float(np.clip(2.0 * bearing, -1.5, 1.5))])
 
 
+@pytest.mark.slow
 def test_a_blind_guide_follower_completes_aisle_missions():
     """Nothing but the guidance entries (no lidar): the path keeps clear of the racks by itself."""
     from shapely import affinity

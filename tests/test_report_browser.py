@@ -58,6 +58,7 @@ def _suite(report: Path) -> dict:
     return json.loads((report.parent / "results.json").read_text())["suite"]
 
 
+@pytest.mark.slow
 def test_report_in_chromium(report, browser, tmp_path):
     errors: list[str] = []
     page = browser.new_page(viewport={"width": 1280, "height": 900})
