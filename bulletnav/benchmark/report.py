@@ -305,6 +305,10 @@ def outcome_of(row: dict[str, Any]) -> str:
     return "success" if row["success"] else ("collision" if row["collision"] else "timeout")
 
 
+OUTCOME_WORDS = {"success": "success", "collision": "collision", "timeout": "time-out"}
+"""How captions name an outcome (the legend's words)."""
+
+
 def draw_episode(ax: Any, scene: EpisodeScene, row: dict[str, Any] | None, draw_layout: DrawLayout | None) -> None:
     """One episode's map on Matplotlib axes: the layout (racks grey), the goal zone(s), the
     start, the robot's path in its outcome's colour and style with its end mark, and each mover
@@ -571,7 +575,7 @@ def _world_panel(i: int, w: dict[str, Any], controllers: list[str], cells: dict[
         out.append(f"<details{' open' if k == 0 else ''}><summary>Episode {k} (seed {seed + k})</summary><div class=maps>")
         for c in controllers:
             row = rows.get((c, k))
-            what = f"{outcome_of(row)} after {row['time_s']:.1f} s" if row is not None else "no row"
+            what = f"{OUTCOME_WORDS[outcome_of(row)]} after {row['time_s']:.1f} s" if row is not None else "no row"
             out.append(f"<figure><img alt='{esc(c, quote=True)}, episode {k}: {what}' "
                        f"src='{_map(scene, row, draw_layout)}'><figcaption>{esc(c)}: {what}</figcaption></figure>")
         out.append("</div></details>")
@@ -595,7 +599,7 @@ def _failure_gallery(w: dict[str, Any], controllers: list[str], rows: dict[tuple
         return ["<p class=note>No failures.</p>"]
     out = ["<div class=maps>"]
     for r in shown:
-        outcome = outcome_of(r)
+        outcome = OUTCOME_WORDS[outcome_of(r)]
         replay = f" Replay: {command_html(r['replay'])}" if r.get("replay") else ""
         out.append(f"<figure><img alt='{esc(r['controller'], quote=True)} {outcome} seed {r['seed']}' "
                    f"src='{_map(scenes.get(w, r['seed']), r, draw_layout)}'><figcaption>{esc(r['controller'])}: {outcome} "
