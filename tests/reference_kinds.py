@@ -620,6 +620,13 @@ KINDS: dict[str, str] = {
     "test_ros_bagmap.py::test_bulletnav_bag_maps_onto_the_true_map": "formula",
     "test_ros_bagmap.py::test_bad_bags_are_refused": "contract",
     "test_ros_bagmap.py::test_map_png_has_a_legend_and_start_end_marks": "formula",  # start from the odometry, by hand
+    # ---- test_ros_bags.py
+    "test_ros_bags.py::test_rosbags_bags_map_the_known_room": "library",  # .bag and .db3 written by rosbags; walls by exact casts
+    "test_ros_bags.py::test_a_lone_db3_and_a_bag_directory_read_alike": "self",
+    "test_ros_bags.py::test_bad_rosbags_are_refused_naming_the_file": "contract",
+    "test_ros_bags.py::test_format_ros_is_what_map_server_reads": "library",  # read back by PyYAML and Pillow, cell by cell
+    "test_ros_bags.py::test_format_ros_round_trips_through_the_world_reader": "self",
+    "test_ros_bags.py::test_format_ros_needs_an_out_stem_and_keeps_existing_files": "contract",
     # ---- test_ros_record.py
     "test_ros_record.py::test_types_counts_and_stamps": "library",  # read back with mcap_ros2
     "test_ros_record.py::test_scan_equals_the_env_lidar": "library",

@@ -181,7 +181,7 @@ def add_physics_arg(parser: argparse.ArgumentParser) -> None:
 
 def add_world_args(parser: argparse.ArgumentParser) -> None:
     add_env_arg(parser)
-    parser.add_argument("--world", metavar="FILE", help="YAML layout (default: procedural warehouse)")
+    parser.add_argument("--world", metavar="FILE", help="layout YAML, map_server map YAML or Gazebo .world (default: procedural)")
     add_obstacles_arg(parser)
     parser.add_argument("--seed", type=SEED, default=0, help="random seed (default 0)")
 

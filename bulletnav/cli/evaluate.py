@@ -52,7 +52,7 @@ def _register_evaluate(sub) -> None:
                     help="only needed when the .json beside the model is missing")
     ev.add_argument("--episodes", type=COUNT, default=10, help="episodes to run (default 10)")
     add_env_arg(ev, MODEL_ENV_HELP)
-    ev.add_argument("--world", metavar="FILE", help="YAML layout (default: procedural warehouse)")
+    ev.add_argument("--world", metavar="FILE", help="layout YAML, map_server map YAML or Gazebo .world (default: procedural)")
     add_mission_args(ev)
     add_obstacles_arg(ev, "31 on Warehouse-v0, else the model's or the env's")
     ev.add_argument("--seed", type=SEED, default=1000, help="episode k uses env seed S + k (default 1000)")
@@ -87,7 +87,7 @@ def _register_demo(sub) -> None:
     demo.add_argument("--episodes", type=COUNT, default=5, help="episodes to run (default 5)")
     demo.add_argument("--seed", type=SEED, default=2024, help="episode k uses env seed S + k (default 2024)")
     add_env_arg(demo, MODEL_ENV_HELP)
-    demo.add_argument("--world", metavar="FILE", help="YAML layout (default: procedural warehouse)")
+    demo.add_argument("--world", metavar="FILE", help="layout YAML, map_server map YAML or Gazebo .world (default: procedural)")
     add_mission_args(demo)
     add_obstacles_arg(demo, "31 on Warehouse-v0, else the model's or the env's")
     demo.add_argument("--out", default=None, metavar="DIR",

@@ -1,5 +1,5 @@
-"""ROS 2 recordings: ``map`` (bulletnav's lidar mapper on a bag) and ``replay`` (a ``--record``
-file drawn from the file alone)."""
+"""ROS recordings: ``map`` (bulletnav's lidar mapper on a bag: MCAP, ROS 1 .bag or ROS 2 .db3; the map
+as a PNG or as Nav2's map_server YAML + PGM) and ``replay`` (a ``--record`` file drawn from the file alone)."""
 
 from __future__ import annotations
 
@@ -26,17 +26,20 @@ def register(sub) -> None:
 
 
 def _register_map(sub) -> None:
-    mp = add_command(sub, "map", "bulletnav's lidar mapper (and A*) on a ROS 2 bag's LaserScan and Odometry (or TF)")
-    mp.add_argument("bag", metavar="BAG.mcap", help="an MCAP file of ROS 2 messages (CDR)")
+    mp = add_command(sub, "map", "bulletnav's lidar mapper (and A*) on a ROS bag's LaserScan and Odometry (or TF)")
+    mp.add_argument("bag", metavar="BAG", help="a ROS 2 MCAP file, a ROS 1 .bag, or a ROS 2 sqlite3 .db3 (or its bag folder)")
     mp.add_argument("--scan-topic", default="/scan", help="sensor_msgs/msg/LaserScan topic (default /scan)")
     mp.add_argument("--odom-topic", default="/odom",
                     help="nav_msgs/msg/Odometry topic (default /odom; without it the /tf chain to the scan's frame)")
     mp.add_argument("--resolution", type=cell_metres, default=0.1, metavar="M", help="cell size in m (default 0.1)")
-    mp.add_argument("--out", type=PNG_FILE, default=None, metavar="PNG", help="write the map (and path) as a PNG")
+    mp.add_argument("--out", default=None, metavar="PATH",
+                    help="write the map: a PNG with the path (--format png), or STEM.yaml + STEM.pgm (--format ros)")
+    mp.add_argument("--format", choices=("png", "ros"), default="png",
+                    help="--out as a PNG picture (default), or as ros: the map YAML and PGM Nav2's map_server reads")
     mp.add_argument("--plan-to", type=float, nargs=2, metavar=("X", "Y"), default=None,
                     help="plan an A* path on the map from the last scan's position to (X, Y) m")
     mp.add_argument("--json", action="store_true", help="print one JSON object")
-    add_overwrite_arg(mp, "an --out file")
+    add_overwrite_arg(mp, "--out files")
     mp.set_defaults(func=cmd_map)
 
 
@@ -78,13 +81,19 @@ def _register_replay(sub) -> None:
 def cmd_map(args: argparse.Namespace) -> int:
     """Map a ROS 2 bag with bulletnav's lidar mapper; optionally plan on it."""
     from bulletnav.ros.bagmap import build_map, plan_path, read_bag, write_map_png
+    from bulletnav.ros.bags import is_rosbag, read_rosbag
+    from bulletnav.sim.mapserver import write_map
 
-    refuse_existing_files(args, "out")
-    data = read_bag(args.bag, scan_topic=args.scan_topic, odom_topic=args.odom_topic)
+    out = _map_out(args)
+    read = read_rosbag if is_rosbag(args.bag) else read_bag
+    data = read(args.bag, scan_topic=args.scan_topic, odom_topic=args.odom_topic)
     bag_map = build_map(data, resolution=args.resolution)
     goal = tuple(args.plan_to) if args.plan_to else None
     path = plan_path(bag_map, goal) if goal else None
-    if args.out:
+    if args.out and args.format == "ros":
+        m = bag_map.mapper
+        write_map(out[0][:-5], m.state(), m.resolution, (m.x0, m.y0))
+    elif args.out:
         write_map_png(bag_map, args.out, path, goal, title=f"{args.bag}: {bag_map.scans_used} scans")
     state = bag_map.mapper.state()
     summary = {"bag": str(args.bag), "scan_topic": args.scan_topic, "pose_source": data.pose_source,
@@ -94,7 +103,7 @@ def cmd_map(args: argparse.Namespace) -> int:
                "occupied_cells": int((state > 0).sum()), "free_cells": int((state == 0).sum()),
                "plan_to": list(goal) if goal else None, "path_found": None if goal is None else path is not None,
                "path_length_m": (None if not path else float(sum(np.hypot(b[0] - a[0], b[1] - a[1]) for a, b in zip(path, path[1:])))),
-               "out": args.out}
+               "out": out}
     if args.json:
         print_json(summary)
         return 0
@@ -106,8 +115,36 @@ def cmd_map(args: argparse.Namespace) -> int:
     if goal:
         print(f"A* to ({goal[0]:g}, {goal[1]:g}): " + (f"{summary['path_length_m']:.2f} m" if path else "no path"))
     if args.out:
-        print(f"map: {args.out}")
+        print(f"map: {' + '.join(out)}" if args.format == "ros" else f"map: {out}")
     return 0
+
+
+def _map_out(args: argparse.Namespace) -> str | list[str] | None:
+    """``map --out`` checked against ``--format`` (existing files refused without --overwrite):
+    the PNG's path, or the YAML's and PGM's paths of the STEM (a .yaml or .pgm suffix dropped)."""
+    from pathlib import Path
+
+    from bulletnav.errors import ConfigError
+
+    if not args.out:
+        if args.format == "ros":
+            raise ConfigError("--format ros writes STEM.yaml + STEM.pgm: pass --out STEM")
+        return None
+    if args.format == "png":
+        try:
+            PNG_FILE(args.out)
+        except argparse.ArgumentTypeError as exc:
+            raise ConfigError(f"--out {exc} (or pass --format ros for a map_server map)") from None
+        refuse_existing_files(args, "out")
+        return args.out
+    stem = args.out[:-4] if args.out.lower().endswith((".pgm", ".yml")) else args.out
+    stem = stem[:-5] if stem.lower().endswith(".yaml") else stem
+    out = [stem + ".yaml", stem + ".pgm"]
+    for file in out:
+        if Path(file).exists() and not args.overwrite:
+            raise ConfigError(f"--out {file}: the file already exists (another run's?); pass --overwrite to replace it, "
+                              "or choose another name")
+    return out
 
 
 def cmd_replay(args: argparse.Namespace) -> int:

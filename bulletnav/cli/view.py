@@ -17,7 +17,7 @@ def register(sub) -> None:
 
     view = add_command(sub, "view", "look at a warehouse in the PyBullet GUI")
     add_env_arg(view)
-    view.add_argument("--world", metavar="FILE", help="YAML layout (default: procedural warehouse)")
+    view.add_argument("--world", metavar="FILE", help="layout YAML, map_server map YAML or Gazebo .world (default: procedural)")
     add_obstacles_arg(view)
     view.add_argument("--seed", type=SEED, default=0, help="warehouse seed (default 0)")
     view.add_argument("--seconds", type=positive_seconds, default=30.0, help="how long to show it (default 30)")
