@@ -400,6 +400,11 @@ KINDS: dict[str, str] = {
     "test_input_holes.py::test_a_sidecar_of_the_shipped_sizes_still_loads": "contract",
     "test_input_holes.py::test_buffer_size_and_n_envs_are_bounded": "contract",
     "test_input_holes.py::test_fleet_duration_and_robots_are_limits": "contract",
+    "test_input_holes.py::test_the_suite_limits_are_in_the_one_table_and_raisable": "contract",
+    "test_input_holes.py::test_dataset_ids_follow_minaris_rule": "library",  # Minari's own id parser
+    "test_input_holes.py::test_a_bad_dataset_id_stops_navigate_before_any_episode": "contract",
+    # the parsed argv against the paths by hand; the replayed row against the report's
+    "test_input_holes.py::test_a_replay_command_from_a_report_replays_its_episode": "hand",
     # ---- test_interrupts.py
     "test_interrupts.py::test_benchmark_ctrl_c_says_how_to_resume_and_the_resume_reports_the_whole_run": "contract",
     "test_interrupts.py::test_benchmark_sigterm_with_two_workers_stops_them_and_keeps_whole_rows": "contract",
@@ -408,11 +413,6 @@ KINDS: dict[str, str] = {
     "test_interrupts.py::test_fleet_compare_ctrl_c_says_how_to_resume_and_resumes": "contract",
     "test_interrupts.py::test_navigate_ctrl_c_says_what_ran_and_that_nothing_resumes": "contract",
     "test_interrupts.py::test_dataset_recording_sigterm_writes_no_half_dataset": "contract",
-    "test_input_holes.py::test_the_suite_limits_are_in_the_one_table_and_raisable": "contract",
-    "test_input_holes.py::test_dataset_ids_follow_minaris_rule": "library",  # Minari's own id parser
-    "test_input_holes.py::test_a_bad_dataset_id_stops_navigate_before_any_episode": "contract",
-    # the parsed argv against the paths by hand; the replayed row against the report's
-    "test_input_holes.py::test_a_replay_command_from_a_report_replays_its_episode": "hand",
     # ---- test_json_output.py
     "test_json_output.py::test_every_command_with_json_is_run_here": "contract",
     "test_json_output.py::test_json_is_the_whole_of_stdout": "contract",
