@@ -14,10 +14,11 @@ from __future__ import annotations
 import json
 import logging
 import math
+import multiprocessing
 import os
 import platform
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from importlib import import_module
 from itertools import islice
@@ -317,10 +318,9 @@ def run_in_pool(jobs: list[tuple[Callable, tuple]], workers: int, keep: Callable
     first). ``ProcessPoolExecutor`` would otherwise queue jobs ahead of its workers, and those
     would run after the failure. The workers ignore SIGINT (:func:`ignore_interrupts`); a
     ``KeyboardInterrupt`` here (Ctrl-C, or SIGTERM made one by the CLI) terminates them at once."""
-    import multiprocessing
-
     ctx = multiprocessing.get_context("forkserver")
     queue = iter(jobs)
+    before = set(multiprocessing.active_children())  # the pool's workers are the children started after this
     pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=ignore_interrupts)
     try:
         pending = {pool.submit(fn, *args) for fn, args in islice(queue, workers)}
@@ -330,16 +330,18 @@ def run_in_pool(jobs: list[tuple[Callable, tuple]], workers: int, keep: Callable
                 keep(future.result())
                 pending.update(pool.submit(fn, *args) for fn, args in islice(queue, 1))
     except KeyboardInterrupt:  # Ctrl-C or SIGTERM: stop the workers now, not after their chunks
-        stop_workers(pool)
+        stop_workers(set(multiprocessing.active_children()) - before)
         raise
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
 
 
-def stop_workers(pool: ProcessPoolExecutor) -> None:
+def stop_workers(processes: Iterable[multiprocessing.Process]) -> None:
     """Terminate a pool's worker processes (their unfinished jobs are lost; nothing of theirs
-    was written) and wait for them."""
-    processes = list((getattr(pool, "_processes", None) or {}).values())  # no public way before Python 3.14
+    was written) and wait for them. The caller names them as the children this process started
+    since the pool was made (``multiprocessing.active_children``): executors have no public way
+    to stop their workers before Python 3.14."""
+    processes = list(processes)
     for process in processes:
         process.terminate()
     for process in processes:

@@ -200,10 +200,7 @@ def train(cfg: TrainConfig, plot_curve: PlotCurve | None = None) -> dict[str, An
     vecnorm = venv if isinstance(venv, VecNormalize) else None
     # the training's wall clock runs on across resumes: from the checkpoint's record, or (older
     # checkpoints) from the last in-training evaluation's
-    prior = 0.0
-    if cfg.resume:
-        last = json.loads(ckpt.with_suffix(".json").read_text()) if ckpt.with_suffix(".json").is_file() else {}
-        prior = float(last.get("wall_time", history[-1]["wall_time"] if history else 0.0))
+    prior = _prior_wall_time(ckpt, history) if cfg.resume else 0.0
     evaluation = EvaluationCallback(cfg.out, cfg.eval_freq, cfg.eval_episodes, env_kwargs, history, env_id=cfg.env_id,
                                     shield=shield, started=time.time() - prior, on_row=cfg.on_evaluation,
                                     stop_at_success=cfg.stop_at_success)
@@ -230,16 +227,8 @@ def train(cfg: TrainConfig, plot_curve: PlotCurve | None = None) -> dict[str, An
     write_json(cfg.out / "config.json", record)
     t0 = time.time()
     remaining = max(timesteps - start_steps, 0)
-    bar = progress_bar_callback() if cfg.progress_bar else None
-    try:
-        if remaining:
-            model.learn(total_timesteps=remaining, callback=[checkpoints, *callbacks, *([bar] if bar else [])],
-                        reset_num_timesteps=not cfg.resume, tb_log_name=cfg.algo)
-    except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the last checkpoint stands; workers and envs stopped
-        close_progress_bar(bar)
-        stop_workers(venv)
-        evaluation.close()
-        raise
+    if remaining:
+        _learn(model, cfg, remaining, [checkpoints, *callbacks], venv, evaluation)
     wall = time.time() - t0
     timing = throughput.summary() if remaining else None
     save_checkpoint(model, cfg.out, vecnorm, state())
@@ -259,6 +248,29 @@ def train(cfg: TrainConfig, plot_curve: PlotCurve | None = None) -> dict[str, An
     if history and plot_curve is not None:
         plot_curve(history, cfg.out / "learning_curve.png", f"{cfg.algo.upper()} seed {cfg.seed}")
     return record
+
+
+def _prior_wall_time(ckpt: Path, history: list[dict[str, Any]]) -> float:
+    """The resumed training's wall time so far (s): the checkpoint record's, or (older
+    checkpoints) the last in-training evaluation's."""
+    record = ckpt.with_suffix(".json")
+    last = json.loads(record.read_text()) if record.is_file() else {}
+    return float(last.get("wall_time", history[-1]["wall_time"] if history else 0.0))
+
+
+def _learn(model: Any, cfg: TrainConfig, steps: int, callbacks: list, venv: Any, evaluation: EvaluationCallback) -> None:
+    """``model.learn`` for ``steps`` more steps (with a progress bar if ``cfg`` asks). On Ctrl-C
+    or SIGTERM the last checkpoint stands: the bar is closed, the env workers and the evaluation
+    env are stopped, and the interrupt goes on up."""
+    bar = progress_bar_callback() if cfg.progress_bar else None
+    try:
+        model.learn(total_timesteps=steps, callback=[*callbacks, *([bar] if bar else [])],
+                    reset_num_timesteps=not cfg.resume, tb_log_name=cfg.algo)
+    except KeyboardInterrupt:
+        close_progress_bar(bar)
+        stop_workers(venv)
+        evaluation.close()
+        raise
 
 
 def _run_settings(cfg: TrainConfig) -> tuple[dict[str, Any], dict[str, Any], bool]:
