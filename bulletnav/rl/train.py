@@ -149,12 +149,31 @@ def stop_workers(venv: Any) -> None:
 
 
 def progress_bar_callback() -> Any:
-    """SB3's progress bar as a callback of ours (``learn(progress_bar=True)`` keeps its own out of
-    reach), so an interrupted run can close it (:func:`close_progress_bar`) before the command
-    says where it stopped."""
-    from stable_baselines3.common.callbacks import ProgressBarCallback
+    """A progress bar (tqdm's rich bar, as SB3's) as a callback of ours (``learn(progress_bar=True)``
+    keeps its own out of reach), so an interrupted run can close it (:func:`close_progress_bar`)
+    before the command says where it stopped. Its total is rounded up to whole rollouts: PPO and
+    A2C learn ``n_steps x n_envs`` steps at a time, so a run ends past the steps asked for (SB3's
+    own bar read e.g. 16,384/15,000)."""
+    from stable_baselines3.common.callbacks import BaseCallback
+    from tqdm.rich import tqdm
 
-    return ProgressBarCallback()
+    class _Bar(BaseCallback):
+        pbar = None
+
+        def _on_training_start(self) -> None:
+            rollout = int(getattr(self.model, "n_steps", 1)) * int(self.model.n_envs)
+            steps = self.locals["total_timesteps"] - self.model.num_timesteps
+            self.pbar = tqdm(total=-(-steps // rollout) * rollout)
+
+        def _on_step(self) -> bool:
+            self.pbar.update(self.training_env.num_envs)
+            return True
+
+        def _on_training_end(self) -> None:
+            self.pbar.refresh()
+            self.pbar.close()
+
+    return _Bar()
 
 
 def close_progress_bar(bar: Any) -> None:
