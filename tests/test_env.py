@@ -462,6 +462,7 @@ def trace_hash(seed, steps):
 """
 
 
+@pytest.mark.slow
 def test_same_seed_gives_the_same_trajectory_in_two_processes():
     """Two fresh interpreters (with different string-hash seeds) run the same seeded rollout;
     the hashes of everything they saw agree bit for bit, and agree with this process's."""

@@ -134,6 +134,7 @@ def rows_ready(log: Path, n: int):
     return lambda: log.is_file() and log.read_text().count("\n") >= n
 
 
+@pytest.mark.slow
 def test_benchmark_ctrl_c_says_how_to_resume_and_the_resume_reports_the_whole_run(tmp_path):
     suite = tmp_path / "suite.yaml"
     suite.write_text(SUITE)
@@ -161,6 +162,7 @@ def test_benchmark_ctrl_c_says_how_to_resume_and_the_resume_reports_the_whole_ru
     assert len(json.loads((out / "results.json").read_text())["episodes"]) == 6
 
 
+@pytest.mark.slow
 def test_benchmark_sigterm_with_two_workers_stops_them_and_keeps_whole_rows(tmp_path):
     suite = tmp_path / "suite.yaml"
     suite.write_text(SUITE)
@@ -176,6 +178,7 @@ def test_benchmark_sigterm_with_two_workers_stops_them_and_keeps_whole_rows(tmp_
     whole_json(out)
 
 
+@pytest.mark.slow
 def test_benchmark_ctrl_c_with_two_workers_prints_nothing_from_them(tmp_path):
     suite = tmp_path / "suite.yaml"
     suite.write_text(SUITE)
@@ -224,6 +227,7 @@ def test_train_ctrl_c_keeps_the_checkpoint_and_resumes_from_it(tmp_path):
             f"{record['wall_time_s']:.0f} s this run, ") in done.stdout
 
 
+@pytest.mark.slow
 def test_fleet_compare_ctrl_c_says_how_to_resume_and_resumes(tmp_path):
     out = tmp_path / "compare"
     log = out / "episodes.jsonl"
@@ -256,6 +260,7 @@ def test_navigate_ctrl_c_says_what_ran_and_that_nothing_resumes(tmp_path):
     assert not (tmp_path / "paths.png").exists()
 
 
+@pytest.mark.slow
 def test_dataset_recording_sigterm_writes_no_half_dataset(tmp_path, monkeypatch):
     minari = tmp_path / "minari"
     monkeypatch.setenv("MINARI_DATASETS_PATH", str(minari))  # the child's datasets folder

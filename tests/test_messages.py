@@ -30,6 +30,7 @@ def _fresh(*argv: str) -> subprocess.CompletedProcess:
         pytest.fail(f"hang: python {' '.join(argv)} did not end in {HANG_S} s")
 
 
+@pytest.mark.slow
 def test_pybullet_banner_never_reaches_the_terminal(tmp_path):
     # the reference: pybullet itself prints its banner on a first import (else this test proves nothing)
     plain = _fresh("-c", "import pybullet")

@@ -489,6 +489,7 @@ def test_compare_groups_runs_by_hyperparameter_file():
         run_group(record, "arm")
 
 
+@pytest.mark.slow
 def test_run_record_says_where_the_time_went(ppo_run):
     """``run.json``'s throughput: env steps per second of the training's wall time and the
     shares of that time in the envs, in evaluation and in the learner (they add up to 1), and

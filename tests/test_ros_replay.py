@@ -67,6 +67,7 @@ def test_replay_draws_the_live_frames(recorded, capsys):
     assert (d / "paths.png").stat().st_size > 0
 
 
+@pytest.mark.slow
 def test_recording_holds_what_replay_needs(recorded):
     episodes = read_recording(recorded / "run.mcap")
     assert len(episodes) == 2
@@ -106,6 +107,7 @@ def test_replay_refuses_what_is_no_recording(tmp_path, capsys):
     assert not (tmp_path / "p.png").exists()
 
 
+@pytest.mark.slow
 def test_foxglove_layout_and_panel(recorded, tmp_path, capsys):
     """The shipped Foxglove layout names only topics a recording has, and ``--panel`` draws its
     3D panel's content from the messages."""
@@ -130,6 +132,7 @@ def test_foxglove_layout_and_panel(recorded, tmp_path, capsys):
     assert summary["panel"]["step"] == 96 and out.stat().st_size > 10_000
 
 
+@pytest.mark.slow
 def test_replay_frame_has_no_depth_bar_and_frame_at_is_checked(recorded, tmp_path, capsys):
     """No camera is recorded: the replayed frame's legend has no depth colour bar (the live one,
     with its camera, has); a --frame-at after the first episode's end (200 steps of 1/24 s:
