@@ -18,6 +18,7 @@ from __future__ import annotations
 import bisect
 import logging
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -72,75 +73,96 @@ def read_bag(path: str | Path, scan_topic: str = "/scan", odom_topic: str = "/od
         BulletnavError: the file is missing, not MCAP or truncated; the scan topic is missing or
             not ``LaserScan``; neither the odometry topic nor ``/tf`` gives a pose.
     """
+    path = Path(path)
+    if not path.is_file():
+        raise BulletnavError(f"{path}: no such bag file")
+    return collect_bag(_mcap_messages(path, scan_topic, odom_topic), path, scan_topic, odom_topic)
+
+
+def _mcap_messages(path: Path, scan_topic: str, odom_topic: str) -> Iterator[tuple[str, str, Any]]:
+    """An MCAP file's messages on the topics :func:`collect_bag` reads, as its stream: each topic's
+    type announced first (from the summary, else at its first message; ``untyped`` without a
+    schema); a truncated or corrupt file is a :class:`BulletnavError`."""
     from mcap.exceptions import McapError
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
 
-    path = Path(path)
-    if not path.is_file():
-        raise BulletnavError(f"{path}: no such bag file")
+    try:
+        with open(path, "rb") as f:
+            reader = make_reader(f, decoder_factories=[DecoderFactory()])
+            summary = reader.get_summary()
+            announced: set[str] = set()
+            if summary is not None:
+                for c in summary.channels.values():
+                    announced.add(c.topic)
+                    yield "", summary.schemas[c.schema_id].name if c.schema_id in summary.schemas else "no schema", c.topic
+            for schema, channel, _message, msg in reader.iter_decoded_messages(
+                    topics=[scan_topic, odom_topic, "/tf", "/tf_static"], log_time_order=True):
+                if channel.topic not in announced:
+                    announced.add(channel.topic)
+                    yield "", schema.name if schema else "", channel.topic
+                yield channel.topic, schema.name if schema else "untyped", lambda msg=msg: msg
+    except McapError as exc:
+        raise BulletnavError(f"{path}: not a readable MCAP file ({exc})") from exc
+    except (EOFError, ValueError, KeyError, IndexError) as exc:  # a truncated or corrupt record
+        raise BulletnavError(f"{path}: not a readable MCAP file ({type(exc).__name__}: {exc})") from exc
+
+
+def collect_bag(stream: Iterator[tuple[str, str, Any]], path: Path, scan_topic: str, odom_topic: str) -> BagData:
+    """A bag's scans and poses from its messages as ``(topic, type, decode)`` in log-time order
+    (``decode()`` gives the message; ``("", type, topic)`` announces a topic's type for the
+    messages naming what the bag holds): the one collector of every bag format (MCAP here, ROS 1
+    and ROS 2 bags in :mod:`bulletnav.ros.bags`)."""
     scans: list[Scan] = []
     odom: list[tuple[int, tuple[float, float, float]]] = []
     odom_frames: tuple[str, str] | None = None
     tf: dict[tuple[str, str], list[tuple[int, tuple[float, float, float]]]] = {}
     mounts: dict[tuple[str, str], tuple[float, float, float]] = {}
     types: dict[str, str] = {}
-    try:
-        with open(path, "rb") as f:
-            reader = make_reader(f, decoder_factories=[DecoderFactory()])
-            summary = reader.get_summary()
-            if summary is not None:
-                types = {c.topic: (summary.schemas[c.schema_id].name if c.schema_id in summary.schemas else "no schema")
-                         for c in summary.channels.values()}
-            for schema, channel, _message, msg in reader.iter_decoded_messages(
-                    topics=[scan_topic, odom_topic, "/tf", "/tf_static"], log_time_order=True):
-                topic = channel.topic
-                types.setdefault(topic, schema.name if schema else "")
-                if topic == scan_topic:
-                    if schema is None or schema.name != SCAN_TYPE:
-                        raise BulletnavError(f"{path}: topic {scan_topic} holds {schema.name if schema else 'untyped'} "
-                                             f"messages, not {SCAN_TYPE}")
-                    n = len(msg.ranges)
-                    angles = float(msg.angle_min) + float(msg.angle_increment) * np.arange(n)
-                    scans.append(Scan(_stamp_ns(msg.header), msg.header.frame_id, angles,
-                                      np.asarray(msg.ranges, dtype=np.float64), float(msg.range_min),
-                                      float(msg.range_max)))
-                elif topic == odom_topic:
-                    if schema is None or schema.name != ODOM_TYPE:
-                        raise BulletnavError(f"{path}: topic {odom_topic} holds {schema.name if schema else 'untyped'} "
-                                             f"messages, not {ODOM_TYPE}")
-                    p = msg.pose.pose
-                    odom.append((_stamp_ns(msg.header), (float(p.position.x), float(p.position.y), message_yaw(p.orientation))))
-                    odom_frames = (msg.header.frame_id, msg.child_frame_id)
-                elif topic in ("/tf", "/tf_static") and schema is not None and schema.name == TF_TYPE:
-                    for t in msg.transforms:
-                        tr = t.transform
-                        pose2d = (float(tr.translation.x), float(tr.translation.y), message_yaw(tr.rotation))
-                        key = (t.header.frame_id, t.child_frame_id)
-                        if topic == "/tf_static":
-                            mounts[key] = pose2d
-                        else:
-                            tf.setdefault(key, []).append((_stamp_ns(t.header), pose2d))
-    except McapError as exc:
-        raise BulletnavError(f"{path}: not a readable MCAP file ({exc})") from exc
-    except (EOFError, ValueError, KeyError, IndexError) as exc:  # a truncated or corrupt record
-        raise BulletnavError(f"{path}: not a readable MCAP file ({type(exc).__name__}: {exc})") from exc
+    for topic, typ, decode in stream:
+        if not topic:  # a topic's announcement: (``""``, type, name)
+            types[decode] = typ
+            continue
+        if topic == scan_topic:
+            if typ != SCAN_TYPE:
+                raise BulletnavError(f"{path}: topic {scan_topic} holds {typ} messages, not {SCAN_TYPE}")
+            msg = decode()
+            n = len(msg.ranges)
+            angles = float(msg.angle_min) + float(msg.angle_increment) * np.arange(n)
+            scans.append(Scan(_stamp_ns(msg.header), msg.header.frame_id, angles, np.asarray(msg.ranges, dtype=np.float64),
+                              float(msg.range_min), float(msg.range_max)))
+        elif topic == odom_topic:
+            if typ != ODOM_TYPE:
+                raise BulletnavError(f"{path}: topic {odom_topic} holds {typ} messages, not {ODOM_TYPE}")
+            msg = decode()
+            p = msg.pose.pose
+            odom.append((_stamp_ns(msg.header), (float(p.position.x), float(p.position.y), message_yaw(p.orientation))))
+            odom_frames = (msg.header.frame_id, msg.child_frame_id)
+        elif topic in ("/tf", "/tf_static") and typ == TF_TYPE:
+            for t in decode().transforms:
+                tr = t.transform
+                pose2d = (float(tr.translation.x), float(tr.translation.y), message_yaw(tr.rotation))
+                key = (t.header.frame_id, t.child_frame_id)
+                if topic == "/tf_static":
+                    mounts[key] = pose2d
+                else:
+                    tf.setdefault(key, []).append((_stamp_ns(t.header), pose2d))
+    have = ", ".join(f"{t} ({k})" for t, k in sorted(types.items())) or "none"
     if not scans:
-        have = ", ".join(f"{t} ({k})" for t, k in sorted(types.items())) or "none"
         raise BulletnavError(f"{path}: no {SCAN_TYPE} messages on {scan_topic} (topics: {have}); "
                              "name the scan topic with --scan-topic")
-    frame = scans[0].frame
+    scans.sort(key=lambda s: s.stamp_ns)
     if odom:
         fixed, base = odom_frames or ("odom", "base_link")
         sensor_mounts = {child: pose for (parent, child), pose in mounts.items() if parent == base}
         return BagData(scans, sorted(odom), sensor_mounts, base, fixed, "odometry")
-    poses = _tf_poses(tf, mounts, frame)
+    poses = _tf_poses(tf, mounts, scans[0].frame)
     if poses is None:
-        have = ", ".join(f"{t} ({k})" for t, k in sorted(types.items())) or "none"
         raise BulletnavError(f"{path}: no pose for the scans: no {ODOM_TYPE} on {odom_topic} and no /tf chain to the "
-                             f"scan frame {frame!r} (topics: {have}); name the odometry topic with --odom-topic")
+                             f"scan frame {scans[0].frame!r} (topics: {have}); name the odometry topic with --odom-topic")
     fixed, chain_poses = poses
-    return BagData(scans, chain_poses, {}, frame, fixed, "tf")
+    return BagData(scans, chain_poses, {}, scans[0].frame, fixed, "tf")
+
 
 
 def _tf_poses(tf: dict, mounts: dict, frame: str) -> tuple[str, list] | None:

@@ -20,11 +20,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from bulletnav.errors import BulletnavError
-from bulletnav.ros.bagmap import ODOM_TYPE, SCAN_TYPE, TF_TYPE, BagData, Scan, _tf_poses
-from bulletnav.ros.record import message_yaw
+from bulletnav.ros.bagmap import BagData, collect_bag
 
 SUFFIXES = (".bag", ".db3")
 
@@ -33,10 +30,6 @@ def is_rosbag(path: str | Path) -> bool:
     """True for a path :func:`read_rosbag` reads (``.bag``, ``.db3`` or a ROS 2 bag directory)."""
     path = Path(path)
     return path.suffix.lower() in SUFFIXES or (path.is_dir() and (path / "metadata.yaml").is_file())
-
-
-def _stamp_ns(header: Any) -> int:
-    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
 
 
 def _decoder(decode: Any, path: Path, kind: str) -> Any:
@@ -107,59 +100,7 @@ def read_rosbag(path: str | Path, scan_topic: str = "/scan", odom_topic: str = "
         stream = _any_reader([path.parent], "ROS 2 bag", path)
     else:
         stream = _sqlite(path)
-    return _collect(stream, path, scan_topic, odom_topic)
-
-
-def _collect(stream: Iterator[tuple[str, str, Any]], path: Path, scan_topic: str, odom_topic: str) -> BagData:
-    scans: list[Scan] = []
-    odom: list[tuple[int, tuple[float, float, float]]] = []
-    odom_frames: tuple[str, str] | None = None
-    tf: dict[tuple[str, str], list[tuple[int, tuple[float, float, float]]]] = {}
-    mounts: dict[tuple[str, str], tuple[float, float, float]] = {}
-    types: dict[str, str] = {}
-    for topic, typ, decode in stream:
-        if not topic:  # a topic's announcement: (``""``, type, name)
-            types[decode] = typ
-            continue
-        if topic == scan_topic:
-            if typ != SCAN_TYPE:
-                raise BulletnavError(f"{path}: topic {scan_topic} holds {typ} messages, not {SCAN_TYPE}")
-            msg = decode()
-            n = len(msg.ranges)
-            angles = float(msg.angle_min) + float(msg.angle_increment) * np.arange(n)
-            scans.append(Scan(_stamp_ns(msg.header), msg.header.frame_id, angles, np.asarray(msg.ranges, dtype=np.float64),
-                              float(msg.range_min), float(msg.range_max)))
-        elif topic == odom_topic:
-            if typ != ODOM_TYPE:
-                raise BulletnavError(f"{path}: topic {odom_topic} holds {typ} messages, not {ODOM_TYPE}")
-            msg = decode()
-            p = msg.pose.pose
-            odom.append((_stamp_ns(msg.header), (float(p.position.x), float(p.position.y), message_yaw(p.orientation))))
-            odom_frames = (msg.header.frame_id, msg.child_frame_id)
-        elif topic in ("/tf", "/tf_static") and typ == TF_TYPE:
-            for t in decode().transforms:
-                tr = t.transform
-                pose2d = (float(tr.translation.x), float(tr.translation.y), message_yaw(tr.rotation))
-                key = (t.header.frame_id, t.child_frame_id)
-                if topic == "/tf_static":
-                    mounts[key] = pose2d
-                else:
-                    tf.setdefault(key, []).append((_stamp_ns(t.header), pose2d))
-    have = ", ".join(f"{t} ({k})" for t, k in sorted(types.items())) or "none"
-    if not scans:
-        raise BulletnavError(f"{path}: no {SCAN_TYPE} messages on {scan_topic} (topics: {have}); "
-                             "name the scan topic with --scan-topic")
-    scans.sort(key=lambda s: s.stamp_ns)
-    if odom:
-        fixed, base = odom_frames or ("odom", "base_link")
-        sensor_mounts = {child: pose for (parent, child), pose in mounts.items() if parent == base}
-        return BagData(scans, sorted(odom), sensor_mounts, base, fixed, "odometry")
-    poses = _tf_poses(tf, mounts, scans[0].frame)
-    if poses is None:
-        raise BulletnavError(f"{path}: no pose for the scans: no {ODOM_TYPE} on {odom_topic} and no /tf chain to the "
-                             f"scan frame {scans[0].frame!r} (topics: {have}); name the odometry topic with --odom-topic")
-    fixed, chain_poses = poses
-    return BagData(scans, chain_poses, {}, scans[0].frame, fixed, "tf")
+    return collect_bag(stream, path, scan_topic, odom_topic)
 
 
 __all__ = ["is_rosbag", "read_rosbag"]
