@@ -134,6 +134,20 @@ def rows_ready(log: Path, n: int):
     return lambda: log.is_file() and log.read_text().count("\n") >= n
 
 
+
+def ctrl_c_after_first_rows(run, command: str, log, total: int) -> tuple[dict, int]:
+    """Ctrl-C once ``run`` has written its first rows to ``log``: its interrupted line (see
+    :func:`interrupted`), which must count the rows the file holds, some but not all of ``total``,
+    and that count."""
+    run.wait_for(rows_ready(log, 1), "its first rows")
+    run.signal(signal.SIGINT)
+    match = interrupted(run, command)
+    kept = len(rows_of(log))
+    assert 0 < kept < total
+    assert match["what"] == f" after {kept} of {total} episodes; rows kept in {log}"
+    return match, kept
+
+
 @pytest.mark.slow
 def test_benchmark_ctrl_c_says_how_to_resume_and_the_resume_reports_the_whole_run(tmp_path):
     suite = tmp_path / "suite.yaml"
@@ -141,12 +155,7 @@ def test_benchmark_ctrl_c_says_how_to_resume_and_the_resume_reports_the_whole_ru
     out = tmp_path / "bench dir"  # a space: the continue command quotes it
     log = out / "episodes.jsonl"
     run = Run(tmp_path, "benchmark", str(suite), "--out", str(out))
-    run.wait_for(rows_ready(log, 1), "its first rows")
-    run.signal(signal.SIGINT)
-    match = interrupted(run, "benchmark")
-    kept = len(rows_of(log))
-    assert 0 < kept < 6
-    assert match["what"] == f" after {kept} of 6 episodes; rows kept in {log}"
+    match, kept = ctrl_c_after_first_rows(run, "benchmark", log, 6)
     assert match["how"] == "continue with"
     assert match["again"] == f"bulletnav benchmark {suite} --out '{out}' --resume"
     whole_json(out)
@@ -234,12 +243,7 @@ def test_fleet_compare_ctrl_c_says_how_to_resume_and_resumes(tmp_path):
     argv = ["fleet-compare", "--robots", "2", "--controllers", "independent", "--shield", "off", "--episodes", "3",
             "--duration", "10", "--out", str(out)]
     run = Run(tmp_path, *argv)
-    run.wait_for(rows_ready(log, 1), "its first rows")
-    run.signal(signal.SIGINT)
-    match = interrupted(run, "fleet-compare")
-    kept = len(rows_of(log))
-    assert 0 < kept < 3
-    assert match["what"] == f" after {kept} of 3 episodes; rows kept in {log}"
+    match, _ = ctrl_c_after_first_rows(run, "fleet-compare", log, 3)
     assert match["again"] == "bulletnav " + " ".join([*argv, "--resume"])
     whole_json(out)
     done = hang.run([sys.executable, "-m", "bulletnav.cli", *argv, "--resume", "--json"], "the resumed comparison", cwd=ROOT)
