@@ -344,6 +344,7 @@ KINDS: dict[str, str] = {
     "test_fleet_viz.py::test_view_robots_opens_the_gui_and_tints_every_robot": "contract",
     "test_fleet_viz.py::test_marks_are_told_apart_and_the_legend_shows_each": "hand",  # a 3 px gap between words
     "test_fleet_viz.py::test_fleet_table_leaves_out_the_rate_of_a_run_too_short": "hand",  # 4 errands in 120 s: 120.0/h
+    "test_fleet_viz.py::test_comparison_table_leaves_out_the_rate_of_a_run_too_short": "hand",
     # ---- test_fuzz.py
     "test_fuzz.py::test_layout_files": "contract",
     "test_fuzz.py::test_sweep_files": "contract",

@@ -262,7 +262,8 @@ def test_fleet_table_leaves_out_the_rate_of_a_run_too_short(capsys):
     """errands/h is shown for runs of at least one typical errand (70 s), '-' and a reason below."""
     import argparse
 
-    from bulletnav.cli.fleet import TYPICAL_ERRAND_S, _print_fleet_table
+    from bulletnav.cli.fleet import _print_fleet_table
+    from bulletnav.fleet.metrics import TYPICAL_ERRAND_S
 
     row = {"episode": 0, "seed": 7, "errands": 4, "collisions_robot_robot": 0, "collisions_static": 0,
            "collisions_mover": 0, "collisions_person": 0, "deadlocks": 0, "min_separation_m": 0.5, "errand_time_s": 50.0}
@@ -280,3 +281,22 @@ def test_fleet_table_leaves_out_the_rate_of_a_run_too_short(capsys):
         out = capsys.readouterr().out
         assert f"all: {shown}, collisions" in out
         assert ("  120.0 " in out) == (duration >= 70) and (" - " in out.splitlines()[2]) == (duration < 70)
+
+
+def test_comparison_table_leaves_out_the_rate_of_a_run_too_short():
+    """fleet-compare's table follows the fleet table's rule: no errands/h for episodes shorter
+    than a typical errand, and one line that says why; the numbers stay for longer runs."""
+    from bulletnav.fleet.compare import comparison_markdown
+
+    cell = {"robots": 8, "entry": "independent", "throughput_per_hour": 48.0, "throughput_se": 6.0,
+            "throughput_per_robot_per_hour": 6.0, "collisions_robot_robot": 0, "collisions_static": 1,
+            "collisions_mover": 0, "collisions_person": 0, "deadlocks": 0, "min_separation_m": 0.4,
+            "errand_time_s": 55.0, "near_misses": 2, "shield_rate": float("nan"), "episodes": 4}
+    for duration, shown in ((120.0, True), (60.0, False)):
+        md = comparison_markdown({"settings": {"episodes": 4, "seed": 9000, "robots": [8],
+                                               "env_kwargs": {"duration_s": duration, "dynamic": False}},
+                                  "cells": [cell], "provenance": {}})
+        row = next(line for line in md.splitlines() if line.startswith("| independent |"))
+        assert row.startswith("| independent | 48.0 ± 6.0 | 6.0 | 0 | 1 |") == shown
+        assert row.startswith("| independent | - | - | 0 | 1 |") == (not shown)
+        assert ("episodes of 60 s end before a robot can be expected to finish one errand" in md) == (not shown)

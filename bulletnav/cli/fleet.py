@@ -213,20 +213,17 @@ def cmd_fleet(args: argparse.Namespace) -> int:
     return 0
 
 
-TYPICAL_ERRAND_S = 70.0
-"""A robot's errand (assignment to drop) takes about this long in the fleet's aisle warehouse: the
-mean ``errand_time_s`` of 8 robots over 120 s episodes is 64.6-70.8 s in every comparison of
-docs/results/fleet_fresh_seeds. An episode shorter than that ends before a robot can be expected
-to finish one, so its errands per hour (0.0 for most such runs) say how early the run was cut,
-not how the fleet works: the table leaves the rate out and says why (``--json`` keeps the numbers)."""
-
-
 def _rate(value: float, duration_s: float, width: int = 0) -> str:
-    """``value`` errands/h as the table prints it, or ``-`` for an episode shorter than :data:`TYPICAL_ERRAND_S`."""
-    return f"{value:{width}.1f}" if duration_s >= TYPICAL_ERRAND_S else f"{'-':>{width}s}"
+    """``value`` errands/h as the table prints it, or ``-`` for an episode shorter than a typical errand
+    (:data:`bulletnav.fleet.metrics.TYPICAL_ERRAND_S`)."""
+    from bulletnav.fleet.metrics import rate_counts
+
+    return f"{value:{width}.1f}" if rate_counts(duration_s) else f"{'-':>{width}s}"
 
 
 def _print_fleet_table(args: argparse.Namespace, result: dict) -> None:
+    from bulletnav.fleet.metrics import TYPICAL_ERRAND_S, rate_counts
+
     s = result["summary"]
     print(f"fleet: {args.robots} robots, {args.controller}{' + shield' if args.shield else ''}, "
           f"{args.episodes} episodes of {args.duration:g} s{' (dynamic)' if args.dynamic else ''}, seeds {args.seed}..")
@@ -238,7 +235,7 @@ def _print_fleet_table(args: argparse.Namespace, result: dict) -> None:
               f"{r['collisions_person']:6d} {r['deadlocks']:5d} {fmt(r['min_separation_m']):>9s} "
               f"{fmt(r['errand_time_s'], '.1f'):>8s}")
     rate = (f"{s['throughput_per_hour']:.1f} errands/h ({s['throughput_per_robot_per_hour']:.1f} per robot)"
-            if args.duration >= TYPICAL_ERRAND_S else
+            if rate_counts(args.duration) else
             f"errands/h: run too short ({args.duration:g} s; an errand takes ~{TYPICAL_ERRAND_S:g} s), {s['errands']} errands")
     print(f"all: {rate}, "
           f"collisions robot {s['collisions_robot_robot']}, static {s['collisions_static']}, mover "

@@ -27,7 +27,7 @@ import numpy as np
 
 from bulletnav.benchmark.runner import PROJECT_ROOT, RowLog, reopen_rows, run_in_pool, run_provenance, write_strict_json
 from bulletnav.errors import BulletnavError, ConfigError
-from bulletnav.fleet.metrics import METRICS, run_fleet_episodes, summarize
+from bulletnav.fleet.metrics import METRICS, TYPICAL_ERRAND_S, rate_counts, run_fleet_episodes, summarize
 
 log = logging.getLogger(__name__)
 
@@ -380,6 +380,11 @@ def comparison_markdown(results: dict[str, Any]) -> str:
     lines = [title, "", f"Env: `{json.dumps(s['env_kwargs'], sort_keys=True)}`. "
              f"Command: `{prov.get('command', '?')}`; commit {prov.get('git_commit', '?')}"
              f"{' (dirty)' if prov.get('dirty') else ''}; {prov.get('machine', '?')}.", ""]
+    counts_rate = rate_counts(float(s["env_kwargs"].get("duration_s", TYPICAL_ERRAND_S)))
+    if not counts_rate:
+        lines += [f"Errands per hour left out (`-`): episodes of {s['env_kwargs']['duration_s']:g} s end before a robot "
+                  f"can be expected to finish one errand (~{TYPICAL_ERRAND_S:g} s), so the rate would say how early the "
+                  "run was cut; comparison.json keeps the numbers.", ""]
     for n in s["robots"]:
         cells = [c for c in results["cells"] if c["robots"] == n]
         if not cells:
@@ -389,8 +394,9 @@ def comparison_markdown(results: dict[str, Any]) -> str:
                   "| min sep. m | errand s | near misses | shield rate | episodes |",
                   "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for c in cells:
-            lines.append(f"| {c['entry']} | {c['throughput_per_hour']:.1f} ± {_num(c['throughput_se'], '.1f')} "
-                         f"| {c['throughput_per_robot_per_hour']:.1f} | {c['collisions_robot_robot']} "
+            rate = (f"{c['throughput_per_hour']:.1f} ± {_num(c['throughput_se'], '.1f')} "
+                    f"| {c['throughput_per_robot_per_hour']:.1f}") if counts_rate else "- | -"
+            lines.append(f"| {c['entry']} | {rate} | {c['collisions_robot_robot']} "
                          f"| {c['collisions_static']} | {c['collisions_mover']} | {c['collisions_person']} "
                          f"| {c['deadlocks']} | {_num(c['min_separation_m'], '.2f')} | {_num(c['errand_time_s'], '.1f')} "
                          f"| {c['near_misses']} | {_num(c['shield_rate'], '.3f')} | {c['episodes']} |")

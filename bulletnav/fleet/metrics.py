@@ -27,6 +27,18 @@ PROGRESS_M = 0.1
 """Progress: the distance to the current goal falls this much (m) below its best so far this leg."""
 NEAR_MISS_CENTRES_M = 0.6
 """Two robots closer than this (m, centre to centre: their 0.2 m discs 0.2 m apart) are a near miss."""
+TYPICAL_ERRAND_S = 70.0
+"""A robot's errand (assignment to drop) takes about this long in the fleet's aisle warehouse: the
+mean ``errand_time_s`` of 8 robots over 120 s episodes is 64.6-70.8 s in every comparison of
+docs/results/fleet_fresh_seeds. An episode shorter than that ends before a robot can be expected
+to finish one, so its errands per hour (0.0 for most such runs) say how early the run was cut,
+not how the fleet works: the tables leave the rate out and say why (``--json`` keeps the numbers)."""
+
+
+def rate_counts(duration_s: float) -> bool:
+    """Whether episodes of ``duration_s`` seconds are long enough for errands per hour to mean
+    something (at least :data:`TYPICAL_ERRAND_S`)."""
+    return duration_s >= TYPICAL_ERRAND_S
 
 METRICS: dict[str, str] = {
     "errands": "Errands completed (pick then drop), whole fleet.",
