@@ -34,8 +34,11 @@ def machine() -> str:
 
 
 def command_line() -> str:
-    """The command as the user typed it (``bulletnav ...`` for the console script)."""
-    return " ".join(["bulletnav", *sys.argv[1:]]) if sys.argv and sys.argv[0].endswith("bulletnav") else " ".join(sys.argv)
+    """The command as the user typed it: ``bulletnav ...`` for the console script and for
+    ``python -m bulletnav.cli`` (whose ``argv[0]`` is the path of ``bulletnav/cli/__main__.py``)."""
+    argv0 = sys.argv[0] if sys.argv else ""
+    is_cli = argv0.endswith("bulletnav") or argv0.replace("\\", "/").endswith("bulletnav/cli/__main__.py")
+    return " ".join(["bulletnav", *sys.argv[1:]]) if is_cli else " ".join(sys.argv)
 
 
 def provenance() -> dict[str, str]:

@@ -454,6 +454,7 @@ KINDS: dict[str, str] = {
     "test_messages.py::test_yaml_error_positions": "hand",  # positions counted by hand in each text
     "test_messages.py::test_navigate_says_its_shortest_path_runs_to_the_goal_centre": "formula",  # the straight line
     "test_messages.py::test_frame_at_means_simulated_seconds_in_every_command": "contract",
+    "test_messages.py::test_the_command_recorded_is_the_one_typed": "hand",
     # ---- test_mission.py
     "test_mission.py::test_a_drive_through_three_goals_earns_two_subgoals_then_the_goal": "hand",
     "test_mission.py::test_free_order_heads_for_the_nearest_goal_and_fixed_for_the_first": "hand",

@@ -142,3 +142,14 @@ def test_frame_at_means_simulated_seconds_in_every_command(capsys):
     for argv in (["replay", "x.mcap", "--frame-at", "2"], ["fleet", "--frame-at", "2"]):
         assert main(argv) == 2  # a time without a --frame PNG
         assert "--frame-at is the time of the --frame PNG: pass --frame too" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("argv0", "shown"), [("/home/u/.venv/bin/bulletnav", "bulletnav"),
+                                                ("/x/bulletnav/cli/__main__.py", "bulletnav"),
+                                                ("scripts/run.py", "scripts/run.py")])
+def test_the_command_recorded_is_the_one_typed(monkeypatch, argv0, shown):
+    """Results record ``bulletnav ARGS`` for the console script and ``python -m bulletnav.cli`` alike."""
+    from bulletnav.provenance import command_line
+
+    monkeypatch.setattr(sys, "argv", [argv0, "fleet-compare", "--robots", "4"])
+    assert command_line() == f"{shown} fleet-compare --robots 4"
