@@ -756,6 +756,7 @@ KINDS: dict[str, str] = {
     "test_user_maps.py::test_sdf_poses_compose": "hand",
     "test_user_maps.py::test_sdf_state_is_applied_as_gazebo_loads_it": "hand",
     "test_user_maps.py::test_hand_written_world_driven_by_pid_astar": "hand",  # SDF text written by hand; start and goal by hand
+    "test_user_maps.py::test_fleet_runs_in_a_hand_made_map_with_stations_in_its_frame": "hand",  # map origin worked by hand
     "test_user_maps.py::test_sdf_refusals_name_the_file_and_model": "contract",
     "test_user_maps.py::test_map_server_refusals_name_the_file_and_field": "contract",
     "test_user_maps.py::test_navigate_cli_refuses_a_mesh_world_in_one_line": "contract",

@@ -289,6 +289,33 @@ def test_hand_written_world_driven_by_pid_astar(tmp_path):
     assert results[0].shortest_path > 8.0
 
 
+def test_fleet_runs_in_a_hand_made_map_with_stations_in_its_frame(site, tmp_path):
+    """``fleet --world`` takes a user's map: stations given in the map's frame (as start and goal are),
+    converted to the layout's by the map's origin (3, -2, yaw 0.5) worked here by hand; a Gazebo
+    world, which has no racks and no place for stations, is refused naming what to add."""
+    from bulletnav.errors import ConfigError
+    from bulletnav.fleet import fleet_v0
+
+    pick, drop = _map_point(2.0, 5.5), _map_point(8.0, 1.5)  # left of the wall, top; right of it, bottom
+    (tmp_path / "fleet.yaml").write_text(f"map: site.yaml\nstations:\n  pick: [[{pick[0]!r}, {pick[1]!r}]]\n"
+                                         f"  drop: [[{drop[0]!r}, {drop[1]!r}]]\n")
+    env = fleet_v0.parallel_env(num_robots=2, world=str(tmp_path / "fleet.yaml"), duration_s=2.0)
+    try:
+        obs, infos = env.reset(seed=4)
+        stations = env.unwrapped.stations
+        # the layout is centred: the 10 x 7 m map's corner point (lx, ly) is (lx - 5, ly - 3.5) in it
+        assert list(stations.pick) == [pytest.approx((-3.0, 2.0))]
+        assert list(stations.drop) == [pytest.approx((3.0, -2.0))]
+        for _ in range(5):
+            obs, _, _, _, infos = env.step({a: np.zeros(2, dtype=np.float32) for a in env.agents})
+        assert len(obs) == 2
+    finally:
+        env.close()
+    (tmp_path / "hand.world").write_text(WORLD)
+    with pytest.raises(ConfigError, match="hand.world has no pick stations.*name them"):
+        fleet_v0.parallel_env(num_robots=2, world=str(tmp_path / "hand.world")).reset(seed=0)
+
+
 # ----------------------------------------------------------------------------- refusals, one line each
 
 

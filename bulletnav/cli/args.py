@@ -203,8 +203,8 @@ def add_fleet_world_args(parser: argparse.ArgumentParser, env_default: str) -> N
 
     parser.add_argument("--env", dest="env_id", default=None, metavar="ID",
                         help=f"start from this registered bulletnav env's settings (default {env_default})")
-    parser.add_argument("--world", metavar="FILE", help="YAML layout, with its stations: if it names them "
-                                                        "(default: a procedural warehouse)")
+    parser.add_argument("--world", metavar="FILE", help="layout YAML, map_server map YAML or Gazebo .world, with "
+                                                        "its stations: if it names them (default: a procedural warehouse)")
     parser.add_argument("--layout-style", choices=sorted(WORLDS), default=None,
                         help="procedural layout generator (default: the env's, aisles; pick stations need racks)")
     add_obstacles_arg(parser, "the env's")

@@ -14,7 +14,11 @@ is reachable from every other and from every robot's start.
 
 A YAML world may name its stations instead, in a top-level ``stations:`` mapping with
 ``pick:`` and ``drop:`` lists of ``[x, y]`` points (or the env's ``pick_stations`` /
-``drop_stations`` arguments); named stations must lie in free, reachable floor.
+``drop_stations`` arguments); named stations must lie in free, reachable floor. A user's own
+map (a map_server map YAML or a wrapper naming a map or a Gazebo world,
+:mod:`bulletnav.sim.userworld`) takes the same ``stations:`` section, in the map's frame; a
+Gazebo world file itself has no place for them, and a user map has no obstacle labelled
+``rack``, so such a world needs its pick stations named (in a wrapper, or as ``pick_stations``).
 
 **Errands**: :class:`ErrandStream` draws, from its own seeded generator, a pick station and
 a drop station for a robot whenever it needs a new errand, avoiding the stations other
@@ -69,7 +73,11 @@ def load_world(path: str | Path) -> tuple[Layout, dict[str, tuple[Point, ...]]]:
     Raises:
         LayoutError: the file is missing or malformed (the message names the file and field).
     """
+    from bulletnav.sim import userworld  # a user's own maps
+
     path = Path(path)
+    if userworld.is_sdf(path):
+        return Layout(**userworld.load_sdf(path)), {}
     data = read_yaml(path, "layout file", LayoutError)
     named: dict[str, tuple[Point, ...]] = {}
     if isinstance(data, dict) and "stations" in data:
@@ -79,6 +87,9 @@ def load_world(path: str | Path) -> tuple[Layout, dict[str, tuple[Point, ...]]]:
             raise LayoutError(f"{path}: field 'stations' must be a mapping with 'pick' and/or 'drop' point lists")
         for key, points in raw.items():
             named[key] = points_arg(points, f"{path}: field 'stations.{key}'", LayoutError)
+    if userworld.is_user_map(data):  # stations in the map's frame, as its start and goal
+        layout = Layout(**userworld.load_user_map(path, data))
+        return layout, {k: tuple(userworld.from_map_frame(layout, x, y) for x, y in pts) for k, pts in named.items()}
     return parse_layout(data, str(path)), named
 
 
