@@ -32,6 +32,14 @@ DWA_FILE = ASSETS / "dwa_out.txt"
 """BARN's published DWA rows."""
 N_WORLDS = 300
 """BARN's static worlds: indices 0-299."""
+TEST_WORLDS: tuple[int, ...] = tuple(range(0, N_WORLDS, 6))
+"""BARN's 50 test worlds 0, 6, ..., 294: BARN's ``report_test.py`` scores the worlds ``idx * 6``
+for ``idx`` in 0-49 (its lines 40-51), and its published DWA rows (``res/dwa_out.txt``) are on
+exactly these. Never train or tune on them."""
+TRAIN_WORLDS: tuple[int, ...] = tuple(i for i in range(N_WORLDS) if i % 6)
+"""The 250 other static worlds (every index not a multiple of 6): the ones to train and tune on."""
+POOLS: dict[str, tuple[int, ...]] = {"train": TRAIN_WORLDS, "test": TEST_WORLDS}
+"""World pools by name (``BarnEnv``'s ``world_idx="train"`` / ``"test"``)."""
 
 
 @dataclass(frozen=True)
@@ -62,6 +70,32 @@ def check_index(world_idx: object) -> int:
     if isinstance(world_idx, bool) or not isinstance(world_idx, (int, np.integer)) or not 0 <= world_idx < N_WORLDS:
         raise LayoutError(f"BARN world_idx {world_idx!r} is not a BARN static world (an integer 0-{N_WORLDS - 1})")
     return int(world_idx)
+
+
+def world_pool(spec: object) -> tuple[int, ...]:
+    """The worlds a pool ``spec`` names: ``"train"`` (:data:`TRAIN_WORLDS`), ``"test"``
+    (:data:`TEST_WORLDS`) or a non-empty sequence of distinct indices 0-299.
+
+    Raises:
+        LayoutError: an unknown name, an empty sequence, a repeated or bad index (named).
+    """
+    if isinstance(spec, str):
+        if spec not in POOLS:
+            raise LayoutError(f"BARN world_idx {spec!r} is neither an index 0-{N_WORLDS - 1} nor a pool "
+                              f"({', '.join(map(repr, POOLS))}) nor a list of indices")
+        return POOLS[spec]
+    if isinstance(spec, np.ndarray):
+        spec = spec.tolist()
+    if not isinstance(spec, (list, tuple)):
+        raise LayoutError(f"BARN world_idx {spec!r} is neither an index 0-{N_WORLDS - 1} nor a pool "
+                          f"({', '.join(map(repr, POOLS))}) nor a list of indices")
+    if not spec:
+        raise LayoutError("BARN world_idx is an empty list: a pool needs at least one world")
+    pool = tuple(check_index(i) for i in spec)
+    if len(set(pool)) != len(pool):
+        twice = sorted({i for i in pool if pool.count(i) > 1})
+        raise LayoutError(f"BARN world_idx lists world(s) {twice} more than once")
+    return pool
 
 
 def load_world(world_idx: int) -> BarnWorld:

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
+import numpy as np
+
 import bulletnav.barn.task  # noqa: F401  (registers the "barn" task)
-from bulletnav.barn.data import check_index, load_world
+from bulletnav.barn.data import check_index, load_world, world_pool
 from bulletnav.barn.world import BarnPhysicsWorld, barn_layout
 from bulletnav.config import EnvConfig
 from bulletnav.envs.warehouse import WarehouseEnv
@@ -14,6 +17,9 @@ from bulletnav.yamlfile import show
 BARN_KWARGS: dict[str, Any] = {"task_name": "barn", "goal_radius": 1.0, "collision_terminates": True, "robot": "jackal"}
 """What BARN-v0 sets on top of Warehouse-v0's defaults: BARN's task, its 1 m goal radius, a
 collision ending the episode, BARN's robot (a Jackal, :func:`bulletnav.config.robot_preset`)."""
+POOL_STREAM = 0xBA2
+"""Second word of the pool generator's seed (``[seed, POOL_STREAM]``): the world draws are a stream
+of their own, apart from the episode's ``np_random``."""
 
 
 class BarnEnv(WarehouseEnv):
@@ -44,17 +50,31 @@ class BarnEnv(WarehouseEnv):
     keywords except ``world`` and ``task_name``. ``reset(options={"world_idx": N})`` switches world; a bad index raises
     :class:`~bulletnav.errors.LayoutError` naming it.
 
+    ``world_idx`` may also name a pool: ``"train"`` (BARN's 250 non-test worlds,
+    :data:`~bulletnav.barn.data.TRAIN_WORLDS`), ``"test"`` (the 50 test worlds 0, 6, ..., 294,
+    :data:`~bulletnav.barn.data.TEST_WORLDS`) or a list of indices. Every reset then draws its
+    world uniformly from the pool with a numpy Generator of its own, seeded by a seeded reset
+    (``[seed, POOL_STREAM]``): the same seeds give the same worlds. ``options={"world_idx": N}``
+    still picks one world explicitly (any of the 300) for that reset. ``info["world_idx"]`` is
+    the episode's world. An unseeded reset onto another world rebuilds the cylinders.
+
     ## Version History
     - v0: initial release.
     """
 
-    def __init__(self, world_idx: int = 0, render_mode: str | None = None, config: EnvConfig | None = None,
+    def __init__(self, world_idx: int | str | Sequence[int] = 0, render_mode: str | None = None, config: EnvConfig | None = None,
                  **kwargs: Any) -> None:
         if "world" in kwargs:
             raise TypeError(f"bulletnav/BARN-v0 takes world_idx (0-299), not world={show(kwargs['world'])}")
         if kwargs.get("task_name", "barn") != "barn":
             raise TypeError(f"bulletnav/BARN-v0 runs BARN's task only, not task_name={show(kwargs['task_name'])}")
-        index = check_index(world_idx)
+        if isinstance(world_idx, (int, np.integer)):
+            self._pool: tuple[int, ...] | None = None
+            index = check_index(world_idx)
+        else:
+            self._pool = world_pool(world_idx)
+            index = self._pool[0]
+        self._pool_rng: np.random.Generator | None = None
         super().__init__(render_mode, config, **{**BARN_KWARGS, **kwargs})
         scene = self._scene
         scene.sim.world = scene.world = BarnPhysicsWorld(scene.cid, self.config.physics)
@@ -65,15 +85,30 @@ class BarnEnv(WarehouseEnv):
         """The BARN world of the current (or next) episode."""
         return self._world_idx
 
+    @property
+    def world_pool(self) -> tuple[int, ...] | None:
+        """The worlds resets draw from (None: one fixed world)."""
+        return self._pool
+
     def _use_world(self, index: int) -> None:
         self._world_idx = index
         self._fixed_layout = barn_layout(index)
         self.task.set_reference(load_world(index).path_cells)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        if self._pool is not None:
+            if seed is not None:
+                self._pool_rng = np.random.default_rng([seed, POOL_STREAM])
+            elif self._pool_rng is None:
+                self._pool_rng = np.random.default_rng()
         if isinstance(options, dict) and "world_idx" in options:
             options = dict(options)
             self._use_world(check_index(options.pop("world_idx")))
+        elif self._pool is not None:
+            assert self._pool_rng is not None
+            index = self._pool[int(self._pool_rng.integers(len(self._pool)))]
+            if index != self._world_idx:
+                self._use_world(index)
         obs, info = super().reset(seed=seed, options=options)
         info["world_idx"] = self._world_idx
         return obs, info
