@@ -104,7 +104,7 @@ def test_straight_drive_metrics_against_hand_values():
     assert row["path_irregularity"] == 0.0 and row["jerk"] == pytest.approx(0.0, abs=1e-6)
     t_star = optimal_time(3.0, 0.5, 2.5)  # 6.2 s: faster than possible from rest is capped at 1
     assert row["sct"] == pytest.approx(t_star / max(t, t_star)) and row["sct"] == 1.0
-    assert row["barn_score"] == pytest.approx(6.0 / (4 * 6.0))  # t <= 4 t_opt: the BARN clip
+    assert row["barn_score"] == pytest.approx(6.0 / (2 * 6.0))  # t <= 2 t_opt: BARN's lower clip (run.py)
     assert math.isnan(row["min_separation_m"]) and row["intimate_robot_s"] == 0.0
 
 
@@ -117,7 +117,7 @@ def test_turning_and_a_slow_drive():
     row = episode_metrics(_result(steps=10, path_length=1.0, shortest_path=1.0), trace, accel=2.5)
     assert row["path_irregularity"] == pytest.approx(math.pi / 2)
     t_opt = 1.0 / 0.5
-    assert row["barn_score"] == pytest.approx(t_opt / (4 * t_opt))
+    assert row["barn_score"] == pytest.approx(t_opt / (2 * t_opt))  # 1 s for t_opt = 2 s: clipped to 2 t_opt
     slow = EpisodeTrace(0.1, top_speed=0.5)
     for k in range(301):  # 30 s for the same metre: beyond 8 t_opt
         view.pose = (k / 300, 0.0, 0.0)

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from bulletnav.barn.metric import barn_metric
 from bulletnav.evaluation import NEAR_MISS_M, EpisodeResult
 
 INTIMATE_M = 0.45
@@ -42,8 +43,9 @@ METRICS: dict[str, str] = {
            "(Anderson et al. 2018, as Habitat scores it).",
     "sct": "Success weighted by completion time, S t* / max(t, t*), t* the time-optimal drive of the shortest path "
            "at the robot's limits (top speed, acceleration; Yokoyama et al. 2021).",
-    "barn_score": "S t_opt / clip(t, 4 t_opt, 8 t_opt), t_opt = shortest path / top speed "
-                  "(the BARN challenge's score, Perille et al. 2020 / Xiao et al. 2022).",
+    "barn_score": "S t_opt / clip(t, 2 t_opt, 8 t_opt), t_opt = shortest path / top speed: the BARN challenge's "
+                  "score (Perille et al. 2020; bulletnav.barn.metric.barn_metric, as BARN's run.py computes it) with "
+                  "bulletnav's shortest path and the episode's time.",
     "time_s": "Simulated seconds to the episode's end.",
     "path_length_m": "Metres driven (ground truth).",
     "path_irregularity": "Total turning over distance driven, sum |d heading| / path length (rad/m): "
@@ -64,6 +66,12 @@ METRICS: dict[str, str] = {
 
 __doc__ += "\n".join(f"- ``{name}``: {text}" for name, text in METRICS.items())
 
+BARN_KEYS = ("world_idx", "barn_time_s", "barn_metric")
+"""What a row of a ``bulletnav/BARN-v0`` episode adds (from the last step's ``info``): the BARN
+world, BARN's clock (s; it starts at the first 0.1 m of motion) and BARN's score of the episode
+(t_opt from BARN's reference path, :func:`bulletnav.barn.metric.barn_metric`). Rows of other
+worlds have none of them."""
+
 RATE_METRICS = ("success", "collision", "collision_static", "collision_mover", "collision_person", "timeout")
 """Metrics that are 0/1 per episode (their cell mean is a rate)."""
 
@@ -82,6 +90,9 @@ class EpisodeTrace:
     """Per step, the distance (m, centre to centre) to the nearest worker; inf without workers."""
     hit: str | None = None
     """Which kind the robot touched at the end: ``"static"``, ``"mover"``, ``"person"`` or None."""
+    barn: dict[str, Any] = field(default_factory=dict)
+    """In ``bulletnav/BARN-v0``: the last step's ``world_idx``, ``barn_time_s`` and ``barn_metric``
+    (BARN's world, clock and score, :mod:`bulletnav.barn.task`); empty elsewhere."""
 
     def record(self, scene: Any, info: dict[str, Any]) -> None:
         """One step (or the reset) from the read-only scene view and ``info``."""
@@ -93,6 +104,8 @@ class EpisodeTrace:
         self.person_distances.append(min((math.hypot(m.pose[0] - x, m.pose[1] - y) for m in persons), default=math.inf))
         if info.get("collision"):
             self.hit = _collision_kind(info, movers, (x, y))
+        if "barn_time_s" in info:
+            self.barn = {key: info[key] for key in BARN_KEYS if key in info}
 
 
 def _collision_kind(info: dict[str, Any], movers: tuple, xy: tuple[float, float]) -> str:
@@ -155,7 +168,7 @@ def episode_metrics(result: EpisodeResult, trace: EpisodeTrace, accel: float) ->
         "timeout": int(result.timeout),
         "spl": float(result.spl),
         "sct": float(t_star / max(t, t_star)) if ok else 0.0,
-        "barn_score": float(t_opt / min(max(t, 4 * t_opt), 8 * t_opt)) if ok else 0.0,
+        "barn_score": barn_metric(True, t, t_opt) if ok else 0.0,
         "time_s": t, "path_length_m": float(result.path_length),
         "path_irregularity": turning / result.path_length if result.path_length > 1e-6 else 0.0,
         "jerk": jerk,
@@ -166,6 +179,7 @@ def episode_metrics(result: EpisodeResult, trace: EpisodeTrace, accel: float) ->
         "steps": result.steps, "shortest_path_m": float(shortest), "reward": float(result.reward),
         "goals_reached": result.goals_reached, "goals_total": result.goals_total,
         "path": [[round(float(x), 3), round(float(y), 3)] for x, y in xy[:: max(1, len(xy) // 200)]],
+        **trace.barn,
     }
 
 

@@ -533,15 +533,15 @@ def _headline(worlds: list[dict[str, Any]], controllers: list[str], cells: dict[
 
 def _barn_note(rows: dict[tuple[str, int], dict]) -> str:
     """A note under a world's metrics when ``barn_score`` says little more than success there:
-    most successes reach its cap of 0.25 (every time under 4 t_opt is clipped to 4 t_opt)."""
+    most successes reach its cap of 0.5 (every time under 2 t_opt is clipped to 2 t_opt)."""
     wins = [r for r in rows.values() if r["success"] and "barn_score" in r]
     if not wins:
         return ""
-    capped = sum(r["barn_score"] >= 0.25 - 1e-9 for r in wins) / len(wins)
+    capped = sum(r["barn_score"] >= 0.5 - 1e-9 for r in wins) / len(wins)
     if capped < 0.5:
         return ""
-    return (f"<p class=note>barn_score is at most 0.25 (a time under 4 t_opt counts as 4 t_opt), and "
-            f"{capped * 100:.0f} % of this world's successful episodes reach that cap: here it is about success / 4 "
+    return (f"<p class=note>barn_score is at most 0.5 (a time under 2 t_opt counts as 2 t_opt), and "
+            f"{capped * 100:.0f} % of this world's successful episodes reach that cap: here it is about success / 2 "
             f"and ranks the controllers as success does.</p>")
 
 
