@@ -87,6 +87,15 @@ KINDS: dict[str, str] = {
     "test_barn_data.py::test_path_cells_convert_to_metres_as_barn_does": "hand",  # run.py's conversion worked by hand
     "test_barn_data.py::test_bad_world_index_is_named": "contract",
     "test_barn_data.py::test_converter_refuses_what_it_cannot_convert": "contract",
+    # ---- test_barn_benchmark.py
+    "test_barn_benchmark.py::test_barn_worlds_expand_to_one_world_per_index_with_its_runs": "hand",
+    "test_barn_benchmark.py::test_bad_barn_world_selections_name_file_field_and_value": "contract",
+    # the DWA row's line against the one BARN's own report_test.py printed on the same rows (run by hand)
+    "test_barn_benchmark.py::test_dwa_row_is_report_test_pys_summary_of_barns_rows": "library",
+    "test_barn_benchmark.py::test_per_world_and_overall_figures_by_hand": "hand",
+    "test_barn_benchmark.py::test_the_plot_is_written": "hand",  # DWA rows of the same worlds, [0, 6]; the PNG read by Pillow
+    "test_barn_benchmark.py::test_barn_score_is_barns_score_with_the_2_t_opt_clip": "hand",
+    "test_barn_benchmark.py::test_a_barn_run_scores_its_rows_as_barn_and_reports_them": "formula",  # run.py's score of the row
     # ---- test_barn_env.py
     # positions read back from PyBullet against the world file's text (the test's regex); a ray's hit 0.075 m off the centre
     "test_barn_env.py::test_cylinders_stand_where_the_world_file_puts_them": "formula",

@@ -4,8 +4,10 @@ Source: github.com/Daffan/the-barn-challenge (MIT license), commit bf5a226 (2026
 ``run.py`` lines 13-27 and 172-187 (the start and goal, the grid-cell-to-metre conversion,
 the reference path's length, the score) and ``report_test.py`` lines 8-85 (the summary over
 an out file). This module is the code base's one definition of the score:
-:func:`barn_metric`. ``t_opt`` is the reference path's length over 2 m/s; BARN clips the
-time to [2 t_opt, 8 t_opt] (before 2026-03-04 its lower clip was 4 t_opt: ``low=4``).
+:func:`barn_metric` (the benchmark's ``barn_score`` and BARN summaries,
+:mod:`bulletnav.benchmark.metrics` and :mod:`bulletnav.benchmark.barn`, call it).
+``t_opt`` is the reference path's length over 2 m/s; BARN clips the time to
+[2 t_opt, 8 t_opt] (before 2026-03-04 its lower clip was 4 t_opt: ``low=4``).
 """
 
 from __future__ import annotations
@@ -132,13 +134,19 @@ class Summary:
                 f"Avg Collision: {self.collision:.4f}, Avg Timeout: {self.timeout:.4f}")
 
 
+def by_world(rows: Iterable[OutRow]) -> dict[int, list[OutRow]]:
+    """``rows`` grouped by world index, the worlds in the order they first appear."""
+    worlds: dict[int, list[OutRow]] = {}
+    for row in rows:
+        worlds.setdefault(row.world, []).append(row)
+    return worlds
+
+
 def summarise(rows: Iterable[OutRow], t_opt: dict[int, float], low: float = 2.0) -> Summary:
     """report_test.py's summary of ``rows`` (lines 53-85), ``t_opt`` the optimal time per world.
 
     report_test.py measures t_opt from :data:`REPORT_START`, not run.py's :data:`START`."""
-    worlds: dict[int, list[OutRow]] = {}
-    for row in rows:
-        worlds.setdefault(row.world, []).append(row)
+    worlds = by_world(rows)
 
     def mean_of(f) -> float:
         return float(np.mean([np.mean([f(r) for r in runs]) for runs in worlds.values()]))

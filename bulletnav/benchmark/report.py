@@ -418,18 +418,20 @@ def legend_html(movers: bool) -> str:
 # ------------------------------------------------------------------ the page
 
 def render_report(results: dict[str, Any], results_name: str = "results.json",
-                  draw_layout: DrawLayout | None = None) -> str:
+                  draw_layout: DrawLayout | None = None, plots: dict[str, Path] | None = None) -> str:
     """The HTML page of ``results`` (a ``results.json`` record); ``draw_layout`` draws the maps
-    under the pictured paths (None: paths on blank axes)."""
+    under the pictured paths (None: paths on blank axes); ``plots``: each BARN group's per-world
+    metric plot (a PNG beside the page: shown and linked)."""
     suite = results["suite"]
-    worlds = suite["worlds"]
+    worlds = [w for w in suite["worlds"] if not w.get("group")]  # a BARN group's worlds share one tab
+    barn = results.get("barn", [])
     controllers = [c["name"] for c in suite["controllers"]]
     cells = {(c["world"], c["controller"]): c["summary"] for c in results["cells"]}
-    rows_by_world: dict[str, dict[tuple[str, int], dict]] = {w["name"]: {} for w in worlds}
+    rows_by_world: dict[str, dict[tuple[str, int], dict]] = {w["name"]: {} for w in suite["worlds"]}
     for row in results["episodes"]:
         rows_by_world[row["world"]][(row["controller"], row["episode"])] = row
-    out = _page_head(results, results_name, controllers)
-    out += _headline(worlds, controllers, cells, best_controllers(results))
+    out = _page_head(results, results_name, controllers, worlds, barn)
+    out += _headline(worlds, controllers, cells, best_controllers(results), barn)
     scenes = Scenes()
     try:
         for i, w in enumerate(worlds):  # one tab per world
@@ -437,6 +439,8 @@ def render_report(results: dict[str, Any], results_name: str = "results.json",
                                 draw_layout, scenes)
     finally:
         scenes.close()
+    for i, section in enumerate(barn):  # one tab per BARN group
+        out += _barn_panel(i, section, results["episodes"], (plots or {}).get(section["group"]))
     esc = html.escape
     definitions = "".join(f"<dt><b>{esc(k)}</b></dt><dd>{esc(v)}</dd>" for k, v in results["metrics"].items())
     out.append(f"<h2>Metrics</h2><dl>{definitions}</dl>")
@@ -444,17 +448,19 @@ def render_report(results: dict[str, Any], results_name: str = "results.json",
     return "\n".join(out)
 
 
-def _page_head(results: dict[str, Any], results_name: str, controllers: list[str]) -> list[str]:
-    """The page's lines up to its tab list: title, the run's provenance and one tab per view."""
-    suite, worlds = results["suite"], results["suite"]["worlds"]
+def _page_head(results: dict[str, Any], results_name: str, controllers: list[str], worlds: list[dict[str, Any]],
+               barn: list[dict[str, Any]]) -> list[str]:
+    """The page's lines up to its tab list: title, the run's provenance and one tab per view
+    (the headline, each of ``worlds``, each BARN group of ``barn``)."""
+    suite = results["suite"]
     prov = results.get("provenance", {})
     esc = html.escape
     out = ["<!doctype html><html lang=en><head><meta charset=utf-8>",
            "<meta name=viewport content='width=device-width, initial-scale=1'>",
            f"<title>bulletnav benchmark: {esc(suite['name'])}</title><style>{CSS}</style></head><body>",
            f"<h1>bulletnav benchmark: <code>{esc(suite['name'])}</code></h1>",
-           f"<p class=meta>{sum(w['episodes'] for w in worlds) * len(controllers)} episodes: "
-           f"{len(worlds)} worlds x {len(controllers)} controllers; episode k of a world is "
+           f"<p class=meta>{sum(w['episodes'] for w in suite['worlds']) * len(controllers)} episodes: "
+           f"{len(suite['worlds'])} worlds x {len(controllers)} controllers; episode k of a world is "
            f"<code>env.reset(seed={suite['seed']} + k)</code> for every controller. "
            f"Commit {esc(str(prov.get('git_commit', '?'))[:12])}{' (dirty)' if prov.get('dirty') else ''}, "
            f"{esc(str(prov.get('machine', '?')))}, {prov.get('workers', '?')} workers, "
@@ -465,6 +471,9 @@ def _page_head(results: dict[str, Any], results_name: str, controllers: list[str
     for i, w in enumerate(worlds):
         out.append(f"<button role=tab id=tab-w{i} aria-controls=panel-w{i} aria-selected=false tabindex=-1>"
                    f"{esc(w['name'])}</button>")
+    for i, section in enumerate(barn):
+        out.append(f"<button role=tab id=tab-barn{i} aria-controls=panel-barn{i} aria-selected=false tabindex=-1>"
+                   f"BARN: {esc(section['group'])}</button>")
     out.append("</div>")
     return out
 
@@ -500,11 +509,16 @@ def _success_chart(w: dict[str, Any], controllers: list[str], cells: dict[tuple[
 
 
 def _headline(worlds: list[dict[str, Any]], controllers: list[str], cells: dict[tuple[str, str], Any],
-              best: dict[str, str]) -> list[str]:
+              best: dict[str, str], barn: list[dict[str, Any]] | None = None) -> list[str]:
     """The headline tab's lines: a row per controller, a column per world, each cell its
-    success, collisions and SPL with their intervals; the best of each world starred."""
+    success, collisions and SPL with their intervals; the best of each world starred. Then
+    each BARN group's overall table (:func:`_barn_overall`)."""
     esc = html.escape
-    out = ["<section role=tabpanel id=panel-headline aria-labelledby=tab-headline>"
+    head = "<section role=tabpanel id=panel-headline aria-labelledby=tab-headline>"
+    tables = [head] + [line for section in barn or [] for line in _barn_overall(section, True)]
+    if not worlds:
+        return tables + ["</section>"]
+    out = [tables[0] + "".join(tables[1:]) +
            "<h2>Headline: success, collisions and SPL (95 % bootstrap intervals)</h2>"
            "<div class=charts>" + "".join(_success_chart(w, controllers, cells, best) for w in worlds) + "</div>"
            "<p class=note>Dots: success rate; bars: its 95 % interval.</p>"
@@ -609,9 +623,87 @@ def _failure_gallery(w: dict[str, Any], controllers: list[str], rows: dict[tuple
 
 
 def write_report(results: dict[str, Any], path: Path, draw_layout: DrawLayout | None = None) -> Path:
-    """Write :func:`render_report` to ``path`` atomically (:func:`bulletnav.files.write_bytes`)."""
-    write_bytes(path, render_report(results, draw_layout=draw_layout).encode())
+    """Write :func:`render_report` to ``path`` atomically (:func:`bulletnav.files.write_bytes`),
+    and beside it each BARN group's per-world metric plot, ``barn_metric_<group>.png``
+    (:func:`bulletnav.benchmark.barn.plot_metric`)."""
+    from bulletnav.benchmark.barn import plot_metric
+
+    plots = {s["group"]: plot_metric(s, path.parent / f"barn_metric_{s['group']}.png") for s in results.get("barn", [])}
+    write_bytes(path, render_report(results, draw_layout=draw_layout, plots=plots).encode())
     return path
+
+
+# ------------------------------------------------------------------ BARN groups
+
+BARN_DIFFERS = ("The same worlds, start, goal, rules (success, any contact a collision, the 100 s clock from the first "
+                "0.1 m) and score as BARN's run.py and report_test.py, not the same simulator: bulletnav runs PyBullet "
+                "with its Jackal-sized model (0.508 x 0.430 m, 2 m/s, a 270-degree lidar seen as 72 rays), BARN runs "
+                "Gazebo with Clearpath's Jackal. The DWA row is BARN's published res/dwa_out.txt over the same worlds: ")
+"""What the BARN tab says about the comparison (the DWA note follows)."""
+
+
+def _barn_overall(section: dict[str, Any], short: bool = False) -> list[str]:
+    """A BARN group's overall table: a row per controller and DWA's, report_test.py's five figures
+    with their intervals."""
+    from bulletnav.benchmark.barn import DWA_NOTE
+
+    esc = html.escape
+    out = [f"<h2>BARN: {esc(section['group'])} ({len(section['worlds'])} worlds x {section['runs']} runs), as BARN's "
+           "report_test.py summarises</h2><div class=scroll><table class=metrics data-barn-overall><thead><tr>"
+           "<th scope=col>controller</th><th scope=col>worlds</th><th scope=col>success</th>"
+           "<th scope=col>collisions</th><th scope=col>time-outs</th><th scope=col>BARN time (s)</th>"
+           "<th scope=col>BARN metric</th></tr></thead><tbody>"]
+    for entry in section["controllers"]:
+        o = entry["overall"]
+        dwa = entry["source"] == "BARN"
+        name = f"{esc(entry['name'])}<br><span class=ci>{esc(DWA_NOTE)}</span>" if dwa else esc(entry["name"])
+        out.append(f"<tr{' data-dwa' if dwa else ''}><th scope=row>{name}</th><td class=num>{o['worlds']}</td>"
+                   + "".join(f"<td class=num>{_fmt(o[f], f)}</td>" for f in ("success", "collision", "timeout",
+                                                                           "time_s", "metric")) + "</tr>")
+    out.append(f"</tbody></table></div><p class=note>Each figure is a mean over worlds of the per-world means, as "
+               f"report_test.py computes it (BARN time: over the worlds with a success). Intervals: "
+               f"{esc(section['intervals'])}. Metric: {esc(section['metric'])}. DWA over all 50 test worlds "
+               f"(its 500 rows): <code>{esc(section['dwa_all_line'])}</code>.</p>")
+    if not short:
+        lines = "".join(f"<li>{esc(e['name'])}: <code>{esc(e['overall']['line'] or 'no runs')}</code></li>"
+                        for e in section["controllers"])
+        out.append(f"<details><summary>report_test.py's lines</summary><ul>{lines}</ul></details>")
+    return out
+
+
+def _barn_panel(i: int, section: dict[str, Any], rows: list[dict[str, Any]], plot: Path | None) -> list[str]:
+    """BARN group ``i``'s tab: the overall table, the per-world plot, each controller's per-world
+    table and its failures' replay commands."""
+    from bulletnav.benchmark.barn import DWA_NOTE
+
+    esc = html.escape
+    out = [f"<section role=tabpanel id=panel-barn{i} aria-labelledby=tab-barn{i} hidden>",
+           f"<p class=note>{esc(BARN_DIFFERS)}{esc(DWA_NOTE)}.</p>", *_barn_overall(section)]
+    if plot is not None and plot.is_file():
+        uri = "data:image/png;base64," + base64.b64encode(plot.read_bytes()).decode()
+        out.append(f"<h3>BARN metric per world</h3><figure class=barn-plot><a href='{esc(plot.name, quote=True)}'>"
+                   f"<img alt='BARN metric per world of every controller and DWA' src='{uri}'></a>"
+                   f"<figcaption>{esc(plot.name)} (click for the file)</figcaption></figure>")
+    out.append("<h3>Per world</h3>")
+    for entry in section["controllers"]:
+        body = "".join(f"<tr><th scope=row>{p['world']}</th><td class=num>{p['runs']}</td>"
+                       + "".join(f"<td class=num>{_fmt(p[f], f)}</td>" for f in ("success", "collision", "timeout",
+                                                                               "time_s", "metric")) + "</tr>"
+                       for p in entry["per_world"])
+        note = f" ({esc(DWA_NOTE)})" if entry["source"] == "BARN" else ""
+        out.append(f"<details><summary>{esc(entry['name'])}{note}</summary><div class=scroll><table class=metrics>"
+                   "<thead><tr><th scope=col>world</th><th scope=col>runs</th><th scope=col>success</th>"
+                   "<th scope=col>collisions</th><th scope=col>time-outs</th><th scope=col>BARN time (s)</th>"
+                   f"<th scope=col>BARN metric</th></tr></thead><tbody>{body}</tbody></table></div></details>")
+    failed = [r for r in rows if r.get("world_idx") is not None and not r["success"] and r.get("replay")]
+    if failed:
+        items = "".join(f"<li>{esc(r['controller'])}, world {r['world_idx']}, run {r['episode']}: "
+                        f"{OUTCOME_WORDS[outcome_of(r)]} after {r['barn_time_s']:.1f} s. {command_html(r['replay'])}</li>"
+                        for r in failed[:GALLERY * 10])
+        out.append(f"<details><summary>Failures ({len(failed)}; the first {min(len(failed), GALLERY * 10)} with the "
+                   f"command that replays each)</summary><ul>{items}</ul></details>")
+    out.append("</section>")
+    return out
 
 
 SCREENSHOT_WIDTHS = (1400, 390)

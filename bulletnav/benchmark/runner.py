@@ -53,15 +53,28 @@ def cell_key(world: str, controller: str, episode: int) -> str:
     return f"{world}\x1f{controller}\x1f{episode}"
 
 
+MAX_CELLS = 16
+"""Envs a worker keeps open at most: the least recently used is closed beyond this. Chunks come
+world by world, so a cell is rarely needed again once the next ones have begun (a BARN suite
+has 50 worlds x 6 controllers: 300 envs per worker otherwise); a cell made again gives the same
+rows, for every episode is a seeded reset."""
+
+
 class _Cells:
-    """One worker's envs and controllers, made on first use per (world, controller)."""
+    """One worker's envs and controllers, made on first use per (world, controller), at most
+    :data:`MAX_CELLS` open."""
 
     def __init__(self, suite: Suite, root: Path) -> None:
         self.suite, self.root = suite, root
         self.cells: dict[tuple[int, int], tuple[Any, Any]] = {}
 
     def get(self, w: int, c: int) -> tuple[Any, Any]:
-        if (w, c) not in self.cells:
+        if (w, c) in self.cells:
+            self.cells[(w, c)] = self.cells.pop((w, c))  # the most recently used last
+        else:
+            while len(self.cells) >= MAX_CELLS:
+                env, _ = self.cells.pop(next(iter(self.cells)))
+                env.close()
             self.cells[(w, c)] = make_cell(self.suite.worlds[w], self.suite.controllers[c], self.root,
                                            self.suite.trust_code)
         return self.cells[(w, c)]
@@ -407,11 +420,10 @@ def build_results(suite: Suite, rows: list[dict[str, Any]], root: Path = PROJECT
             world = suite.worlds[order_w[row["world"]]]
             controller = suite.controllers[order_c[row["controller"]]]
             row["replay"] = replay_command(suite, world, controller, row["seed"], root)
-    return {
+    results = {
         "suite": {"name": suite.name, "source": suite.source, "sha256": suite.sha256, "episodes": suite.episodes,
                   "seed": suite.seed,
-                  "worlds": [{"name": w.name, "env": w.env, "kwargs": w.kwargs, "episodes": suite.episodes_of(w)}
-                             for w in suite.worlds],
+                  "worlds": [_world_entry(suite, w) for w in suite.worlds],
                   "controllers": [{"name": c.name, "type": c.type, "planner": c.planner if c.type == "navigator" else None,
                                    "model": c.model or None, "class": c.cls or None, "shield": c.shield}
                                   for c in suite.controllers]},
@@ -419,6 +431,19 @@ def build_results(suite: Suite, rows: list[dict[str, Any]], root: Path = PROJECT
         "cells": cells,
         "episodes": ordered,
     }
+    if any(w.group for w in suite.worlds):  # BARN's summary of its worlds, beside BARN's DWA rows
+        from bulletnav.benchmark.barn import barn_sections
+
+        results["barn"] = barn_sections(results["suite"]["worlds"], [c.name for c in suite.controllers], ordered)
+    return results
+
+
+def _world_entry(suite: Suite, w: WorldSpec) -> dict[str, Any]:
+    """A world of the results' suite record (a BARN world also with its index and group)."""
+    entry = {"name": w.name, "env": w.env, "kwargs": w.kwargs, "episodes": suite.episodes_of(w)}
+    if w.group:
+        entry.update(barn_world=w.barn_world, group=w.group)
+    return entry
 
 
 def run_provenance(wall: float, workers: int, address: str | None) -> dict[str, Any]:

@@ -11,6 +11,10 @@ A suite is a YAML file (shipped: ``quick`` and ``standard`` in ``bulletnav/bench
         kwargs: {num_obstacles: 40}    # optional: num_obstacles, world, perturb, goals, goal_order
         episodes: 10              # optional: this world's own count
       - env: bulletnav/WarehouseAisles-v0
+      - name: barn                # BARN's worlds: one world per index, each with `episodes` runs
+        env: bulletnav/BARN-v0
+        barn_worlds: test         # test (0, 6, ..., 294), train (the other 250), all, or a list [0, 6, 93]
+        episodes: 10              # runs per BARN world (run k: env.reset(seed=seed + k), its sensor noise)
     controllers:
       - {name: PID + A*, type: navigator, planner: astar}    # planner: none, astar or rrt
       - {name: PPO, type: model, model: shipped}             # shipped: the world's shipped model; else a path
@@ -27,6 +31,12 @@ suite's ``name`` names its output folder (``runs/benchmark/<name>``): a slug
 (``suite_*``). World kwargs are limited to those the CLI can express, so that every episode
 of a report can be replayed by one ``bulletnav navigate`` / ``evaluate`` command, quoted
 for the shell (:func:`replay_command`).
+
+A ``barn_worlds`` entry (``bulletnav/BARN-v0`` only) stands for one world per BARN index,
+named ``<name>-<index>`` (``barn-006``) with ``kwargs: {world_idx: index}``; their rows are also
+summarised together as BARN's ``report_test.py`` does (:mod:`bulletnav.benchmark.barn`). In
+BARN-v0 the world, start and goal are fixed by the index, so the runs of a world differ only by
+their seed's sensor noise.
 """
 
 from __future__ import annotations
@@ -51,16 +61,24 @@ SHIPPED_MODELS = {
     "bulletnav/WarehouseAisles-v0": "models/ppo_dynamic.zip",
     "bulletnav/WarehouseDynamic-v0": "models/ppo_dynamic.zip",
     "bulletnav/WarehouseMission-v0": "models/ppo_mission.zip",
+    "bulletnav/BARN-v0": "models/ppo_barn.zip",
 }
 """``model: shipped`` for each registered id: the policy trained for that world (the aisle
 world's is the dynamic policy, trained on the same aisle warehouses with movers), relative
 to the project root."""
 
 WORLD_KWARGS = {"num_obstacles": "--obstacles", "world": "--world", "perturb": "--perturb", "goals": "--goals",
-                "goal_order": "--order"}
+                "goal_order": "--order", "world_idx": "--world-idx"}
 """World kwargs a suite may set, with the CLI flag that replays them."""
 
 PLANNERS = ("none", "astar", "rrt")
+
+BARN_ENV = "bulletnav/BARN-v0"
+"""The one id a ``barn_worlds`` entry (and the ``world_idx`` kwarg) may name."""
+BARN_SETS = {"test": "BARN's 50 test worlds 0, 6, ..., 294 (report_test.py's)",
+             "train": "the 250 other worlds (those a BARN policy may train on)",
+             "all": "all 300 static worlds 0-299"}
+"""The named sets a ``barn_worlds`` field may give (or a list of indices)."""
 
 IMPORTABLE = tuple(p for p in HYPERPARAM_IMPORTABLE if not p.startswith("torch."))
 """Packages whose classes a suite's ``policy`` entries may name without ``--trust-code``: the
@@ -84,6 +102,10 @@ class WorldSpec:
     """Env kwargs on top of the id's (see :data:`WORLD_KWARGS`)."""
     episodes: int = 0
     """Episodes of this world (the suite's count when 0)."""
+    barn_world: int | None = None
+    """The BARN world index when this world came from a ``barn_worlds`` entry."""
+    group: str = ""
+    """The name of the ``barn_worlds`` entry it came from (its rows are summarised together)."""
 
 
 @dataclass(frozen=True)
@@ -229,7 +251,7 @@ def parse_suite(raw: Any, where: str = "<suite>", sha256: str = "", trust_code: 
         if not isinstance(items, list) or not items:
             raise SuiteError(f"{where}: field '{key}' must be a non-empty list, got {show(items)}")
         _limit(where, f"suite_{key}", len(items), f"field '{key}' (entries)")
-    worlds = [_parse_world(w, where, f"worlds[{i}]") for i, w in enumerate(worlds_raw)]
+    worlds = [spec for i, w in enumerate(worlds_raw) for spec in _parse_world(w, where, f"worlds[{i}]")]
     controllers = [_parse_controller(c, where, f"controllers[{i}]", trust_code) for i, c in enumerate(controllers_raw)]
     for label, names in (("worlds", [w.name for w in worlds]), ("controllers", [c.name for c in controllers])):
         dup = sorted({n for n in names if names.count(n) > 1})
@@ -251,11 +273,11 @@ def _limit(where: str, name: str, value: int, what: str) -> None:
         raise SuiteError(f"{where}: {exc}") from None
 
 
-def _parse_world(w: Any, where: str, tag: str) -> WorldSpec:
-    """One ``worlds:`` entry."""
+def _parse_world(w: Any, where: str, tag: str) -> list[WorldSpec]:
+    """One ``worlds:`` entry: one world, or one per BARN index of a ``barn_worlds`` entry."""
     import gymnasium as gym
 
-    w = _mapping(w, where, tag, {"name", "env", "kwargs", "episodes"})
+    w = _mapping(w, where, tag, {"name", "env", "kwargs", "episodes", "barn_worlds"})
     env = _str(w.get("env"), where, f"{tag}.env")
     if env not in gym.registry or not env.startswith("bulletnav/"):
         known = sorted(e for e in gym.registry if e.startswith("bulletnav/"))
@@ -273,7 +295,51 @@ def _parse_world(w: Any, where: str, tag: str) -> WorldSpec:
     default_name = env.split("/")[-1].removeprefix("Warehouse").removesuffix("-v0").lower() or "scattered"
     count = _int(w.get("episodes", 0), where, f"{tag}.episodes", 0, 2**31 - 1)
     _limit(where, "suite_episodes", count, f"field '{tag}.episodes'")
-    return WorldSpec(_str(w.get("name", default_name), where, f"{tag}.name"), env, dict(kwargs), count)
+    name = _str(w.get("name", default_name), where, f"{tag}.name")
+    if "world_idx" in kwargs:
+        if env != BARN_ENV:
+            raise SuiteError(f"{where}: field '{tag}.kwargs.world_idx' is for {BARN_ENV} only, not {show(env)}")
+        _barn_index(kwargs["world_idx"], where, f"{tag}.kwargs.world_idx")
+    if "barn_worlds" not in w:
+        return [WorldSpec(name, env, dict(kwargs), count)]
+    if env != BARN_ENV:
+        raise SuiteError(f"{where}: field '{tag}.barn_worlds' is for env {BARN_ENV} only, not {show(env)}")
+    if "world_idx" in kwargs:
+        raise SuiteError(f"{where}: field '{tag}.kwargs.world_idx' and field '{tag}.barn_worlds' both choose the "
+                         "BARN world: give one")
+    indices = barn_indices(w["barn_worlds"], where, f"{tag}.barn_worlds")
+    return [WorldSpec(f"{name}-{i:03d}", env, {**kwargs, "world_idx": i}, count, barn_world=i, group=name)
+            for i in indices]
+
+
+def barn_indices(value: Any, where: str, field_: str) -> list[int]:
+    """The BARN world indices a ``barn_worlds`` field names: a set of :data:`BARN_SETS` or a
+    non-empty list of distinct indices 0-299 (in the list's order).
+
+    Raises:
+        SuiteError: naming ``where``, the field and the value.
+    """
+    from bulletnav.barn.metric import TEST_WORLDS
+
+    if isinstance(value, str):
+        sets = {"test": list(TEST_WORLDS), "train": [i for i in range(300) if i not in TEST_WORLDS],
+                "all": list(range(300))}
+        if value not in sets:
+            raise SuiteError(f"{where}: field '{field_}' must be one of {sorted(BARN_SETS)} or a list of BARN world "
+                             f"indices 0-299, got {show(value)}")
+        return sets[value]
+    if not isinstance(value, list) or not value:
+        raise SuiteError(f"{where}: field '{field_}' must be one of {sorted(BARN_SETS)} or a non-empty list of BARN "
+                         f"world indices 0-299, got {show(value)}")
+    indices = [_barn_index(v, where, f"{field_}[{k}]") for k, v in enumerate(value)]
+    repeated = sorted({i for i in indices if indices.count(i) > 1})
+    if repeated:
+        raise SuiteError(f"{where}: field '{field_}' names BARN world(s) {repeated} more than once")
+    return indices
+
+
+def _barn_index(value: Any, where: str, field_: str) -> int:
+    return _int(value, where, field_, 0, 299)
 
 
 def _parse_controller(c: Any, where: str, tag: str, trust_code: bool) -> ControllerSpec:

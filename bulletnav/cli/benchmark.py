@@ -17,7 +17,7 @@ def register(sub) -> None:
     bm = add_command(sub, "benchmark", "every controller of a suite on the same seeded episodes of every world: "
                                        "results.json + report.html")
     bm.add_argument("suite", nargs="?", default="quick", metavar="SUITE",
-                    help="a shipped suite (quick, standard) or a suite YAML file (default quick)")
+                    help="a shipped suite (quick, standard, barn, barn-quick) or a suite YAML file (default quick)")
     bm.add_argument("--out", metavar="DIR", help="output directory (default runs/benchmark/<suite name>)")
     bm.add_argument("--workers", type=COUNT, default=1, help="local worker processes (default 1); rows are the same for any count")
     bm.add_argument("--address", metavar="HOST:PORT", help="run the episodes as tasks on this Ray cluster")
@@ -135,10 +135,17 @@ def _print_table(args: argparse.Namespace, suite, results: dict, out, report, ea
     wall, workers = results["provenance"]["wall_time_s"], results["provenance"]["workers"]
     timing = (f"{suite.total} episodes ({earlier} from the earlier run), {wall:.0f} s this run" if earlier
               else f"{suite.total} episodes in {wall:.0f} s")
-    print(f"\nbenchmark {suite.name}: {timing} ({workers} workers); success / collisions / SPL per world and controller")
+    worlds = [w for w in results["suite"]["worlds"] if not w.get("group")]
+    print(f"\nbenchmark {suite.name}: {timing} ({workers} workers)" +
+          ("; success / collisions / SPL per world and controller" if worlds else ""))
+    for section in results.get("barn", []):
+        _print_barn(section)
+    if not worlds:
+        print(f"results: {out / 'results.json'}\nreport:  {report}")
+        return
     print("| world | " + " | ".join(controllers) + " |")
     print("|---" * (len(controllers) + 1) + "|")
-    for w in results["suite"]["worlds"]:
+    for w in worlds:
         row = []
         for c in controllers:
             s = cells[(w["name"], c)]
@@ -147,3 +154,28 @@ def _print_table(args: argparse.Namespace, suite, results: dict, out, report, ea
                        f"{s['spl']['mean']:.3f}{mark}")
         print(f"| {w['name']} | " + " | ".join(row) + " |")
     print(f"results: {out / 'results.json'}\nreport:  {report}")
+
+
+def _print_barn(section: dict) -> None:
+    """A BARN group's overall table (report_test.py's figures with their intervals) and lines."""
+    from bulletnav.benchmark.barn import DWA_NOTE
+
+    def fig(cell: dict, pct: bool) -> str:
+        if cell["mean"] is None:
+            return "-"
+        scale, digits, unit = (100, 1, " %") if pct else (1, 3, "")
+        return (f"{cell['mean'] * scale:.{digits}f}{unit} [{cell['lo'] * scale:.{digits}f}, "
+                f"{cell['hi'] * scale:.{digits}f}]")
+
+    print(f"\nBARN {section['group']}: {len(section['worlds'])} worlds x {section['runs']} runs, as BARN's report_test.py "
+          "summarises (means over worlds of per-world means; 95 % intervals)")
+    print("| controller | worlds | success | collisions | time-outs | BARN time (s) | BARN metric |")
+    print("|---|---|---|---|---|---|---|")
+    for e in section["controllers"]:
+        o = e["overall"]
+        name = f"{e['name']} ({DWA_NOTE})" if e["source"] == "BARN" else e["name"]
+        print(f"| {name} | {o['worlds']} | {fig(o['success'], True)} | {fig(o['collision'], True)} | "
+              f"{fig(o['timeout'], True)} | {fig(o['time_s'], False)} | {fig(o['metric'], False)} |")
+    for e in section["controllers"]:
+        print(f"{e['name']}: {e['overall']['line'] or 'no runs'}")
+    print(f"DWA over all 50 test worlds: {section['dwa_all_line']}")

@@ -1,0 +1,221 @@
+"""A benchmark's BARN worlds summarised as BARN does, beside BARN's published DWA rows.
+
+The worlds of a suite's ``barn_worlds`` entry (one per BARN index, :mod:`bulletnav.benchmark.suite`)
+form a group. For each controller of the suite, and for BARN's own move_base DWA rows
+(``res/dwa_out.txt``, :func:`bulletnav.barn.data.dwa_rows`: measured by BARN in Gazebo, not run
+here) over the same worlds, the group's section of ``results.json`` holds:
+
+- per BARN world: the success, collision and time-out rates, BARN time (the mean clock of the
+  successful runs) and BARN metric (mean over the runs), each with a 95 % percentile-bootstrap
+  interval over the world's runs (:func:`bulletnav.benchmark.metrics.bootstrap_interval`, the
+  benchmark's interval of every cell);
+- overall: the five figures of BARN's ``report_test.py`` (:func:`bulletnav.barn.metric.summarise`:
+  means over worlds of per-world means; the time over worlds with a success), each with a 95 %
+  percentile bootstrap that resamples the runs within every world (the worlds stay the same,
+  as BARN's test worlds do), and the summary line as report_test.py prints it.
+
+Every metric here is report_test.py's: success x t_opt / clip(t, 2 t_opt, 8 t_opt) of the run's
+BARN clock t, t_opt measured from report_test.py's start (-2, 3) (:data:`~bulletnav.barn.metric.REPORT_START`),
+so the controllers' figures and DWA's are computed alike. (A row's own ``barn_metric``, the
+env's, measures t_opt from run.py's start (-2.25, 3); the two differ by under 2 %.)
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bulletnav.barn.metric import REPORT_START, OutRow, barn_metric, by_world, optimal_time, summarise
+from bulletnav.benchmark.metrics import BOOTSTRAP_RESAMPLES, BOOTSTRAP_SEED, bootstrap_interval
+
+DWA_NAME = "DWA (BARN's rows)"
+"""The name of the DWA row."""
+DWA_NOTE = "measured by BARN in Gazebo (move_base DWA), not run here"
+"""What the DWA row is, printed wherever it is shown."""
+FIGURES = ("success", "collision", "timeout", "time_s", "metric")
+"""The figures per world and overall, in report_test.py's terms."""
+INTERVALS = ("95 % percentile bootstrap (2,000 resamples, fixed seed): per world over its runs; overall over "
+             "the runs resampled within each world, the worlds kept")
+"""How the intervals are made (the report prints it)."""
+
+
+@functools.lru_cache(maxsize=1)
+def report_t_opt() -> dict[int, float]:
+    """t_opt (s) of every BARN world as report_test.py computes it (from :data:`REPORT_START`)."""
+    from bulletnav.barn.data import N_WORLDS, load_world
+
+    return {i: optimal_time(load_world(i).path_cells, REPORT_START) for i in range(N_WORLDS)}
+
+
+def out_rows(rows: Iterable[dict[str, Any]]) -> list[OutRow]:
+    """Benchmark rows of ``bulletnav/BARN-v0`` episodes as BARN out-file rows (BARN's clock as the time)."""
+    return [OutRow(int(r["world_idx"]), bool(r["success"]), bool(r["collision"]), bool(r["timeout"]),
+                   float(r["barn_time_s"])) for r in rows]
+
+
+def _by_world(rows: Iterable[OutRow]) -> dict[int, list[OutRow]]:
+    return dict(sorted(by_world(rows).items()))
+
+
+def _values(runs: list[OutRow], t_opt: float) -> dict[str, np.ndarray]:
+    """Per run: each figure's value (the time NaN for a run that did not succeed)."""
+    return {"success": np.array([r.success for r in runs], dtype=float),
+            "collision": np.array([r.collided for r in runs], dtype=float),
+            "timeout": np.array([r.timeout for r in runs], dtype=float),
+            "time_s": np.array([r.time_s if r.success else math.nan for r in runs], dtype=float),
+            "metric": np.array([barn_metric(r.success, r.time_s, t_opt) for r in runs], dtype=float)}
+
+
+def _stat(values: np.ndarray) -> dict[str, Any]:
+    kept = values[~np.isnan(values)]
+    if len(kept) == 0:
+        return {"mean": None, "lo": None, "hi": None, "n": 0}
+    lo, hi = bootstrap_interval(values)
+    return {"mean": float(kept.mean()), "lo": lo, "hi": hi, "n": int(len(kept))}
+
+
+def per_world(rows: Iterable[OutRow], t_opt: dict[int, float] | None = None) -> list[dict[str, Any]]:
+    """Per BARN world (by index): its runs and each of :data:`FIGURES` as ``{"mean", "lo", "hi", "n"}``
+    (``time_s`` over the successful runs only)."""
+    t_opt = report_t_opt() if t_opt is None else t_opt
+    out = []
+    for world, runs in _by_world(rows).items():
+        values = _values(runs, t_opt[world])
+        out.append({"world": world, "runs": len(runs), **{f: _stat(values[f]) for f in FIGURES}})
+    return out
+
+
+def overall(rows: Iterable[OutRow], t_opt: dict[int, float] | None = None, resamples: int = BOOTSTRAP_RESAMPLES,
+            seed: int = BOOTSTRAP_SEED) -> dict[str, Any]:
+    """report_test.py's five figures of ``rows`` (:func:`bulletnav.barn.metric.summarise`) with
+    95 % intervals (runs resampled within each world), its printed ``line`` and the ``worlds`` count."""
+    t_opt = report_t_opt() if t_opt is None else t_opt
+    rows = list(rows)
+    worlds = _by_world(rows)
+    if not worlds:
+        return {"worlds": 0, "runs": 0, "line": None, **{f: {"mean": None, "lo": None, "hi": None, "n": 0} for f in FIGURES}}
+    summary = summarise(rows, t_opt)
+    means = {"success": summary.success, "collision": summary.collision, "timeout": summary.timeout,
+             "time_s": summary.time_s, "metric": summary.metric}
+    rng = np.random.default_rng(seed)
+    boot = {f: np.zeros((len(worlds), resamples)) for f in FIGURES}
+    for w, (world, runs) in enumerate(worlds.items()):
+        values = _values(runs, t_opt[world])
+        pick = rng.integers(0, len(runs), size=(resamples, len(runs)))
+        for f in FIGURES:
+            drawn = values[f][pick]
+            if f == "time_s":  # the mean time of the resample's successes; NaN (left out) without one
+                ok = ~np.isnan(drawn)
+                count = ok.sum(axis=1)
+                boot[f][w] = np.where(count > 0, np.where(ok, drawn, 0.0).sum(axis=1) / np.maximum(count, 1), np.nan)
+            else:
+                boot[f][w] = drawn.mean(axis=1)
+    out: dict[str, Any] = {"worlds": len(worlds), "runs": len(rows), "line": summary.line()}
+    for f in FIGURES:
+        over = boot[f]
+        with np.errstate(invalid="ignore"):
+            samples = np.nanmean(over, axis=0) if f == "time_s" else over.mean(axis=0)
+        samples = samples[~np.isnan(samples)]
+        lo, hi = (np.percentile(samples, [2.5, 97.5]) if len(samples) else (math.nan, math.nan))
+        mean = means[f]
+        out[f] = {"mean": None if math.isnan(mean) else float(mean), "lo": float(lo), "hi": float(hi),
+                  "n": len(worlds) if f != "time_s" else sum(any(r.success for r in runs) for runs in worlds.values())}
+    return out
+
+
+def dwa_rows_for(worlds: Iterable[int]) -> list[OutRow]:
+    """BARN's published DWA rows of the given worlds (DWA was run on the 50 test worlds only)."""
+    from bulletnav.barn.data import dwa_rows
+
+    published = by_world(dwa_rows())
+    return [r for i in sorted(set(worlds) & set(published)) for r in published[i]]
+
+
+def barn_sections(worlds: list[dict[str, Any]], controllers: list[str], rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One section per BARN group of a results record (``worlds``: the suite's world entries;
+    ``rows``: its episode rows): every controller's per-world and overall figures, then DWA's."""
+    from bulletnav.barn.data import dwa_rows
+
+    groups: dict[str, list[int]] = {}
+    names: dict[str, str] = {}
+    for w in worlds:
+        if w.get("group"):
+            groups.setdefault(w["group"], []).append(int(w["barn_world"]))
+            names[w["name"]] = w["group"]
+    sections = []
+    for group, indices in groups.items():
+        entries = []
+        for c in controllers:
+            mine = out_rows(r for r in rows if r["controller"] == c and names.get(r["world"]) == group)
+            entries.append({"name": c, "source": "bulletnav", "per_world": per_world(mine), "overall": overall(mine)})
+        dwa = dwa_rows_for(indices)
+        entries.append({"name": DWA_NAME, "source": "BARN", "note": DWA_NOTE, "per_world": per_world(dwa),
+                        "overall": overall(dwa)})
+        all_dwa = dwa_rows()
+        sections.append({
+            "group": group, "worlds": indices, "runs": next((w["episodes"] for w in worlds if w.get("group") == group), 0),
+            "intervals": INTERVALS,
+            "metric": "success x t_opt / clip(t, 2 t_opt, 8 t_opt), t = BARN's clock, t_opt from report_test.py's "
+                      "start (-2, 3) (bulletnav.barn.metric, BARN's run.py and report_test.py)",
+            "dwa_worlds": sorted(by_world(dwa)),
+            "dwa_all_line": summarise(all_dwa, report_t_opt()).line(),
+            "controllers": entries,
+        })
+    return sections
+
+
+def plot_metric(section: dict[str, Any], path: Path) -> Path:
+    """A PNG of each controller's per-world mean BARN metric (dots, with their 95 % intervals)
+    against the world index, DWA's rows beside them (black diamonds), written atomically to ``path``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from bulletnav.files import save_figure
+
+    colours = ["#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#F0E442"]
+    markers = ["o", "s", "^", "v", "P", "X", "<", ">"]
+    entries = section["controllers"]
+    n = len(entries)
+    step = min(6.0, max(1.0, _spacing(section["worlds"])))
+    width = 0.7 * step
+    fig, ax = plt.subplots(figsize=(max(8.0, 0.22 * len(section["worlds"]) + 3), 4.6))
+    for k, entry in enumerate(entries):
+        dwa = entry["source"] == "BARN"
+        shift = (k - (n - 1) / 2) * width / max(1, n - 1)
+        xs = [p["world"] + shift for p in entry["per_world"] if p["metric"]["mean"] is not None]
+        ys = [p["metric"]["mean"] for p in entry["per_world"] if p["metric"]["mean"] is not None]
+        lo = [p["metric"]["mean"] - p["metric"]["lo"] if p["metric"]["lo"] is not None else 0.0
+              for p in entry["per_world"] if p["metric"]["mean"] is not None]
+        hi = [p["metric"]["hi"] - p["metric"]["mean"] if p["metric"]["hi"] is not None else 0.0
+              for p in entry["per_world"] if p["metric"]["mean"] is not None]
+        mean = entry["overall"]["metric"]["mean"]
+        label = f"{entry['name']}{' (' + DWA_NOTE + ')' if dwa else ''}: mean {mean:.3f}" if mean is not None else entry["name"]
+        ax.errorbar(xs, ys, yerr=[lo, hi], fmt="D" if dwa else markers[k % len(markers)], ms=5 if dwa else 4,
+                    color="#000000" if dwa else colours[k % len(colours)], elinewidth=0.8, capsize=0,
+                    label=label, zorder=3 if dwa else 2)
+    ax.set_xlabel("BARN world index")
+    ax.set_ylabel("BARN metric (mean of the world's runs)")
+    ax.set_ylim(-0.02, 0.52)
+    ax.axhline(0.5, color="#B4B4B4", lw=0.8, ls=":")
+    ax.set_title(f"BARN metric per world: {section['group']} ({len(section['worlds'])} worlds x {section['runs']} runs; "
+                 "bars: 95 % intervals)", fontsize=10)
+    ax.grid(axis="y", color="#E0E0E0", lw=0.6)
+    ax.legend(fontsize=7.5, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, frameon=False)
+    try:
+        save_figure(fig, path, format="png", dpi=110, bbox_inches="tight")
+    finally:
+        plt.close(fig)
+    return path
+
+
+def _spacing(worlds: list[int]) -> float:
+    """The smallest gap between consecutive world indices (the room each world's dots share)."""
+    ordered = sorted(worlds)
+    return float(min((b - a for a, b in zip(ordered, ordered[1:], strict=False)), default=6))
