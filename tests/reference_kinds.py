@@ -105,6 +105,8 @@ KINDS: dict[str, str] = {
     "test_barn_env.py::test_time_limit_counts_from_the_first_tenth_of_a_metre": "hand",  # 100 s, 0.1 m / 0.2 m/s
     "test_barn_env.py::test_world_index_by_make_and_by_reset_and_bad_ones_named": "formula",  # counts and t_opt from BARN's files
     "test_barn_env.py::test_check_env_passes": "library",
+    # test worlds idx * 6 by hand (report_test.py); built worlds' cylinder counts from BARN's world files
+    "test_barn_env.py::test_world_pools_draw_their_own_worlds_and_repeat_with_the_seed": "hand",
     # ---- test_barn_jackal.py
     # Clearpath's numbers written in the test against what PyBullet loads (track, wheel radius) and the outline
     "test_barn_jackal.py::test_geometry_wheels_and_rest_height_are_the_jackals": "hand",
@@ -256,6 +258,8 @@ KINDS: dict[str, str] = {
     "test_features.py::test_extractor_rejects_an_observation_shorter_than_the_scan": "contract",
     "test_features.py::test_point_clearance_matches_pybullet_closest_distance": "library",
     "test_features.py::test_point_metric_sees_an_edge_between_rays": "hand",
+    "test_features.py::test_jackal_outline_by_hand_and_the_article_robots_unchanged": "hand",  # Jackal spec 0.508 x 0.430 m
+    "test_features.py::test_jackal_footprint_matches_its_collision_outline_in_pybullet": "library",  # PyBullet ray casts
     # ---- test_fleet.py
     "test_fleet.py::test_parallel_api": "library",  # PettingZoo's parallel_api_test
     "test_fleet.py::test_aec_api": "library",  # PettingZoo's api_test

@@ -149,3 +149,45 @@ def test_check_env_passes():
         check_env(e, skip_render_check=True)
     finally:
         e.close()
+
+
+def test_world_pools_draw_their_own_worlds_and_repeat_with_the_seed():
+    """BARN's report_test.py scores the test worlds idx * 6 for idx in 0-49 (written out here); a
+    pool draws only its own worlds, the same seed gives the same worlds, and the world built is the
+    one drawn (cylinder count from the world file)."""
+    from bulletnav.barn.data import TEST_WORLDS, TRAIN_WORLDS
+
+    test = {6 * k for k in range(50)}
+    assert set(TEST_WORLDS) == test and len(TEST_WORLDS) == 50 and max(TEST_WORLDS) == 294
+    assert set(TRAIN_WORLDS) == set(range(300)) - test and len(TRAIN_WORLDS) == 250
+
+    def draws(env, seed: int, n: int = 3) -> list[int]:
+        out = [env.reset(seed=seed)[1]["world_idx"]]
+        return out + [env.reset()[1]["world_idx"] for _ in range(n - 1)]
+
+    e = gym.make("bulletnav/BARN-v0", world_idx="train")
+    try:
+        a, b, c = draws(e, 5), draws(e, 5), draws(e, 6)
+        assert a == b and a != c
+        assert not set(a + c) & test
+        _, info = e.reset(options={"world_idx": 0})  # an explicit world, even a test world
+        assert info["world_idx"] == 0 and len(e.unwrapped.scene.layout.obstacles) == len(_centres(0))
+    finally:
+        e.close()
+    e = gym.make("bulletnav/BARN-v0", world_idx=[1, 299])
+    try:
+        seen = draws(e, 0, 4)
+        assert set(seen) == {1, 299}  # (seed 0 draws both: the resets below switch worlds)
+        e.reset(seed=0)
+        for world in seen[1:]:  # the same draws again: the built world is the drawn one
+            _, info = e.reset()
+            assert info["world_idx"] == world
+            assert len(e.unwrapped.scene.layout.obstacles) == len(_centres(world))
+        _, _, _, _, info = e.step(e.action_space.sample())
+        assert info["world_idx"] == world
+    finally:
+        e.close()
+    for bad, match in (("train2", "'train2' is neither"), ([], "empty list"), ([3, 3], r"world\(s\) \[3\] more than once"),
+                       ([5, 300], "300 is not"), (2.0, "2.0 is neither")):
+        with pytest.raises(LayoutError, match=match):
+            gym.make("bulletnav/BARN-v0", world_idx=bad)

@@ -128,3 +128,52 @@ def test_point_metric_sees_an_edge_between_rays():
                                                             np.array([r * math.sin(angles[i])]))[0], atol=1e-5)
     with pytest.raises(ValueError, match="metric"):
         ClearanceFeatures(obs_space, metric="nearest")
+
+
+# The Jackal's outline by hand (Clearpath's spec sheet: 0.508 m long, 0.430 m wide) and its lidar
+# 5.5 cm ahead of the body centre (BARN's JACKAL_LASER_OFFSET on the front mount, run.py:42).
+JACKAL_HALF_LENGTH, JACKAL_HALF_WIDTH, JACKAL_LIDAR_X = 0.508 / 2, 0.430 / 2, 0.055
+
+
+def test_jackal_outline_by_hand_and_the_article_robots_unchanged():
+    """73 rays over 270 deg (every 3.75 deg) put rays straight ahead, at +-90 deg and at -135 deg:
+    the front face is 0.254 - 0.055 m ahead of the lidar, the sides (wheel guards) 0.215 m beside
+    it, and at -135 deg the ray leaves through the guard's side at 0.215 * sqrt(2). The default
+    extractor is still the article robot's (front face 0.15 m, lidar 0.10 m ahead of the centre)."""
+    foot = footprint_distances(73, 270.0, robot="jackal")
+    assert foot[36] == pytest.approx(JACKAL_HALF_LENGTH - JACKAL_LIDAR_X, abs=1e-9)
+    assert foot[60] == pytest.approx(JACKAL_HALF_WIDTH, abs=1e-9)
+    assert foot[12] == pytest.approx(JACKAL_HALF_WIDTH, abs=1e-9)
+    assert foot[0] == pytest.approx(JACKAL_HALF_WIDTH * math.sqrt(2.0), abs=1e-9)
+    jackal = ClearanceFeatures(spaces.Box(-3.0, 3.0, (79,), dtype=np.float32), num_rays=72, lidar_range=30.0,
+                               fov=None, robot="jackal")  # fov None: the Jackal's 270 deg
+    np.testing.assert_allclose(jackal.footprint.numpy(), footprint_distances(72, 270.0, robot="jackal"), rtol=1e-6)
+    obs = np.ones((1, 79), dtype=np.float32)
+    obs[0, :72] = jackal.footprint.numpy() / 30.0  # every ray touching the Jackal's outline
+    np.testing.assert_allclose(jackal(torch.as_tensor(obs)).numpy()[0, 79:], 1.0, atol=1e-4)
+    article = ClearanceFeatures(spaces.Box(-3.0, 3.0, (43,), dtype=np.float32))
+    assert float(article.footprint[int(np.argmin(np.abs(ray_angles(36, 360.0))))]) == pytest.approx(0.15 - 0.10, abs=1e-7)
+    with pytest.raises(ValueError, match="robot must be one of"):
+        ClearanceFeatures(spaces.Box(-3.0, 3.0, (43,), dtype=np.float32), robot="husky")
+
+
+def test_jackal_footprint_matches_its_collision_outline_in_pybullet():
+    """As for the article robot: rays cast inward at wheel-centre height toward the Jackal's lidar
+    first hit its collision outline where footprint_distances says, over its 72 rays and 270 deg."""
+    from bulletnav.config import robot_preset
+
+    scene = Scene(robot_preset(EnvConfig(), "jackal"))
+    try:
+        scene.use_layout(Layout((10.0, 10.0)))
+        scene.place_robot((0.0, 0.0, 0.0), np.random.default_rng(0))
+        cid, body, robot = scene.cid, scene.robot.body, scene.robot
+        lidar_xy = p.getLinkState(body, robot.lidar_link, physicsClientId=cid)[4][:2]
+        wheel_z = p.getLinkState(body, robot.left_joint, physicsClientId=cid)[4][2]
+        angles = ray_angles(72, 270.0)
+        starts = [[lidar_xy[0] + math.cos(a), lidar_xy[1] + math.sin(a), wheel_z] for a in angles]
+        hits = p.rayTestBatch(starts, [[lidar_xy[0], lidar_xy[1], wheel_z]] * len(angles), physicsClientId=cid)
+    finally:
+        scene.close()
+    assert all(h[0] == body for h in hits), "every inward ray must hit the robot"
+    measured = np.array([1.0 - h[2] for h in hits])
+    assert np.abs(measured - footprint_distances(72, 270.0, robot="jackal")).max() < 0.005
