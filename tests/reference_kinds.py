@@ -79,6 +79,17 @@ KINDS: dict[str, str] = {
     "test_architecture.py::test_a_failed_rename_removes_the_temp_file": "contract",
     # the standard library's json.dumps and Pillow reading the PNG back
     "test_architecture.py::test_the_writers_write_what_they_are_given": "library",
+    # ---- test_barn_controllers.py
+    "test_barn_controllers.py::test_navigator_settings_come_from_the_envs_robot": "hand",  # control.yaml 2.0 m/s, 4.0 rad/s
+    "test_barn_controllers.py::test_outline_reach_and_braking_speed_by_hand": "hand",  # spec-sheet outline, v = sqrt(2 a d)
+    "test_barn_controllers.py::test_shield_stops_the_jackal_by_its_own_sweep": "formula",  # stop sweep and ray-circle scan
+    "test_barn_controllers.py::test_shielded_jackal_at_full_speed_keeps_its_outline_off_a_wall": "formula",  # corners vs wall
+    "test_barn_controllers.py::test_navigate_world_idx_drives_a_barn_training_world": "hand",  # 4 t_opt of BARN's score
+    "test_barn_controllers.py::test_world_idx_needs_barn_and_a_valid_index": "contract",
+    "test_barn_controllers.py::test_navigator_reset_fits_each_episodes_robot": "hand",
+    # ---- test_bench_barn.py
+    "test_bench_barn.py::test_bench_env_barn_times_seeded_resets_and_the_bare_floor": "hand",  # 209 cylinders in world_0.world
+    "test_bench_barn.py::test_bare_rebuild_holds_the_envs_world": "library",  # PyBullet's ray casts in a bare client
     # ---- test_barn_data.py
     # cylinder poses by a regex written in the test on BARN's own world files; paths against BARN's .npy
     "test_barn_data.py::test_shipped_worlds_match_the_world_files_text": "formula",

@@ -48,27 +48,34 @@ from bulletnav.sim.client import configure_physics
 REGISTERED = ("bulletnav/Warehouse-v0", "bulletnav/WarehouseAisles-v0", "bulletnav/WarehouseDynamic-v0",
               "bulletnav/WarehouseMission-v0")
 """The registered ids, in the order the benchmark reports them."""
+BARN_ID = "bulletnav/BARN-v0"
+"""BARN's worlds: resets timed by :func:`bench_barn_resets` (seeded, so they rebuild)."""
 
 
-def _snapshot(cid: int, robot: int) -> list[tuple]:
-    """Every body of client ``cid`` but the robot, as the arguments to create it again:
-    (collision geometry, dimensions, visual geometry, dimensions, colour, position, orientation)."""
+def _snapshot(cid: int, robot: int, skip: frozenset[tuple[float, float, float]] = frozenset()) -> list[tuple]:
+    """Every body of client ``cid`` but the robot (and bodies standing at a position in ``skip``),
+    as the arguments to create it again: (collision geometry, dimensions, visual geometry,
+    dimensions, colour, position, orientation)."""
     bodies = []
     for k in range(p.getNumBodies(physicsClientId=cid)):
         body = p.getBodyUniqueId(k, physicsClientId=cid)
         if body == robot:
             continue
+        pos, orn = p.getBasePositionAndOrientation(body, physicsClientId=cid)
+        if tuple(round(v, 4) for v in pos) in skip:
+            continue
         col = p.getCollisionShapeData(body, -1, physicsClientId=cid)[0]
         vis = p.getVisualShapeData(body, physicsClientId=cid)
-        pos, orn = p.getBasePositionAndOrientation(body, physicsClientId=cid)
         shape = (col[2], tuple(col[3]))
         visual = (vis[0][2], tuple(vis[0][3]), tuple(vis[0][7])) if vis else None
         bodies.append((shape, visual, pos, orn))
     return bodies
 
 
-def _raw_build(cid: int, physics: Any, bodies: list[tuple], urdf: str) -> None:
-    """Rebuild ``bodies`` (from :func:`_snapshot`) and the robot from scratch in client ``cid``."""
+def _raw_build(cid: int, physics: Any, bodies: list[tuple], urdf: str, batch: tuple = ()) -> None:
+    """Rebuild ``bodies`` (from :func:`_snapshot`) and the robot from scratch in client ``cid``;
+    with ``batch`` = (radius, height, positions), also those cylinders, static and collision-only,
+    in one batched ``createMultiBody`` as :class:`~bulletnav.barn.world.BarnPhysicsWorld` builds them."""
     p.resetSimulation(physicsClientId=cid)
     configure_physics(cid, physics)
     for (geom, dims), visual, pos, orn in bodies:
@@ -88,12 +95,20 @@ def _raw_build(cid: int, physics: Any, bodies: list[tuple], urdf: str) -> None:
                 vis = p.createVisualShape(p.GEOM_CYLINDER, radius=vdims[1], length=vdims[0], rgbaColor=colour,
                                           physicsClientId=cid)
         p.createMultiBody(0.0, col, vis, pos, orn, physicsClientId=cid)
+    if batch:
+        radius, height, positions = batch
+        col = p.createCollisionShape(p.GEOM_CYLINDER, radius=radius, height=height, physicsClientId=cid)
+        p.createMultiBody(0.0, col, -1, batchPositions=positions, useMaximalCoordinates=True, physicsClientId=cid)
     p.loadURDF(urdf, [0, 0, 0], flags=p.URDF_USE_INERTIA_FROM_FILE | p.URDF_USE_IMPLICIT_CYLINDER, physicsClientId=cid)
 
 
 def bench_resets(env_id: str, resets: int = 200, seed: int = 0) -> dict[str, Any]:
-    """Median env reset and raw PyBullet rebuild of the same worlds (see the module docstring)."""
+    """Median env reset and raw PyBullet rebuild of the same worlds (see the module docstring);
+    BARN-v0's by :func:`bench_barn_resets`."""
     import bulletnav  # noqa: F401  (registers the ids)
+
+    if env_id == BARN_ID:
+        return bench_barn_resets(resets, seed)
 
     env = gym.make(env_id)
     env.reset(seed=seed)  # compiles the kernels, loads the caches: not timed
@@ -130,6 +145,71 @@ def bench_resets(env_id: str, resets: int = 200, seed: int = 0) -> dict[str, Any
         "raw_reset_ms": round(float(np.median(raw_ms)), 2),
         "bodies_per_world": round(float(np.mean([len(w) + 1 for w in worlds])), 1),
     }
+
+
+def _cylinder_batch(layout: Any) -> tuple:
+    """(radius, height, positions) of ``layout``'s cylinders, as BARN's world builds them."""
+    cylinders = [o for o in layout.obstacles if o.kind == "cylinder"]
+    radius, height = cylinders[0].radius, cylinders[0].height
+    return radius, height, [[o.center[0], o.center[1], height / 2] for o in cylinders]
+
+
+def bench_barn_resets(resets: int = 200, seed: int = 0, world_idx: int = 0) -> dict[str, Any]:
+    """BARN-v0's resets on world ``world_idx``, timed three ways, and the bare PyBullet floor.
+
+    - ``reset_ms``: median of ``resets`` seeded resets (``reset(seed=seed + k)``): every one
+      rebuilds the world (floor, walls, the world's cylinders in one batched call, the robot),
+      as every bulletnav env does on a seeded reset;
+    - ``unseeded_reset_ms``: median of unseeded resets on the same world (the robot moved back,
+      nothing rebuilt);
+    - ``switch_reset_ms``: median of unseeded resets that switch world (``options={"world_idx"}``,
+      alternating with the next world);
+    - ``raw_reset_ms``: the same bodies built from scratch in a bare PyBullet client
+      (``resetSimulation``, the physics settings, floor and walls, the cylinders by one batched
+      ``createMultiBody``, the robot's URDF): the floor of a rebuilding reset;
+      ``raw_cylinders_ms`` the batched cylinder call alone. Batched bodies are not listed by
+      ``getNumBodies``, so the cylinders come from the layout, the other bodies from the client.
+    """
+    env = gym.make(BARN_ID, world_idx=world_idx)
+    env.reset(seed=seed)  # compiles the kernels, loads the caches: not timed
+    scene = env.unwrapped.scene
+    clock = time.perf_counter
+
+    def median_ms(call: Any, n: int) -> tuple[float, float]:
+        times = []
+        for k in range(n):
+            t0 = clock()
+            call(k)
+            times.append(clock() - t0)
+        ms = np.array(times) * 1e3
+        return round(float(np.median(ms)), 2), round(float(np.percentile(ms, 90)), 2)
+
+    seeded, seeded_p90 = median_ms(lambda k: env.reset(seed=seed + 1 + k), resets)
+    layout = scene.layout
+    batch = _cylinder_batch(layout)  # the batched bodies (getNumBodies lists a few of them at most)
+    others = _snapshot(scene.client, scene.robot_body, frozenset(tuple(round(v, 4) for v in c) for c in batch[2]))
+    unseeded, _ = median_ms(lambda k: env.reset(), resets)
+    switch, _ = median_ms(lambda k: env.reset(options={"world_idx": (world_idx + 1 - k % 2) % 300}), min(resets, 40))
+    config = env.unwrapped.config
+    physics, urdf = config.physics, str(config.robot.urdf_path())
+    env.close()
+    raw_cid = p.connect(p.DIRECT)
+    try:
+        _raw_build(raw_cid, physics, others, urdf, batch)  # warm-up
+        raw, _ = median_ms(lambda k: _raw_build(raw_cid, physics, others, urdf, batch), resets)
+        cylinders = []
+        for _ in range(min(resets, 40)):  # the batched call alone, each in an empty world
+            p.resetSimulation(physicsClientId=raw_cid)
+            configure_physics(raw_cid, physics)
+            t0 = clock()
+            col = p.createCollisionShape(p.GEOM_CYLINDER, radius=batch[0], height=batch[1], physicsClientId=raw_cid)
+            p.createMultiBody(0.0, col, -1, batchPositions=batch[2], useMaximalCoordinates=True, physicsClientId=raw_cid)
+            cylinders.append(clock() - t0)
+    finally:
+        p.disconnect(physicsClientId=raw_cid)
+    return {"resets": resets, "world_idx": world_idx, "reset_ms": seeded, "reset_ms_p90": seeded_p90,
+            "unseeded_reset_ms": unseeded, "switch_reset_ms": switch, "raw_reset_ms": raw,
+            "raw_cylinders_ms": round(float(np.median(cylinders)) * 1e3, 2), "bodies_per_world": len(others) + len(batch[2]) + 1}
 
 
 def bench_throughput(env_id: str, steps: int = 6000, seed: int = 0) -> dict[str, Any]:

@@ -7,10 +7,48 @@ from __future__ import annotations
 import argparse
 
 from bulletnav.cli import interrupts
-from bulletnav.cli.args import DEFAULT_ENV_ID
+from bulletnav.cli.args import DEFAULT_ENV_ID, int_type
 from bulletnav.cli.envs import check_env_id, shielded, world_kwargs, world_label
 from bulletnav.cli.output import print_json, safety_line, shield_line
+from bulletnav.errors import BulletnavError
 from bulletnav.rl.envs import EVALUATE_OBSTACLES
+
+BARN_ENV_ID = "bulletnav/BARN-v0"
+"""The env whose worlds ``--world-idx`` picks."""
+BARN_WORLDS = 300
+"""BARN's static worlds, 0-299."""
+WORLD_IDX = int_type(0, BARN_WORLDS - 1, "a BARN world index, a whole number")
+
+
+def add_world_idx_arg(parser: argparse.ArgumentParser) -> None:
+    """``--world-idx N``: the BARN world of every episode (``--env bulletnav/BARN-v0`` only)."""
+    parser.add_argument("--world-idx", type=WORLD_IDX, default=None, metavar="N",
+                        help=f"BARN world 0-{BARN_WORLDS - 1} for every episode (with --env {BARN_ENV_ID} only; "
+                             "default 0; BARN's test worlds are 0, 6, ..., 294)")
+
+
+def world_idx_kwargs(args: argparse.Namespace) -> dict:
+    """``{"world_idx": N}`` for ``--world-idx N`` on BARN-v0, nothing without it.
+
+    Raises:
+        BulletnavError: ``--world-idx`` with another env (the message names it).
+    """
+    index = getattr(args, "world_idx", None)
+    if index is None:
+        return {}
+    if args.env_id != BARN_ENV_ID:
+        raise BulletnavError(f"--world-idx {index}: picks a BARN world, so it needs --env {BARN_ENV_ID} "
+                             f"(not {args.env_id})")
+    return {"world_idx": index}
+
+
+def episode_world_label(args: argparse.Namespace, env, obstacles: int | None = None) -> str:
+    """The report's name of the world: ``BARN world N`` on BARN-v0 (the env's own index), else
+    :func:`~bulletnav.cli.envs.world_label`'s (layout file or procedural)."""
+    index = getattr(env.unwrapped, "world_idx", None)
+    if index is not None:
+        return f"BARN world {index}"
+    return world_label(args, obstacles)
 
 
 class Visuals:
@@ -170,6 +208,7 @@ def load_for_evaluation(args: argparse.Namespace, model_path: str) -> tuple:
     default_obstacles = EVALUATE_OBSTACLES if args.env_id == DEFAULT_ENV_ID else None
     env_kwargs = evaluation_env_kwargs(meta.get("env_kwargs", {}))
     env_kwargs.update(world_kwargs(args, default_obstacles))
+    env_kwargs.update(world_idx_kwargs(args))
     env = shielded(args, gym.make(args.env_id, render_mode="human" if args.gui else None, **env_kwargs))
     try:
         check_model_fits(model, env, model_path, args.env_id)
@@ -229,15 +268,18 @@ def evaluate_report(args: argparse.Namespace, model_path: str, loaded: tuple | N
     algo = str(meta.get("algo", getattr(args, "algo", None) or "?")).upper()
     if not args.json:
         env_name = "" if args.env_id == DEFAULT_ENV_ID else f", {args.env_id}"
+        if getattr(env.unwrapped, "world_idx", None) is not None:
+            env_name += f", BARN world {env.unwrapped.world_idx}"
         shift = (f", perturb {args.perturb}" if args.perturb else "") + (", shield" if args.shield else "")
         print(f"{BAR}\nRunning {args.episodes} evaluation episodes ({algo} {model_path}, seed {args.seed}{env_name}{shift})\n{BAR}")
+    label = episode_world_label(args, env, default_obstacles)
     results, written, layout_size = run_with_visuals(args, env, SB3Policy(model, vecnorm), _episode_line(args),
                                                      f"{algo} (seed {args.seed})")
     s = summarize(results)
     keys = (*REPORT_KEYS, *SAFETY_KEYS, *SHIELD_KEYS, "progress", "ppl", "goals_per_minute", "per_episode")
     out = {k: s[k] for k in keys}
     out.update(model=str(model_path), seed=args.seed, env_id=args.env_id,
-               world=world_label(args, default_obstacles), world_size=layout_size, perturb=args.perturb, shield=args.shield,
+               world=label, world_size=layout_size, perturb=args.perturb, shield=args.shield,
                physics=env_kwargs.get("physics", "default"), physics_hz=env.unwrapped.config.physics.physics_hz)
     if args.json:
         print_json(out)

@@ -26,7 +26,7 @@ from bulletnav.cli.args import (
     add_shield_arg,
     add_trust_pickle_arg,
 )
-from bulletnav.cli.episodes import evaluate_report, load_for_evaluation
+from bulletnav.cli.episodes import add_world_idx_arg, evaluate_report, load_for_evaluation
 from bulletnav.cli.output import holds_run, print_json, refuse_existing_files
 from bulletnav.errors import BulletnavError
 
@@ -53,6 +53,7 @@ def _register_evaluate(sub) -> None:
     ev.add_argument("--episodes", type=COUNT, default=10, help="episodes to run (default 10)")
     add_env_arg(ev, MODEL_ENV_HELP)
     ev.add_argument("--world", metavar="FILE", help="layout YAML, map_server map YAML or Gazebo .world (default: procedural)")
+    add_world_idx_arg(ev)
     add_mission_args(ev)
     add_obstacles_arg(ev, "31 on Warehouse-v0, else the model's or the env's")
     ev.add_argument("--seed", type=SEED, default=1000, help="episode k uses env seed S + k (default 1000)")

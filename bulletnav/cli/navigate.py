@@ -16,8 +16,8 @@ from bulletnav.cli.args import (
     add_shield_arg,
     add_world_args,
 )
-from bulletnav.cli.envs import make_env, shielded, world_label
-from bulletnav.cli.episodes import run_with_visuals
+from bulletnav.cli.envs import make_env, shielded
+from bulletnav.cli.episodes import add_world_idx_arg, episode_world_label, run_with_visuals, world_idx_kwargs
 from bulletnav.cli.output import fmt, outcome, print_json, refuse_existing_files, safety_line, shield_line
 
 
@@ -28,6 +28,7 @@ def register(sub) -> None:
                      help="planner on the lidar map: none (PID at the goal), astar or rrt (default astar)")
     nav.add_argument("--episodes", type=COUNT, default=10, help="episodes to run (default 10)")
     add_world_args(nav)
+    add_world_idx_arg(nav)
     add_mission_args(nav)
     nav.add_argument("--pose", choices=["truth", "odometry"], default="truth",
                      help="pose for mapping and steering (default truth)")
@@ -45,7 +46,8 @@ def cmd_navigate(args: argparse.Namespace) -> int:
     from bulletnav.evaluation import summarize
 
     refuse_existing_files(args, "video", "plot", "record")
-    env = shielded(args, make_env(args))
+    env = shielded(args, make_env(args, **world_idx_kwargs(args)))
+    label = episode_world_label(args, env)
     nav = Navigator(env.unwrapped.scene, NavigatorConfig(planner=args.planner, pose_source=args.pose))
 
     def line(r) -> None:
@@ -58,7 +60,7 @@ def cmd_navigate(args: argparse.Namespace) -> int:
     results, written, layout_size = run_with_visuals(args, env, nav, line, f"PID + {args.planner} (seed {args.seed})")
     summary = summarize(results)
     summary.update(planner=args.planner, seed=args.seed, pose_source=args.pose, env_id=args.env_id,
-                   world=world_label(args), world_size=layout_size, perturb=args.perturb, shield=args.shield,
+                   world=label, world_size=layout_size, perturb=args.perturb, shield=args.shield,
                    physics=args.physics or "default")
     if args.json:
         print_json(summary)

@@ -5,13 +5,14 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
+from bulletnav.config import TaskConfig
 from bulletnav.control.pid import PID
-from bulletnav.geometry import RobotGeometry
+from bulletnav.geometry import RobotGeometry, robot_geometry
 from bulletnav.planning import OccupancyGrid, astar, rrt, warmup
 from bulletnav.planning.mapping import LidarMapper
 from bulletnav.planning.rrt import DEFAULT_MAX_ITERS
@@ -42,6 +43,20 @@ class ControllerConfig:
     """Distance to the goal (m) inside which the speed ramps down."""
     side_margin: float = 0.2
     """Clearance (m) beside the robot under which the heading is blended toward the obstacle's tangent."""
+    outline_clearance: bool = False
+    """Measure clearances to the robot's collision outline (its rectangles) instead of its disc
+    (``RobotGeometry.radius``): for a robot much longer than wide, whose disc overstates its
+    width by a lot (the Jackal: 0.215 m half width, 0.35 m disc)."""
+    brake_decel: float | None = None
+    """With a value (m/s^2), forward speed is set by braking instead of the linear ramp between
+    ``stop_distance`` and ``safety_distance``: at most ``sqrt(2 a d)``, where ``d`` is the free
+    length of the corridor the robot's width sweeps straight ahead less ``stop_distance``, and
+    at most ``max_speed * c / near_range`` where ``c`` is the nearest clearance around the front
+    half (at least ``crawl_speed``). None: the ramp (the article robot's controller)."""
+    near_range: float = 0.6
+    """With ``brake_decel``: clearance (m) to anything ahead or beside at which full speed is allowed."""
+    crawl_speed: float = 0.2
+    """With ``brake_decel``: the speed (m/s) the nearness cap never goes under (braking still can)."""
 
 
 @dataclass(frozen=True)
@@ -79,6 +94,15 @@ class NavigatorConfig:
     max_wait: float = 4.0
     """Seconds to wait for a mover before planning around it (a stopped or yielding mover is
     planned around at once: it is an obstacle in the lidar map)."""
+    fit_robot: bool = True
+    """Fit the settings to a robot other than the article's (:func:`fit_to_robot`): its top
+    speed and turn rate, braking-limited speed, clearances to its outline, a narrow-gap plan.
+    The article robot (the shipped URDF with Warehouse-v0's action bounds, which these defaults
+    were tuned for) always gets the settings as given."""
+    narrow_inflation: float | None = None
+    """A last plan is tried with this inflation (m) when none is found with ``inflation``
+    (None: no such plan). :func:`fit_to_robot` sets it to a long, narrow robot's half width
+    plus 3 cm: driven along the plan it fits where its disc does not."""
 
     def __post_init__(self) -> None:
         if self.planner not in ("none", "astar", "rrt"):
@@ -89,6 +113,54 @@ class NavigatorConfig:
 
 def _wrap(angle: float) -> float:
     return math.remainder(angle, 2 * math.pi)
+
+
+NARROW_MARGIN = 0.03
+"""What :func:`fit_to_robot`'s narrow-gap plan adds to the robot's half width (m)."""
+
+
+def is_article_robot(scene: Any) -> bool:
+    """Whether ``scene`` drives the robot the navigator's defaults were tuned for: the shipped
+    URDF's geometry and Warehouse-v0's action bounds (0.5 m/s, 1.5 rad/s)."""
+    task = TaskConfig()
+    return (scene.geometry == robot_geometry()
+            and tuple(scene.command_limits) == ((0.0, task.max_speed), (-task.max_turn_rate, task.max_turn_rate)))
+
+
+def fit_to_robot(config: NavigatorConfig, scene: Any) -> NavigatorConfig:
+    """``config`` for the robot of ``scene``: itself for the article robot (:func:`is_article_robot`)
+    or with ``fit_robot`` off; for another robot the controller takes the env's top speed and
+    turn rate (``scene.command_limits``), speed limited by braking (``brake_decel`` 1.5 m/s^2, the
+    safety shield's assumed deceleration) and by nearness instead of the article's ramp,
+    clearances to the collision outline, a 0.3 m avoidance blend and a 0.1 m side margin (to the
+    outline, so tight clutter does not push it off its plan); the planner a 0.1 m grid and, for
+    a robot narrower than its disc, a last plan at its half width (``narrow_inflation``)."""
+    if not config.fit_robot or is_article_robot(scene):
+        return config
+    geometry = scene.geometry
+    (_, v_max), (_, w_max) = scene.command_limits
+    controller = replace(config.controller, max_speed=float(v_max), max_turn_rate=float(w_max), outline_clearance=True,
+                         brake_decel=1.5, safety_distance=0.3, side_margin=0.1)
+    half_width = max(abs(r.cy) + r.half_y for r in geometry.rectangles)
+    narrow = half_width + NARROW_MARGIN
+    inflation = geometry.radius if config.inflation is None else config.inflation
+    return replace(config, controller=controller, resolution=min(config.resolution, 0.1),
+                   narrow_inflation=narrow if narrow < inflation and config.narrow_inflation is None
+                   else config.narrow_inflation)
+
+
+def outline_reach(geometry: RobotGeometry, angles: np.ndarray, step: float = 0.002) -> np.ndarray:
+    """Distance (m) from the lidar to the edge of the robot's collision outline along each ray
+    (its rectangles' union, which the lidar lies in or near), in ``step`` m."""
+    lx, ly = geometry.lidar_mount[0], geometry.lidar_mount[1]
+    s = np.arange(0.0, 2.0 * geometry.outline_radius + step, step)
+    x = lx + s[None, :] * np.cos(angles)[:, None]
+    y = ly + s[None, :] * np.sin(angles)[:, None]
+    inside = np.zeros(x.shape, dtype=bool)
+    for r in geometry.rectangles:
+        inside |= (np.abs(x - r.cx) <= r.half_x) & (np.abs(y - r.cy) <= r.half_y)
+    last = np.where(inside.any(axis=1), inside.shape[1] - 1 - np.argmax(inside[:, ::-1], axis=1), 0)
+    return s[last]
 
 
 class GoToGoal:
@@ -111,10 +183,17 @@ class GoToGoal:
         self.sides = (np.abs(self.angles) > half) & (np.abs(self.angles) < math.radians(135))
         self.left = (self.angles > math.radians(15)) & (self.angles < math.radians(110))
         self.right = (self.angles < -math.radians(15)) & (self.angles > -math.radians(110))
-        # distance from the lidar to the footprint circle along each ray
         offset = geometry.lidar_offset
-        along = offset * np.cos(self.angles)
-        self.body = -along + np.sqrt(along**2 - offset**2 + geometry.radius**2)
+        if config.outline_clearance:  # distance from the lidar to the collision outline along each ray
+            self.body = outline_reach(geometry, self.angles)
+        else:  # distance from the lidar to the footprint circle along each ray
+            along = offset * np.cos(self.angles)
+            self.body = -along + np.sqrt(along**2 - offset**2 + geometry.radius**2)
+        self.cos, self.sin = np.cos(self.angles), np.sin(self.angles)
+        self.offset = offset
+        self.half_width = max(abs(r.cy) + r.half_y for r in geometry.rectangles)
+        self.nose = max(r.cx + r.half_x for r in geometry.rectangles)
+        self.front_half = np.abs(self.angles) <= math.pi / 2
         self.pid = PID(config.kp, config.ki, config.kd, -config.max_turn_rate, config.max_turn_rate, integral_limit=0.5)
 
     def reset(self) -> None:
@@ -141,13 +220,30 @@ class GoToGoal:
             away = bearing - math.copysign(math.pi / 2 + weight * math.pi / 4, bearing)
             desired = (1.0 - weight) * desired + weight * away
         w = self.pid.update(desired, dt)
-        clearance = min(1.0, max(0.0, (ahead - cfg.stop_distance) / (cfg.safety_distance - cfg.stop_distance)))
         align = max(0.0, math.cos(desired)) ** 2
-        v = cfg.max_speed * align * clearance
+        if cfg.brake_decel is None:
+            clearance = min(1.0, max(0.0, (ahead - cfg.stop_distance) / (cfg.safety_distance - cfg.stop_distance)))
+            v = cfg.max_speed * align * clearance
+        else:
+            v = align * self._braking_speed(ranges, clear)
         v = min(v, cfg.max_speed * max(0.3, goal_distance / cfg.goal_slowdown))
         if v < 0.05 and abs(w) < 0.5:  # blocked with the blends cancelling: turn toward more room
             w = 0.8 if float(ranges[self.left].mean()) >= float(ranges[self.right].mean()) else -0.8
         return v, w
+
+
+    def _braking_speed(self, ranges: np.ndarray, clear: np.ndarray) -> float:
+        """Top speed that can still stop before the corridor ahead is blocked (``brake_decel``),
+        capped by the nearest clearance around the front half (``near_range``, ``crawl_speed``)."""
+        cfg = self.config
+        x = self.offset + ranges * self.cos
+        y = ranges * self.sin
+        ahead = (np.abs(y) <= self.half_width + cfg.stop_distance) & (x > 0.0)
+        free = float(x[ahead].min()) - self.nose - cfg.stop_distance if ahead.any() else math.inf
+        v = math.sqrt(2.0 * cfg.brake_decel * max(free, 0.0))
+        near = max(float(clear[self.front_half].min()), 0.0)
+        cap = max(cfg.crawl_speed, cfg.max_speed * near / cfg.near_range)
+        return min(cfg.max_speed, v, cap)
 
 
 class Navigator:
@@ -172,6 +268,8 @@ class Navigator:
 
     def __init__(self, scene: Any, config: NavigatorConfig = NavigatorConfig()) -> None:
         self.scene = scene
+        self.given = config
+        """The settings as given; :attr:`config` is them fitted to the robot at each reset (:func:`fit_to_robot`)."""
         self.config = config
         self.plan_times: list[float] = []
         """Seconds spent in each planner call this episode."""
@@ -185,6 +283,7 @@ class Navigator:
     def reset(self, info: dict[str, Any]) -> None:
         """Prepare for the episode that ``info`` (from ``env.reset``) starts."""
         scene = self.scene
+        self.config = fit_to_robot(self.given, scene)
         lidar = scene.sensors.lidar
         geometry = scene.geometry
         self.angles = lidar.angles
@@ -265,7 +364,10 @@ class Navigator:
         if cfg.planner != "none":
             if new_cells or not self._inflated or (dynamic and self.mapper.freed):
                 raw = self.mapper.grid()
-                self._inflated = [raw.inflate(self.inflation + cfg.preferred_margin), raw.inflate(self.inflation)]
+                radii = [self.inflation + cfg.preferred_margin, self.inflation]
+                if cfg.narrow_inflation is not None:  # a long, narrow robot: the gaps it fits through aligned
+                    radii.append(cfg.narrow_inflation)
+                self._inflated = raw.inflate_many(radii)
             self._since_plan += 1
             blocked = bool(new_cells) and self.path is not None and not self._path_free(pose)
             if self.path is None or blocked or self._since_plan >= cfg.replan_every:

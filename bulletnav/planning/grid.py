@@ -183,16 +183,26 @@ class OccupancyGrid:
         Raises:
             ValueError: ``radius_m`` is negative or not finite.
         """
-        r = float(radius_m)
-        if not (math.isfinite(r) and r >= 0):
-            raise ValueError(f"radius_m must be a finite number >= 0 metres, got {radius_m!r}")
+        return self.inflate_many((radius_m,))[0]
+
+    def inflate_many(self, radii_m) -> list[OccupancyGrid]:
+        """:meth:`inflate` by each of ``radii_m`` (m), from one distance transform.
+
+        Raises:
+            ValueError: a radius is negative or not finite.
+        """
+        radii = [float(r) for r in radii_m]
+        for r, given in zip(radii, radii_m):
+            if not (math.isfinite(r) and r >= 0):
+                raise ValueError(f"radius_m must be a finite number >= 0 metres, got {given!r}")
         if not self._occ.any():
-            return OccupancyGrid(self._occ, self._res, self._origin)
+            return [OccupancyGrid(self._occ, self._res, self._origin) for _ in radii]
         # Exact Euclidean distance (in cells) from each cell centre to the nearest occupied
         # centre; squared distances are integers, so round them before comparing.
         dist = ndimage.distance_transform_edt(~self._occ)
-        limit = (r / self._res) ** 2 * (1.0 + _INFLATE_REL_TOL)
-        return OccupancyGrid(np.rint(dist * dist) <= limit, self._res, self._origin)
+        squared = np.rint(dist * dist)
+        return [OccupancyGrid(squared <= (r / self._res) ** 2 * (1.0 + _INFLATE_REL_TOL), self._res, self._origin)
+                for r in radii]
 
     def __repr__(self) -> str:
         nx, ny = self.shape

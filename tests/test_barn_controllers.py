@@ -1,0 +1,157 @@
+"""The classical controllers and the safety shield on BARN-v0's Jackal: settings from the env's
+robot (Clearpath's control.yaml: 2.0 m/s, 4.0 rad/s; the spec sheet's 0.430 m width), the
+braking speed and the outline worked by hand, the shield's stopping sweep against a cylinder at
+a known distance (the sweep's kinematics written out here), and PyBullet's contacts; the article
+robot keeps its settings bit for bit (the goldens check its episodes)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import bulletnav  # noqa: F401  (registers the ids)
+from bulletnav.cli import main
+from bulletnav.control.navigator import GoToGoal, Navigator, NavigatorConfig, fit_to_robot, outline_reach
+from bulletnav.control.shield import ShieldConfig, ShieldWrapper, shield_for
+
+JACKAL_V, JACKAL_W = 2.0, 4.0  # jackal_control/config/control.yaml: linear and angular max_velocity
+JACKAL_HALF_WIDTH = 0.430 / 2  # Clearpath's spec sheet: 0.508 x 0.430 m
+JACKAL_NOSE = 0.508 / 2
+LIDAR_X = 0.055  # the lidar's mount ahead of the body centre (BARN's JACKAL_LASER_OFFSET on the front mount)
+
+
+@pytest.fixture(scope="module")
+def barn():
+    env = gym.make("bulletnav/BARN-v0", world_idx=0)
+    env.reset(seed=0)
+    yield env
+    env.close()
+
+
+def test_navigator_settings_come_from_the_envs_robot(barn):
+    scene = barn.unwrapped.scene
+    fitted = fit_to_robot(NavigatorConfig(), scene)
+    c = fitted.controller
+    assert (c.max_speed, c.max_turn_rate) == (JACKAL_V, JACKAL_W)
+    assert c.outline_clearance and c.brake_decel == ShieldConfig().decel
+    assert fitted.narrow_inflation == pytest.approx(JACKAL_HALF_WIDTH + 0.03)
+    assert fit_to_robot(NavigatorConfig(fit_robot=False), scene).controller.max_speed == 0.5  # as given
+    warehouse = gym.make("bulletnav/Warehouse-v0")
+    try:
+        warehouse.reset(seed=0)
+        config = NavigatorConfig()
+        assert fit_to_robot(config, warehouse.unwrapped.scene) is config  # the article robot: untouched
+    finally:
+        warehouse.close()
+
+
+def test_outline_reach_and_braking_speed_by_hand(barn):
+    scene = barn.unwrapped.scene
+    angles = np.array([0.0, math.pi / 2, -math.pi / 2])
+    reach = outline_reach(scene.geometry, angles)
+    assert reach == pytest.approx([JACKAL_NOSE - LIDAR_X, JACKAL_HALF_WIDTH, JACKAL_HALF_WIDTH], abs=0.0021)
+    cfg = fit_to_robot(NavigatorConfig(), scene).controller
+    lidar = scene.sensors.lidar
+    ctrl = GoToGoal(cfg, lidar.angles, scene.geometry)
+    ranges = np.full(len(lidar.angles), 30.0)
+    ahead = int(np.argmin(np.abs(lidar.angles)))
+    ranges[ahead] = 1.0  # one hit 1 m out, 1.9 degrees off the axis
+    x = LIDAR_X + math.cos(lidar.angles[ahead])
+    expected = math.sqrt(2 * 1.5 * (x - JACKAL_NOSE - cfg.stop_distance))  # v^2 = 2 a d
+    v, _ = ctrl.command((0.0, 0.0, 0.0), (10.0, 0.0), ranges, scene.control_dt, goal_distance=10.0)
+    assert v == pytest.approx(expected, rel=1e-9)
+    ranges[ahead] = 30.0
+    v, _ = ctrl.command((0.0, 0.0, 0.0), (10.0, 0.0), ranges, scene.control_dt, goal_distance=10.0)
+    assert v == pytest.approx(JACKAL_V, rel=1e-3)  # nothing ahead: the Jackal's top speed
+
+
+def _cylinder_scan(angles: np.ndarray, centre: tuple[float, float], radius: float = 0.075) -> np.ndarray:
+    """Ranges from the lidar at (LIDAR_X, 0) to one cylinder (ray-circle intersection), else 30 m."""
+    ox, oy = LIDAR_X - centre[0], -centre[1]
+    dx, dy = np.cos(angles), np.sin(angles)
+    b = ox * dx + oy * dy
+    disc = b * b - (ox * ox + oy * oy - radius * radius)
+    t = -b - np.sqrt(np.maximum(disc, 0.0))
+    return np.where((disc >= 0) & (t > 0), t, 30.0)
+
+
+def test_shield_stops_the_jackal_by_its_own_sweep(barn):
+    shield = shield_for(barn)
+    assert (shield.v_max, shield.w_max) == (JACKAL_V, JACKAL_W)
+    assert shield.geometry == barn.unwrapped.scene.geometry
+    cfg, dt = shield.config, barn.unwrapped.scene.control_dt
+    travel = JACKAL_V * dt + JACKAL_V**2 / (2 * cfg.decel)  # one period at 2 m/s, then braking at decel
+    angles = shield.angles
+    a = angles[int(np.argmin(np.abs(angles)))]  # the ray nearest the axis goes through the centre
+    for slack, passes in ((0.02, True), (-0.02, False)):
+        hit_x = JACKAL_NOSE + travel + cfg.margin + slack  # the cylinder's nearest point, body frame
+        d = (hit_x - LIDAR_X) / math.cos(a) + 0.075
+        ranges = _cylinder_scan(angles, (LIDAR_X + d * math.cos(a), d * math.sin(a)))
+        decision = shield.filter(JACKAL_V, 0.0, JACKAL_V, ranges)
+        assert decision.intervened is not passes
+        if not passes:  # slower or swerving: a command whose own sweep misses the cylinder
+            assert (decision.v, decision.w) != (JACKAL_V, 0.0) and decision.safe
+            assert shield.check(decision.v, decision.w, JACKAL_V, shield.points(ranges))[0]
+
+
+WALL = """name: wall
+size: [12.0, 10.0]
+start: [-4.0, 0.0, 0.0]
+goal: [4.0, 0.0]
+obstacles:
+  - {type: box, center: [1.0, 0.0], size: [0.2, 8.0, 1.0], yaw: 0.0, label: wall}
+"""
+
+
+def test_shielded_jackal_at_full_speed_keeps_its_outline_off_a_wall(tmp_path):
+    world = tmp_path / "wall.yaml"
+    world.write_text(WALL)
+    env = ShieldWrapper(gym.make("bulletnav/Warehouse-v0", robot="jackal", world=str(world)))
+    try:
+        env.reset(seed=0)
+        scene = env.unwrapped.scene
+        full = scene.action_for(JACKAL_V, 0.0)
+        top, closest = 0.0, math.inf
+        corners = np.array([(sx * JACKAL_NOSE, sy * JACKAL_HALF_WIDTH) for sx in (-1, 1) for sy in (-1, 1)])
+        for _ in range(80):  # 3.3 s: full speed east at the wall's face (x = 0.9), 4.6 m ahead of the nose
+            _, _, terminated, truncated, info = env.step(full)
+            top = max(top, float(scene.sensors.odometry.read()[3]))
+            x, _, yaw = info["pose"][:3]
+            front = x + corners[:, 0] * math.cos(yaw) - corners[:, 1] * math.sin(yaw)
+            closest = min(closest, 0.9 - float(front.max()))
+            assert not info["collision"] and not (terminated or truncated)
+        assert top > 1.9  # it did reach the Jackal's speed
+        # the Jackal's own corners stayed off the wall, within a shield margin of it (the article
+        # robot's outline, 0.15 m long and 0.11 m wide, would have let them through)
+        assert 0.0 < closest < 0.1
+    finally:
+        env.close()
+
+
+def test_navigate_world_idx_drives_a_barn_training_world(capsys):
+    assert main(["navigate", "--env", "bulletnav/BARN-v0", "--world-idx", "40", "--episodes", "1", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["world"] == "BARN world 40"
+    episode = out["per_episode"][0]
+    assert out["success_rate"] == 1.0 and out["collision_rate"] == 0.0
+    assert episode["sim_time"] < 4 * 5.0  # under 4 t_opt (t_opt ~ 5 s): BARN's score >= 0.25
+
+
+def test_world_idx_needs_barn_and_a_valid_index(capsys):
+    assert main(["navigate", "--world-idx", "3", "--episodes", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--world-idx 3" in err and "bulletnav/BARN-v0" in err
+    with pytest.raises(SystemExit):
+        main(["navigate", "--env", "bulletnav/BARN-v0", "--world-idx", "300"])
+    assert "expected a BARN world index, a whole number from 0 to 299, got 300" in capsys.readouterr().err
+
+
+def test_navigator_reset_fits_each_episodes_robot(barn):
+    nav = Navigator(barn.unwrapped.scene)
+    _, info = barn.reset(seed=1)
+    nav.reset(info)
+    assert nav.config.controller.max_speed == JACKAL_V and nav.given == NavigatorConfig()
