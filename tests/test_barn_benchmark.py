@@ -162,15 +162,23 @@ def test_barn_score_is_barns_score_with_the_2_t_opt_clip():
 def test_a_barn_run_scores_its_rows_as_barn_and_reports_them(tmp_path):
     """Two real BARN episodes (the straight policy on world 93, a success, and world 0, a
     collision): the rows carry BARN's clock and score, the group's figures are report_test.py's
-    of those rows, the report shows DWA's note and links the plot it wrote."""
+    of those rows, the report shows DWA's note and links the plot it wrote. A second controller
+    left out with ``controllers=`` has no rows (and no made-up figures) until a resumed run."""
     from bulletnav.benchmark.report import write_report
     from bulletnav.benchmark.runner import run_suite
+    from bulletnav.errors import BulletnavError
 
     raw = {"name": "b", "episodes": 1, "seed": 11, "worlds": [{"env": "bulletnav/BARN-v0", "barn_worlds": [93, 0]}],
-           "controllers": [{"name": "straight", "type": "policy", "class": f"{__name__}:Straight"}]}
+           "controllers": [{"name": "straight", "type": "policy", "class": f"{__name__}:Straight"},
+                           {"name": "slow", "type": "policy", "class": f"{__name__}:Straight", "kwargs": {"speed": 0.5}}]}
     suite = parse_suite(raw, str(tmp_path / "b.yaml"), "0" * 64, trust_code=True)
-    results = run_suite(suite, tmp_path / "out", workers=1)
+    with pytest.raises(BulletnavError, match=r"--controllers: \['PPO'\] not in .*b.yaml; its controllers: \['straight', 'slow'\]"):
+        run_suite(suite, tmp_path / "out", workers=1, controllers=["PPO"])
+    results = run_suite(suite, tmp_path / "out", workers=1, controllers=["straight"])
     ok, hit = results["episodes"]
+    assert results["barn"][0]["controllers"][1]["overall"]["line"] is None  # "slow" not run yet
+    assert [r["controller"] for r in run_suite(suite, tmp_path / "out", workers=1, resume=True)["episodes"]] == \
+        ["straight", "slow", "straight", "slow"]
     assert (ok["world_idx"], ok["success"], hit["world_idx"], hit["collision"]) == (93, 1, 0, 1)
     t_opt = data.load_world(93).t_opt  # run.py's start, as the env scores
     assert ok["barn_metric"] == metric.barn_metric(True, ok["barn_time_s"], t_opt) > 0 and hit["barn_metric"] == 0.0

@@ -18,7 +18,7 @@ import multiprocessing
 import os
 import platform
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from importlib import import_module
 from itertools import islice
@@ -238,16 +238,26 @@ def reopen_rows(path: Path) -> list[dict[str, Any]]:
 
 
 def run_suite(suite: Suite, out: Path, workers: int = 1, address: str | None = None, resume: bool = False,
-              progress: Callable[[int, int], None] | None = None, root: Path = PROJECT_ROOT) -> dict[str, Any]:
+              progress: Callable[[int, int], None] | None = None, root: Path = PROJECT_ROOT,
+              controllers: Sequence[str] | None = None) -> dict[str, Any]:
     """Run ``suite`` into ``out`` (``episodes.jsonl`` as it goes, then ``results.json``) and
     return the results record. ``progress(done, total)`` is called after every chunk.
 
+    Args:
+        controllers: run only the suite's controllers of these names this time (``--controllers``);
+            the others' episodes are left for a later run with ``resume`` (their cells stay empty).
+
     Raises:
         BulletnavError: ``out`` holds an earlier run of another suite, or holds one and
-            ``resume`` is off; a controller or model that cannot be loaded.
+            ``resume`` is off; a controller or model that cannot be loaded; a name in
+            ``controllers`` that is not the suite's.
     """
     if workers < 1:
         raise BulletnavError(f"workers must be >= 1, got {workers}")
+    names = [c.name for c in suite.controllers]
+    unknown = [c for c in controllers or () if c not in names]
+    if unknown:
+        raise BulletnavError(f"--controllers: {unknown} not in {suite.source}; its controllers: {names}")
     out.mkdir(parents=True, exist_ok=True)
     try:  # a link named like one of the files must not carry the writes out of the folder
         log_path, meta_path, results_path = (inside(out, name) for name in ("episodes.jsonl", "suite.json", "results.json"))
@@ -266,6 +276,9 @@ def run_suite(suite: Suite, out: Path, workers: int = 1, address: str | None = N
     done = {cell_key(r["world"], r["controller"], r["episode"]) for r in rows}
     chunks = plan_chunks(suite, done, workers)
     total = suite.total
+    if controllers:
+        chunks = [chunk for chunk in chunks if names[chunk[1]] in controllers]
+        total = len(rows) + sum(len(eps) for _, _, eps in chunks)
     t0 = time.perf_counter()
     with RowLog(log_path, rows, total, progress) as keep:
         if address:

@@ -22,6 +22,9 @@ def register(sub) -> None:
     bm.add_argument("--workers", type=COUNT, default=1, help="local worker processes (default 1); rows are the same for any count")
     bm.add_argument("--address", metavar="HOST:PORT", help="run the episodes as tasks on this Ray cluster")
     bm.add_argument("--resume", action="store_true", help="go on with an interrupted run in DIR (finished episodes are kept)")
+    bm.add_argument("--controllers", nargs="+", metavar="NAME",
+                    help="run only these of the suite's controllers this time (names as in the suite); the others' "
+                         "episodes are left for a later --resume")
     bm.add_argument("--json", action="store_true", help="print the results record as JSON")
     bm.add_argument("--report-only", action="store_true", help="rebuild DIR/report.html from DIR/results.json, run nothing")
     bm.add_argument("--screenshots", action="store_true",
@@ -115,7 +118,8 @@ def _run(args: argparse.Namespace, suite, out, earlier: list[int]):
 
     interrupts.on_interrupt(lambda: interrupted_note(out / "episodes.jsonl", suite.total))
     try:
-        results = run_suite(suite, out, workers=args.workers, address=args.address, resume=args.resume, progress=progress)
+        results = run_suite(suite, out, workers=args.workers, address=args.address, resume=args.resume, progress=progress,
+                            controllers=args.controllers)
     except KeyboardInterrupt:
         if bar is not None:
             bar.leave = False  # the interrupted line says where it stopped
@@ -149,6 +153,9 @@ def _print_table(args: argparse.Namespace, suite, results: dict, out, report, ea
         row = []
         for c in controllers:
             s = cells[(w["name"], c)]
+            if not s["episodes"]:  # a controller left out with --controllers
+                row.append("-")
+                continue
             mark = " **best**" if best.get(w["name"]) == c else ""
             row.append(f"{s['success']['mean'] * 100:.1f} % / {s['collision']['mean'] * 100:.1f} % / "
                        f"{s['spl']['mean']:.3f}{mark}")
