@@ -103,7 +103,10 @@ class ShieldConfig:
     """The margin (m) of a sweep from rest (a turn in place): covers the 4 cm spacing of filled
     surfaces (a corner pokes up to 2 cm between two points) and leaves 1 cm."""
     decel: float = 1.5
-    """Braking deceleration assumed for the sweep (m/s^2; the motors reach about 2.6)."""
+    """Braking deceleration assumed for the sweep (m/s^2), for every robot: the article robot's
+    motors reach about 2.6, the Jackal's (``robot="jackal"``) about 3.5 (0.57 m from 2.0 m/s, on
+    the flat); the rest of the sweep is the env's robot: its outline, wheelbase, lidar and action
+    bounds (:func:`shield_for`)."""
     samples: int = 12
     """Poses along each sweep."""
     join: float = 0.25
