@@ -96,18 +96,21 @@ def test_demo_without_a_model_says_so(tmp_path, capsys):
 @pytest.mark.slow
 def test_demo_runs_the_shipped_dynamic_policy_and_reproduces_its_card(tmp_path, capsys):
     """``demo --env bulletnav/WarehouseDynamic-v0`` picks models/ppo_dynamic.zip, and its episode
-    is, to the bit, the first of the model card's 200-episode evaluation."""
+    is, to the bit, the model card's 200-episode evaluation's episode of the same seed: seed 1005,
+    the card's shortest success (164 steps; the video renders every step, and the card's first
+    episode, seed 1000, has 568)."""
     import json
 
     card = ROOT / "docs" / "results" / "dynamic_policy" / "ppo_dynamic_nominal.json"
     out = tmp_path / "demo"
-    assert main(["demo", "--env", "bulletnav/WarehouseDynamic-v0", "--episodes", "1", "--seed", "1000", "--json",
+    assert main(["demo", "--env", "bulletnav/WarehouseDynamic-v0", "--episodes", "1", "--seed", "1005", "--json",
                  "--out", str(out)]) == 0
     captured = capsys.readouterr()
     got = json.loads(captured.out)  # stdout is the one JSON document; the closing note goes to stderr
     assert "demo finished" in captured.err
     assert got["model"].endswith("models/ppo_dynamic.zip") and got["env_id"] == "bulletnav/WarehouseDynamic-v0"
-    want = json.loads(card.read_text())["per_episode"][:1]
+    want = [e for e in json.loads(card.read_text())["per_episode"] if e["seed"] == 1005]
+    assert len(want) == 1 and want[0]["success"]
     for g, w in zip(got["per_episode"], want, strict=True):
         assert (g["seed"], g["steps"], g["success"], g["collision"]) == (w["seed"], w["steps"], w["success"], w["collision"])
         assert g["reward"] == w["reward"] and g["path_length"] == w["path_length"]
