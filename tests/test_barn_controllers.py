@@ -69,6 +69,20 @@ def test_outline_reach_and_braking_speed_by_hand(barn):
     assert v == pytest.approx(JACKAL_V, rel=1e-3)  # nothing ahead: the Jackal's top speed
 
 
+def test_turn_guard_swings_the_jackals_corners_by_hand(barn):
+    scene = barn.unwrapped.scene
+    cfg = fit_to_robot(NavigatorConfig(), scene).controller
+    ctrl = GoToGoal(cfg, scene.sensors.lidar.angles, scene.geometry)
+    # turning clockwise by 0.2 rad swings the front-left corner (0.254, 0.215) to
+    # (0.254 cos 0.2 + 0.215 sin 0.2, -0.254 sin 0.2 + 0.215 cos 0.2) = (0.292, 0.160): a hit at
+    # (0.28, 0.16), 6 mm beyond the outline grown by 2 cm, is in its way; turning the other way
+    # the corner moves back and left, away from it
+    hit = np.array([[0.28, 0.16]])
+    assert ctrl._turn_hits(hit, -1.0) and not ctrl._turn_hits(hit, 1.0)
+    far = np.array([[0.40, 0.16]])  # the corner never gets past x = hypot(0.254, 0.215) = 0.333
+    assert not ctrl._turn_hits(far, -1.0) and not ctrl._turn_hits(far, 1.0)
+
+
 def _cylinder_scan(angles: np.ndarray, centre: tuple[float, float], radius: float = 0.075) -> np.ndarray:
     """Ranges from the lidar at (LIDAR_X, 0) to one cylinder (ray-circle intersection), else 30 m."""
     ox, oy = LIDAR_X - centre[0], -centre[1]

@@ -46,17 +46,22 @@ class ControllerConfig:
     outline_clearance: bool = False
     """Measure clearances to the robot's collision outline (its rectangles) instead of its disc
     (``RobotGeometry.radius``): for a robot much longer than wide, whose disc overstates its
-    width by a lot (the Jackal: 0.215 m half width, 0.35 m disc)."""
+    width by a lot (the Jackal: 0.215 m half width, 0.35 m disc). A slow turn whose corners would
+    swing into a lidar hit then turns the other way, crawls straight on, or stops."""
     brake_decel: float | None = None
     """With a value (m/s^2), forward speed is set by braking instead of the linear ramp between
     ``stop_distance`` and ``safety_distance``: at most ``sqrt(2 a d)``, where ``d`` is the free
-    length of the corridor the robot's width sweeps straight ahead less ``stop_distance``, and
+    length of the corridor the robot's width (plus ``corridor_margin``) sweeps straight ahead
+    less ``stop_distance`` (that length is also what counts as ahead for the avoidance blend), and
     at most ``max_speed * c / near_range`` where ``c`` is the nearest clearance around the front
     half (at least ``crawl_speed``). None: the ramp (the article robot's controller)."""
     near_range: float = 0.6
     """With ``brake_decel``: clearance (m) to anything ahead or beside at which full speed is allowed."""
     crawl_speed: float = 0.2
     """With ``brake_decel``: the speed (m/s) the nearness cap never goes under (braking still can)."""
+    corridor_margin: float = 0.02
+    """With ``brake_decel``: the corridor ahead is the robot's width plus this much (m) each side;
+    what is in it counts as ahead (the avoidance blend and the braking), what is beside it does not."""
 
 
 @dataclass(frozen=True)
@@ -117,6 +122,14 @@ def _wrap(angle: float) -> float:
 
 NARROW_MARGIN = 0.03
 """What :func:`fit_to_robot`'s narrow-gap plan adds to the robot's half width (m)."""
+TURN_GUARD_RAD = 0.35
+"""With ``outline_clearance``, a slow turn is checked this far ahead (rad, two control steps at
+4 rad/s) for corners swinging into what the lidar sees."""
+TURN_GUARD_MARGIN = 0.02
+"""The outline grows by this much (m) for that check."""
+TURN_GUARD_RATE = 1.5
+"""Top yaw rate (rad/s) of such a turn with something within the corners' reach: at 4 rad/s the
+robot's own spin carries the corners past a reversal (0.35 rad is 2 control steps at 4 rad/s, 5.6 at 1.5)."""
 
 
 def is_article_robot(scene: Any) -> bool:
@@ -194,6 +207,8 @@ class GoToGoal:
         self.half_width = max(abs(r.cy) + r.half_y for r in geometry.rectangles)
         self.nose = max(r.cx + r.half_x for r in geometry.rectangles)
         self.front_half = np.abs(self.angles) <= math.pi / 2
+        self.rectangles = np.array([(r.cx, r.cy, r.half_x, r.half_y) for r in geometry.rectangles])
+        self.reach = geometry.outline_radius
         self.pid = PID(config.kp, config.ki, config.kd, -config.max_turn_rate, config.max_turn_rate, integral_limit=0.5)
 
     def reset(self) -> None:
@@ -205,7 +220,9 @@ class GoToGoal:
         x, y, yaw = pose
         error = _wrap(math.atan2(target[1] - y, target[0] - x) - yaw)
         clear = ranges - self.body
-        ahead = float(clear[self.front].min())
+        # what lies ahead: the closest clearance in the front sector, or (braking) the free length
+        # of the corridor the robot's width sweeps straight ahead
+        ahead = float(clear[self.front].min()) if cfg.brake_decel is None else self._corridor(ranges)
         desired = error
         if ahead < cfg.safety_distance:
             weight = 1.0 - max(ahead, 0.0) / cfg.safety_distance
@@ -225,22 +242,71 @@ class GoToGoal:
             clearance = min(1.0, max(0.0, (ahead - cfg.stop_distance) / (cfg.safety_distance - cfg.stop_distance)))
             v = cfg.max_speed * align * clearance
         else:
-            v = align * self._braking_speed(ranges, clear)
+            v = align * self._braking_speed(ahead, clear)
         v = min(v, cfg.max_speed * max(0.3, goal_distance / cfg.goal_slowdown))
         if v < 0.05 and abs(w) < 0.5:  # blocked with the blends cancelling: turn toward more room
             w = 0.8 if float(ranges[self.left].mean()) >= float(ranges[self.right].mean()) else -0.8
+        if cfg.outline_clearance and v < cfg.crawl_speed and w != 0.0:
+            v, w = self._guard_turn(ranges, v, w, ahead)
         return v, w
 
+    def _guard_turn(self, ranges: np.ndarray, v: float, w: float, ahead: float) -> tuple[float, float]:
+        """A slow turn with lidar hits within its corners' reach turns at most ``TURN_GUARD_RATE``;
+        one whose corners would swing into a hit within ``TURN_GUARD_RAD`` becomes the turn the
+        other way, else a crawl straight ahead (room permitting), else a stop."""
+        points = self._near_points(ranges)
+        if len(points):  # something within the corners' reach: turn no faster than TURN_GUARD_RATE
+            w = max(-TURN_GUARD_RATE, min(TURN_GUARD_RATE, w))
+        if not self._turn_hits(points, math.copysign(1.0, w)):
+            return v, w
+        if not self._turn_hits(points, -math.copysign(1.0, w)):
+            return v, -w
+        if ahead > self.config.stop_distance + 0.05:
+            return self.config.crawl_speed / 2, 0.0
+        return 0.0, 0.0
 
-    def _braking_speed(self, ranges: np.ndarray, clear: np.ndarray) -> float:
-        """Top speed that can still stop before the corridor ahead is blocked (``brake_decel``),
-        capped by the nearest clearance around the front half (``near_range``, ``crawl_speed``)."""
-        cfg = self.config
+    def _near_points(self, ranges: np.ndarray) -> np.ndarray:
+        """Lidar hits (body frame, (N, 2)) within reach of the outline's corners as it turns."""
         x = self.offset + ranges * self.cos
         y = ranges * self.sin
-        ahead = (np.abs(y) <= self.half_width + cfg.stop_distance) & (x > 0.0)
-        free = float(x[ahead].min()) - self.nose - cfg.stop_distance if ahead.any() else math.inf
-        v = math.sqrt(2.0 * cfg.brake_decel * max(free, 0.0))
+        near = x * x + y * y <= (self.reach + TURN_GUARD_MARGIN) ** 2
+        return np.stack([x[near], y[near]], axis=1)
+
+    def _turn_hits(self, points: np.ndarray, sign: float) -> bool:
+        """Whether turning in place by up to ``TURN_GUARD_RAD`` the ``sign`` way brings the outline,
+        grown by ``TURN_GUARD_MARGIN``, onto a point not already on it."""
+        if not len(points):
+            return False
+        m = TURN_GUARD_MARGIN
+        rects = self.rectangles
+
+        def inside(px: np.ndarray, py: np.ndarray) -> np.ndarray:
+            return ((np.abs(px[:, None] - rects[:, 0]) <= rects[:, 2] + m)
+                    & (np.abs(py[:, None] - rects[:, 1]) <= rects[:, 3] + m)).any(axis=1)
+
+        free = ~inside(points[:, 0], points[:, 1])
+        px, py = points[free, 0], points[free, 1]
+        for theta in np.linspace(0.0, TURN_GUARD_RAD, 7)[1:] * sign:  # the points as the body sees them, turned back
+            c, s = math.cos(theta), math.sin(theta)
+            if inside(c * px + s * py, -s * px + c * py).any():
+                return True
+        return False
+
+
+    def _corridor(self, ranges: np.ndarray) -> float:
+        """Free length (m) ahead of the robot's nose of the corridor its width plus
+        ``corridor_margin`` each side sweeps straight ahead (inf when nothing is in it)."""
+        x = self.offset + ranges * self.cos
+        y = ranges * self.sin
+        inside = (np.abs(y) <= self.half_width + self.config.corridor_margin) & (x > 0.0)
+        return float(x[inside].min()) - self.nose if inside.any() else math.inf
+
+    def _braking_speed(self, ahead: float, clear: np.ndarray) -> float:
+        """Top speed that can still stop ``stop_distance`` short of what is ``ahead`` in the
+        corridor (``brake_decel``), capped by the nearest clearance around the front half
+        (``near_range``, ``crawl_speed``)."""
+        cfg = self.config
+        v = math.sqrt(2.0 * cfg.brake_decel * max(ahead - cfg.stop_distance, 0.0))
         near = max(float(clear[self.front_half].min()), 0.0)
         cap = max(cfg.crawl_speed, cfg.max_speed * near / cfg.near_range)
         return min(cfg.max_speed, v, cap)
