@@ -4,7 +4,8 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
-# pytest-xdist processes of `make test`, each running whole test modules (2: the CI machine's cores)
+# pytest-xdist processes of `make test`, each running whole test modules (2: the CI machine's cores), in the
+# order tests/conftest.py sets (longest first), not xdist's own (by a module's number of tests)
 TEST_WORKERS ?= 2
 
 .PHONY: demo test check fuzz install clean
@@ -22,14 +23,14 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/ruff check bulletnav tests
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet --site-dir build/site
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder
 
 # Day-to-day: ruff, the docs build and the tests not marked slow or gui (a few minutes on 2 cores);
 # `make test`, which CI runs, stays the whole suite.
 check: $(STAMP)
 	$(BIN)/ruff check bulletnav tests
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet --site-dir build/site
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile -m "not slow and not gui"
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile --no-loadscope-reorder -m "not slow and not gui"
 
 # Property-based fuzzing of every parser, the env's kwargs and actions and the CLI with 20 times the
 # examples of `make test`'s derandomized run, on random seeds; prints the examples per property.
