@@ -108,6 +108,7 @@ KINDS: dict[str, str] = {
     "test_barn_benchmark.py::test_the_plot_is_written": "hand",  # DWA rows of the same worlds, [0, 6]; the PNG read by Pillow
     "test_barn_benchmark.py::test_barn_score_is_barns_score_with_the_2_t_opt_clip": "hand",
     "test_barn_benchmark.py::test_a_barn_run_scores_its_rows_as_barn_and_reports_them": "formula",  # run.py's score of the row
+    "test_barn_benchmark.py::test_a_worker_keeps_at_most_max_cells_envs_open": "hand",  # which envs close, by hand
     # ---- test_barn_env.py
     # positions read back from PyBullet against the world file's text (the test's regex); a ray's hit 0.075 m off the centre
     "test_barn_env.py::test_cylinders_stand_where_the_world_file_puts_them": "formula",

@@ -193,3 +193,32 @@ def test_a_barn_run_scores_its_rows_as_barn_and_reports_them(tmp_path):
     assert written["suite"]["worlds"][0]["barn_world"] == 93 and written["barn"][0]["worlds"] == [93, 0]
     page = write_report(written, tmp_path / "out" / "report.html").read_text()
     assert DWA_NOTE in page and "href='barn_metric_barn.png'" in page and (tmp_path / "out" / "barn_metric_barn.png").is_file()
+
+
+def test_a_worker_keeps_at_most_max_cells_envs_open(monkeypatch):
+    """A BARN suite has 300 cells; a worker closes its least recently used env beyond MAX_CELLS
+    (16) instead of holding 300 PyBullet worlds."""
+    from bulletnav.benchmark import runner
+
+    made, closed = [], []
+
+    class Env:
+        def __init__(self, key):
+            self.key = key
+            made.append(key)
+
+        def close(self):
+            closed.append(self.key)
+
+    monkeypatch.setattr(runner, "make_cell", lambda world, controller, root, trust: (Env((world.barn_world, controller.name)), None))
+    cells = runner._Cells(load_suite("barn"), Path("."))
+    for w in range(3):  # 3 worlds x 6 controllers: 18 cells
+        for c in range(6):
+            cells.get(w, c)
+    assert runner.MAX_CELLS == 16 and len(cells.cells) == 16
+    assert closed == [(0, "PID + A*"), (0, "PID + RRT")]  # the two first made, least recently used
+    cells.get(0, 2)  # open: used again, not made again
+    cells.get(0, 0)  # closed: made again, closing the least recently used (0, 3)
+    assert made.count((0, "PPO")) == 1 and made.count((0, "PID + A*")) == 2 and closed[-1] == (0, "PID + A* + shield")
+    cells.close()
+    assert len(closed) == 3 + 16
