@@ -132,6 +132,8 @@ KINDS: dict[str, str] = {
     "test_barn_metric.py::test_barn_metric_by_hand": "hand",
     "test_barn_metric.py::test_reference_path_length_by_hand": "hand",
     "test_barn_metric.py::test_bad_out_line_is_named": "contract",
+    # ---- test_barn_policy.py
+    "test_barn_policy.py::test_barn_policy_loads_and_acts_deterministically_on_barn": "hand",  # Jackal front face 0.254 - 0.055 m
     # ---- test_bench_against.py
     "test_bench_against.py::test_a_bogus_commit_is_refused_in_one_line": "contract",
     "test_bench_against.py::test_an_option_is_not_taken_for_a_commit": "contract",
