@@ -64,6 +64,8 @@ NOT_ENV_INTERNALS = {
     ("bulletnav/bench/env_bench.py", "cfg.robot"): "EnvConfig.robot, the robot's configuration (RobotConfig)",
     ("bulletnav/bench/physics_bench.py", "sim.robot"): "the physics benchmark drives a bare Simulation, no env",
     ("bulletnav/bench/reset_bench.py", "config.robot"): "EnvConfig.robot: the URDF the raw rebuild loads (RobotConfig)",
+    ("bulletnav/rl/features.py", "robot_preset(EnvConfig(), robot).robot"):
+        "the named robot preset's RobotConfig (its URDF outline), read without an env",
 }
 """Exact (file, expression) pairs that carry one of the internal names without being the
 env's internals. Anything else with those names is reported."""
