@@ -42,6 +42,15 @@ controllers:
 two at a time (``plan_chunks``), so a run signalled at its first rows has more to do."""
 
 
+def _as_in_a_terminal() -> None:
+    """In the child before exec: SIGINT and SIGTERM at their defaults, as a command typed in a
+    terminal starts. A test run started in the background (``nohup make test &``) has SIGINT
+    ignored, the child would inherit that, and a command started ignoring SIGINT rightly keeps
+    ignoring it (the CLI honours it), so the Ctrl-C under test would never arrive."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 class Run:
     """A ``bulletnav`` command in a session of its own, stdout and stderr to files."""
 
@@ -49,7 +58,7 @@ class Run:
         self.out, self.err = tmp / f"{name}.stdout", tmp / f"{name}.stderr"
         with self.out.open("wb") as out, self.err.open("wb") as err:
             self.proc = subprocess.Popen([sys.executable, "-m", "bulletnav.cli", *args], cwd=ROOT, stdout=out,
-                                         stderr=err, start_new_session=True,
+                                         stderr=err, start_new_session=True, preexec_fn=_as_in_a_terminal,
                                          env={**os.environ, "PYTHONUNBUFFERED": "1"})  # stdout's lines as printed
         self.mark = 0
 
