@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bulletnav.barn import metric
 from bulletnav.barn.metric import START, OutRow, optimal_time, parse_out
 from bulletnav.errors import LayoutError
 
@@ -32,14 +33,15 @@ DWA_FILE = ASSETS / "dwa_out.txt"
 """BARN's published DWA rows."""
 N_WORLDS = 300
 """BARN's static worlds: indices 0-299."""
-TEST_WORLDS: tuple[int, ...] = tuple(range(0, N_WORLDS, 6))
-"""BARN's 50 test worlds 0, 6, ..., 294: BARN's ``report_test.py`` scores the worlds ``idx * 6``
-for ``idx`` in 0-49 (its lines 40-51), and its published DWA rows (``res/dwa_out.txt``) are on
-exactly these. Never train or tune on them."""
-TRAIN_WORLDS: tuple[int, ...] = tuple(i for i in range(N_WORLDS) if i % 6)
+TEST_WORLDS: tuple[int, ...] = metric.TEST_WORLDS
+"""BARN's 50 test worlds 0, 6, ..., 294 (:data:`bulletnav.barn.metric.TEST_WORLDS`): BARN's
+``report_test.py`` scores the worlds ``idx * 6`` for ``idx`` in 0-49 (its lines 40-51), and its
+published DWA rows (``res/dwa_out.txt``) are on exactly these. Never train or tune on them."""
+TRAIN_WORLDS: tuple[int, ...] = tuple(i for i in range(N_WORLDS) if i not in TEST_WORLDS)
 """The 250 other static worlds (every index not a multiple of 6): the ones to train and tune on."""
 POOLS: dict[str, tuple[int, ...]] = {"train": TRAIN_WORLDS, "test": TEST_WORLDS}
-"""World pools by name (``BarnEnv``'s ``world_idx="train"`` / ``"test"``)."""
+"""World pools by name (``BarnEnv``'s ``world_idx="train"`` / ``"test"``; a benchmark suite's
+``barn_worlds`` also takes these names)."""
 
 
 @dataclass(frozen=True)
@@ -79,10 +81,7 @@ def world_pool(spec: object) -> tuple[int, ...]:
     Raises:
         LayoutError: an unknown name, an empty sequence, a repeated or bad index (named).
     """
-    if isinstance(spec, str):
-        if spec not in POOLS:
-            raise LayoutError(f"BARN world_idx {spec!r} is neither an index 0-{N_WORLDS - 1} nor a pool "
-                              f"({', '.join(map(repr, POOLS))}) nor a list of indices")
+    if isinstance(spec, str) and spec in POOLS:
         return POOLS[spec]
     if isinstance(spec, np.ndarray):
         spec = spec.tolist()

@@ -319,11 +319,10 @@ def barn_indices(value: Any, where: str, field_: str) -> list[int]:
     Raises:
         SuiteError: naming ``where``, the field and the value.
     """
-    from bulletnav.barn.metric import TEST_WORLDS
+    from bulletnav.barn.data import N_WORLDS, POOLS
 
     if isinstance(value, str):
-        sets = {"test": list(TEST_WORLDS), "train": [i for i in range(300) if i not in TEST_WORLDS],
-                "all": list(range(300))}
+        sets = {**{name: list(pool) for name, pool in POOLS.items()}, "all": list(range(N_WORLDS))}
         if value not in sets:
             raise SuiteError(f"{where}: field '{field_}' must be one of {sorted(BARN_SETS)} or a list of BARN world "
                              f"indices 0-299, got {show(value)}")
