@@ -55,6 +55,16 @@ class RobotGeometry:
         return self.lidar_mount[0]
 
     @property
+    def half_width(self) -> float:
+        """Half the outline's width across the body (m): the farthest any rectangle reaches sideways."""
+        return max(abs(r.cy) + r.half_y for r in self.rectangles)
+
+    @property
+    def nose(self) -> float:
+        """How far the outline reaches ahead of the body centre (m)."""
+        return max(r.cx + r.half_x for r in self.rectangles)
+
+    @property
     def centred_rectangles(self) -> tuple[tuple[float, float], ...]:
         """``(half_x, half_y)`` of each rectangle, for outlines symmetric about the body axes.
 

@@ -251,7 +251,7 @@ def _tunnelling(physics_hz: int, world: str, push_s: float = 1.0) -> dict[str, A
         env.reset(seed=0, options={"start": (0.5, 0.0, 0.0), "goal": _FAR_GOAL})
         base = env.unwrapped  # stepping on past the collision's truncation: the env itself, no wrappers
         scene = base.scene
-        front = max(r.cx + r.half_x for r in scene.geometry.rectangles)
+        front = scene.geometry.nose
         rear = min(r.cx - r.half_x for r in scene.geometry.rectangles)
         full = np.array([base.action_space.high[0], 0.0], dtype=np.float32)
         dt = scene.control_dt

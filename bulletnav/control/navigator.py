@@ -154,8 +154,7 @@ def fit_to_robot(config: NavigatorConfig, scene: Any) -> NavigatorConfig:
     (_, v_max), (_, w_max) = scene.command_limits
     controller = replace(config.controller, max_speed=float(v_max), max_turn_rate=float(w_max), outline_clearance=True,
                          brake_decel=1.5, safety_distance=0.3, side_margin=0.1)
-    half_width = max(abs(r.cy) + r.half_y for r in geometry.rectangles)
-    narrow = half_width + NARROW_MARGIN
+    narrow = geometry.half_width + NARROW_MARGIN
     inflation = geometry.radius if config.inflation is None else config.inflation
     return replace(config, controller=controller, resolution=min(config.resolution, 0.1),
                    narrow_inflation=narrow if narrow < inflation and config.narrow_inflation is None
@@ -204,8 +203,8 @@ class GoToGoal:
             self.body = -along + np.sqrt(along**2 - offset**2 + geometry.radius**2)
         self.cos, self.sin = np.cos(self.angles), np.sin(self.angles)
         self.offset = offset
-        self.half_width = max(abs(r.cy) + r.half_y for r in geometry.rectangles)
-        self.nose = max(r.cx + r.half_x for r in geometry.rectangles)
+        self.half_width = geometry.half_width
+        self.nose = geometry.nose
         self.front_half = np.abs(self.angles) <= math.pi / 2
         self.rectangles = np.array([(r.cx, r.cy, r.half_x, r.half_y) for r in geometry.rectangles])
         self.reach = geometry.outline_radius
