@@ -373,6 +373,13 @@ KINDS: dict[str, str] = {
     "test_fleet_viz.py::test_marks_are_told_apart_and_the_legend_shows_each": "hand",  # a 3 px gap between words
     "test_fleet_viz.py::test_fleet_table_leaves_out_the_rate_of_a_run_too_short": "hand",  # 4 errands in 120 s: 120.0/h
     "test_fleet_viz.py::test_comparison_table_leaves_out_the_rate_of_a_run_too_short": "hand",
+    # ---- test_foxglove_client.py
+    # against a real foxglove-sdk server, payloads encoded by mcap_ros2's encoder with values written in the test
+    "test_foxglove_client.py::test_the_client_receives_and_decodes_what_the_server_logs": "library",
+    "test_foxglove_client.py::test_a_late_subscriber_gets_what_is_logged_after_it_subscribes_and_a_closed_channel_goes": "library",
+    "test_foxglove_client.py::test_two_clients_both_receive_everything_and_one_leaving_breaks_nothing": "library",
+    # frames written byte by byte from the protocol spec (LE ids and stamps, CDR of 2.0)
+    "test_foxglove_client.py::test_the_client_decodes_a_hand_made_frame_and_records_every_frame_the_protocol_forbids": "hand",
     # ---- test_fuzz.py
     "test_fuzz.py::test_layout_files": "contract",
     "test_fuzz.py::test_sweep_files": "contract",
