@@ -373,6 +373,17 @@ KINDS: dict[str, str] = {
     "test_fleet_viz.py::test_marks_are_told_apart_and_the_legend_shows_each": "hand",  # a 3 px gap between words
     "test_fleet_viz.py::test_fleet_table_leaves_out_the_rate_of_a_run_too_short": "hand",  # 4 errands in 120 s: 120.0/h
     "test_fleet_viz.py::test_comparison_table_leaves_out_the_rate_of_a_run_too_short": "hand",
+    # ---- test_live.py
+    # read by tests/foxglove_client.py (websockets + mcap_ros2's decoder): the env's own lidar and odometry at each step
+    "test_live.py::test_live_stream_is_the_env_step_by_step": "library",
+    "test_live.py::test_unwatched_topics_are_not_built": "contract",
+    # sleeps on a fake clock against simulated-time deltas worked out in the test
+    "test_live.py::test_pacing_follows_simulated_time": "hand",
+    "test_live.py::test_parse_address": "hand",
+    "test_live.py::test_parse_address_refuses": "contract",
+    "test_live.py::test_cli_port_in_use_and_speed_alone": "contract",
+    "test_live.py::test_cli_navigate_live_announces_and_finishes": "smoke",
+    "test_live.py::test_grid_shortcut_is_the_serializer_byte_for_byte": "library",
     # ---- test_foxglove_client.py
     # against a real foxglove-sdk server, payloads encoded by mcap_ros2's encoder with values written in the test
     "test_foxglove_client.py::test_the_client_receives_and_decodes_what_the_server_logs": "library",

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import argparse
 
+from bulletnav.errors import BulletnavError
+
 DEFAULT_ENV_ID = "bulletnav/Warehouse-v0"
 """The env every subcommand uses unless ``--env`` names another."""
 
@@ -152,6 +154,38 @@ def add_episode_outputs(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--record", type=MCAP_FILE, metavar="PATH", help=RECORD_HELP)
     parser.add_argument("--dataset", metavar="NAME", help=DATASET_HELP)
     add_overwrite_arg(parser, "--video, --plot and --record files")
+
+
+def live_address(text: str) -> str:
+    """``--live``: ``[HOST:]PORT`` (checked before anything runs)."""
+    from bulletnav.ros.live import parse_address
+
+    try:
+        parse_address(text)
+    except BulletnavError as e:
+        raise argparse.ArgumentTypeError(str(e).split(": ", 1)[1]) from None
+    return text
+
+
+def speed_factor(text: str) -> float:
+    """``--speed``: simulated seconds per wall-clock second, >= 0 (0: unpaced)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a speed >= 0 (1: real time, 0: as fast as it goes), got {text!r}") from None
+    if not 0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a speed >= 0 (1: real time, 0: as fast as it goes), got {text!r}")
+    return value
+
+
+def add_live_args(parser: argparse.ArgumentParser) -> None:
+    """``--live [HOST:]PORT`` and ``--speed X`` (``navigate``, ``evaluate``, ``demo``, ``fleet``, ``view``)."""
+    parser.add_argument("--live", type=live_address, metavar="[HOST:]PORT",
+                        help="stream the run's ROS 2 messages (those of --record) to Foxglove: a Foxglove WebSocket "
+                             "server on PORT, on 127.0.0.1 unless HOST is given (0.0.0.0 lets any machine that reaches "
+                             "the port watch); the run then goes at real time (see --speed)")
+    parser.add_argument("--speed", type=speed_factor, default=None, metavar="X",
+                        help="with --live: simulated seconds per wall-clock second (default 1, real time; 0: as fast as it goes)")
 
 
 def add_obstacles_arg(parser: argparse.ArgumentParser, default: str = "the env's; 31 on Warehouse-v0") -> None:

@@ -14,7 +14,7 @@ def _env_against(args: argparse.Namespace) -> tuple[dict, list[str]]:
     """``env --against COMMIT``: resets and throughput of COMMIT's code and this checkout's, interleaved."""
     from bulletnav.bench.reset_bench import REGISTERED, bench_against
 
-    result = bench_against(args.against, (args.env_id,) if args.env_id else REGISTERED, rounds=args.rounds,
+    result = bench_against(args.against, (args.env_id,) if args.env_id else REGISTERED, rounds=args.rounds or 3,
                            resets=args.resets, steps=args.steps or 6000, seed=args.seed)
     lines = [f"{'id':32s} {'reset ms before':>16s} {'after':>7s} {'steps/s with resets before':>27s} {'after':>8s} "
              f"{'speed-up':>9s} {'(CPU time)':>10s}"]
@@ -129,7 +129,7 @@ def _planners(args: argparse.Namespace) -> tuple[dict, list[str]]:
     """``planners``: A* against RRT, standard problems and navigation episodes."""
     from bulletnav.bench.planner_bench import bench_navigation
 
-    result = bench_navigation(episodes=args.episodes, seed=args.seed or 1000)
+    result = bench_navigation(episodes=args.episodes or 50, seed=args.seed or 1000)
     micro = result["standard_problems"]
     lines = ["standard problems (ms per plan): " + ", ".join(f"{k} {v}" for k, v in micro.items()),
              f"navigation, {result['episodes']} episodes (seed {result['seed']}), PID follower + lidar map:",
@@ -193,7 +193,26 @@ def _fleet(args: argparse.Namespace) -> tuple[dict, list[str]]:
     return result, lines
 
 
-BENCHES = {"env": _env, "physics": _physics, "planners": _planners, "gui": _gui, "shield": _shield, "fleet": _fleet}
+def _live(args: argparse.Namespace) -> tuple[dict, list[str]]:
+    """``live``: what ``--live`` costs an unpaced navigate run, without and with a client."""
+    from bulletnav.bench.live_bench import bench_live
+
+    result = bench_live(episodes=args.episodes or 4, rounds=args.rounds or 5, seed=args.seed)
+    sps = result["steps_per_s_median"]
+    c = result["client"]
+    lines = [f"--live's cost: {result['rounds']} rounds x {result['episodes']} navigate episodes (PID + A*, {result['env_id']}, "
+             f"seed {result['seed']}, unpaced), the three variants interleaved; ratios: median over rounds of wall time / "
+             f"the no-stream run's",
+             f"  no stream                {sps['no_stream']:8.1f} steps/s",
+             f"  live, no client          {sps['live_no_client']:8.1f} steps/s   ratio {result['ratio_live_no_client']:.3f} "
+             f"(target <= 1.05: {'met' if result['meets_target'] else 'NOT met'})",
+             f"  live, one client (all)   {sps['live_one_client']:8.1f} steps/s   ratio {result['ratio_live_one_client']:.3f} "
+             f"({c['frames']} frames, {c['bytes'] / 1e6:.1f} MB to the client on {c['channels']} channels)"]
+    return result, lines
+
+
+BENCHES = {"env": _env, "physics": _physics, "planners": _planners, "gui": _gui, "shield": _shield, "fleet": _fleet,
+           "live": _live}
 """``bench WHAT``'s benchmarks, in the order ``--help`` lists them: each returns ``(record, table lines)``."""
 
 
@@ -217,8 +236,11 @@ def register(sub) -> None:
                        help="env: env vs raw PyBullet loop; physics: solver settings and physics rates; planners: A* vs RRT; "
                             "gui: dashboard frame rate (needs a display: xvfb-run -a); shield: the safety "
                             "shield's decision time per step against the env step (default env WarehouseDynamic-v0); fleet: wall "
-                            "time per control step at 1, 2, 4, 8, 16 robots, each on PID + A* (default 480 steps)")
-    bench.add_argument("--episodes", type=COUNT, default=50, help="navigation episodes per planner (planners)")
+                            "time per control step at 1, 2, 4, 8, 16 robots, each on PID + A* (default 480 steps); "
+                            "live: what --live costs an unpaced navigate run, with no client and with one subscribed to "
+                            "everything (--episodes per round, default 4; --rounds, default 5)")
+    bench.add_argument("--episodes", type=COUNT, default=None,
+                       help="navigation episodes per planner (planners, default 50); per variant and round (live, default 4)")
     bench.add_argument("--json", action="store_true", help="print one JSON object")
     bench.add_argument("--steps", type=NON_NEGATIVE, default=0, help="steps to time (default: the benchmark's own)")
     bench.add_argument("--seed", type=SEED, default=0, help="random seed (default 0)")
@@ -229,7 +251,8 @@ def register(sub) -> None:
     bench.add_argument("--against", metavar="COMMIT",
                        help="env: the same reset and throughput measurements of COMMIT's code, interleaved with this "
                             "checkout's in one run (before/after)")
-    bench.add_argument("--rounds", type=COUNT, default=3, help="env --against: rounds of both sides (default 3)")
+    bench.add_argument("--rounds", type=COUNT, default=None,
+                       help="env --against: rounds of both sides (default 3); live: rounds of the three variants (default 5)")
     bench.add_argument("--vec", action="store_true",
                        help="env: vectorised steps/s at 1, 2 and 4 envs (make_vec sync/async, SB3 Dummy/SubprocVecEnv)")
     bench.add_argument("--driver", choices=["ram", "navigator", "policy"], default="ram",

@@ -9,6 +9,7 @@ import argparse
 from bulletnav.cli import interrupts
 from bulletnav.cli.args import DEFAULT_ENV_ID, int_type
 from bulletnav.cli.envs import check_env_id, shielded, world_kwargs, world_label
+from bulletnav.cli.live import start_live
 from bulletnav.cli.output import print_json, safety_line, shield_line
 from bulletnav.errors import BulletnavError
 from bulletnav.rl.envs import EVALUATE_OBSTACLES
@@ -113,6 +114,11 @@ def run_with_visuals(args, env, policy, line, title: str):
     ``written`` lists the files written, one report line each."""
     from bulletnav.evaluation import run_episodes
 
+    try:
+        live = start_live(args)  # first: a port in use is refused before any file is opened
+    except BaseException:
+        env.close()
+        raise
     visuals = Visuals(env, policy, getattr(args, "video", None), getattr(args, "plot", None), getattr(args, "gui", False),
                       getattr(args, "shield", False))
     sizes: list[list[float]] = []
@@ -134,10 +140,11 @@ def run_with_visuals(args, env, policy, line, title: str):
         from bulletnav.datasets import DatasetRecorder
 
         env = dataset = DatasetRecorder(env, args.dataset)
-    if getattr(args, "record", None):
+    if getattr(args, "record", None) or live is not None:
         from bulletnav.ros.record import McapRecorder
 
-        env = recorder = McapRecorder(env, args.record, plan=lambda: planned_path(policy), overwrite=True)
+        env = recorder = McapRecorder(env, getattr(args, "record", None), plan=lambda: planned_path(policy), overwrite=True,
+                                      live=live)
     outputs = [name for name, given in (("video", getattr(args, "video", None)), ("plot", getattr(args, "plot", None)),
                                         ("recording", getattr(args, "record", None)), ("dataset", getattr(args, "dataset", None)))
                if given]
@@ -156,7 +163,9 @@ def run_with_visuals(args, env, policy, line, title: str):
                 recorder.abort()
         finally:
             env.close()
-    if recorder is not None:
+            if live is not None:
+                live.close()
+    if recorder is not None and getattr(args, "record", None):
         written = [*written, f"recording: {args.record} (ROS 2 MCAP, {recorder.episodes} episodes)"]
     if dataset is not None:
         written = [*written, f"dataset: {args.dataset} (Minari, {len(dataset.buffers)} episodes)"]

@@ -19,6 +19,7 @@ from bulletnav.cli.args import (
     add_command,
     add_env_arg,
     add_episode_outputs,
+    add_live_args,
     add_mission_args,
     add_obstacles_arg,
     add_overwrite_arg,
@@ -63,6 +64,7 @@ def _register_evaluate(sub) -> None:
     add_shield_arg(ev)
     add_physics_arg(ev)
     add_episode_outputs(ev)
+    add_live_args(ev)
     ev.set_defaults(func=cmd_evaluate)
 
 
@@ -98,6 +100,7 @@ def _register_demo(sub) -> None:
     demo.add_argument("--record", type=MCAP_FILE, metavar="PATH", help=RECORD_HELP)
     add_overwrite_arg(demo, "the files of an --out DIR, a --video or a --record")
     demo.add_argument("--gui", action="store_true", help="watch live in the PyBullet GUI")
+    add_live_args(demo)
     demo.add_argument("--json", action="store_true", help="print one JSON object instead of the report")
     add_shield_arg(demo)
     add_physics_arg(demo)

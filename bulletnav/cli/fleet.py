@@ -17,11 +17,13 @@ from bulletnav.cli.args import (
     VIDEO_FILE,
     add_command,
     add_fleet_world_args,
+    add_live_args,
     add_overwrite_arg,
     non_negative_seconds,
     positive_seconds,
 )
 from bulletnav.cli.envs import fleet_world_kwargs
+from bulletnav.cli.live import start_live
 from bulletnav.cli.output import fmt, holds_run, print_json, refuse_existing_files
 
 SUMMARY_KEYS = ("throughput_per_hour", "throughput_per_robot_per_hour", "errands", "legs", "collisions_robot_robot",
@@ -67,6 +69,7 @@ def _register_fleet(sub) -> None:
     fl.add_argument("--frame-at", type=non_negative_seconds, default=None, metavar="S",
                     help="simulated seconds into the episode of the --frame (default: half the --duration)")
     add_overwrite_arg(fl, "--video, --plot, --frame and --record files")
+    add_live_args(fl)
     fl.set_defaults(func=cmd_fleet)
 
 
@@ -156,18 +159,19 @@ def _fleet_env_kwargs(args: argparse.Namespace, model: str) -> dict:
     return env_kwargs
 
 
-def _fleet_hooks(args: argparse.Namespace) -> tuple:
-    """``(visuals, recorder)``: the video/plot/frame writer and the MCAP recorder ``args`` ask for (or None)."""
+def _fleet_hooks(args: argparse.Namespace, live) -> tuple:
+    """``(visuals, recorder)``: the video/plot/frame writer and the ROS 2 publisher (``--record``
+    and/or ``--live``) ``args`` ask for (or None)."""
     visuals = recorder = None
     if args.video or args.plot or args.frame:
         from bulletnav.viz.fleet import FleetVisuals
 
         visuals = FleetVisuals(video=args.video, frame=args.frame, frame_at_s=args.frame_at, plot=args.plot, episode=0,
                                title=f"{args.controller}{' + shield' if args.shield else ''}, seed {args.seed}")
-    if args.record:
+    if args.record or live is not None:
         from bulletnav.ros.fleet_record import FleetMcapRecorder
 
-        recorder = FleetMcapRecorder(args.record, overwrite=True)
+        recorder = FleetMcapRecorder(args.record, overwrite=True, live=live)
     return visuals, recorder
 
 
@@ -179,7 +183,13 @@ def cmd_fleet(args: argparse.Namespace) -> int:
     _check_fleet_args(args)
     model = args.model or DEFAULT_FLEET_MODEL
     env_kwargs = _fleet_env_kwargs(args, model)
-    visuals, recorder = _fleet_hooks(args)
+    live = start_live(args)  # a port in use is refused before any file is opened
+    try:
+        visuals, recorder = _fleet_hooks(args, live)
+    except BaseException:
+        if live is not None:
+            live.close()
+        raise
     hooks = [h for h in (visuals, recorder) if h is not None]
 
     def on_step(env, infos) -> None:
@@ -197,6 +207,8 @@ def cmd_fleet(args: argparse.Namespace) -> int:
         written = visuals.close(ok) if visuals is not None else []
         if recorder is not None:
             written = [*written, *recorder.close(ok)]
+        if live is not None:
+            live.close()
     s = result["summary"]
     if args.json:
         print_json({"command": "fleet", "controller": args.controller, "shield": args.shield, "robots": args.robots,

@@ -11,6 +11,7 @@ from bulletnav.cli.args import (
     DEFAULT_ENV_ID,
     add_command,
     add_episode_outputs,
+    add_live_args,
     add_mission_args,
     add_physics_arg,
     add_shield_arg,
@@ -37,6 +38,7 @@ def register(sub) -> None:
     add_shield_arg(nav)
     add_physics_arg(nav)
     add_episode_outputs(nav)
+    add_live_args(nav)
     nav.set_defaults(func=cmd_navigate)
 
 

@@ -70,7 +70,7 @@ def _register_replay(sub) -> None:
     rp.add_argument("--frame-at", type=non_negative_seconds, default=None, metavar="S",
                     help="simulated seconds into the first episode of the --frame (default: its middle)")
     rp.add_argument("--panel", type=PNG_FILE, metavar="PNG",
-                    help="draw what docs/foxglove_layout.json's 3D panel shows (top-down, from the messages) at --panel-at")
+                    help="draw what the shipped Foxglove layout's 3D panel shows (top-down, from the messages) at --panel-at")
     rp.add_argument("--panel-at", type=positive_seconds, default=None, metavar="S",
                     help="simulated seconds into the first episode for --panel (default: its middle)")
     rp.add_argument("--json", action="store_true", help="print one JSON object")

@@ -17,21 +17,25 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from bulletnav.ros.record import McapFile, goal_message, movers_message, robot_messages, stamp, static_mounts, truth_map_message
+from bulletnav.ros.outputs import McapFile, Ros2Outputs
+from bulletnav.ros.record import goal_message, movers_message, robot_messages, stamp, static_mounts, truth_map_message
 
 
 class FleetMcapRecorder:
-    """``on_step(env, infos)`` hook writing a fleet's episodes into ``path`` (see the module docstring).
+    """``on_step(env, infos)`` hook writing a fleet's episodes into ``path`` and/or streaming them
+    to ``live`` (see the module docstring).
 
     Args:
-        path: the ``.mcap`` file.
+        path: the ``.mcap`` file; None: no recording (``live`` only).
         overwrite: replace an existing file (else refused).
         gap_s: seconds of the time line between one episode's end and the next one's start.
+        live: a :class:`~bulletnav.ros.live.LiveServer` to stream to (paced at its speed); the
+            caller starts and stops it.
     """
 
-    def __init__(self, path: str | Path, overwrite: bool = False, gap_s: float = 1.0) -> None:
-        self.out = McapFile(path, overwrite)
-        self.path = self.out.path
+    def __init__(self, path: str | Path | None, overwrite: bool = False, gap_s: float = 1.0, live: Any = None) -> None:
+        self.out = Ros2Outputs(None if path is None else McapFile(path, overwrite), live)
+        self.path = None if path is None else Path(path)
         self.gap_s = float(gap_s)
         self.episodes = 0
         """Episodes recorded so far."""
@@ -56,14 +60,18 @@ class FleetMcapRecorder:
         ns = self._start_ns + int(round(time_s * 1e9))
         self._last_ns = ns
         t = stamp(ns)
-        self.out.write("/clock", {"clock": t}, ns)
+        out = self.out
+        if out.wants("/clock"):
+            out.write("/clock", {"clock": t}, ns)
         dt = view.control_dt
+        wants = None if out.recording else out.wants
         for i, agent in enumerate(agents):
-            robot_messages(self.out.write, view.robot(i), ns, dt, prefix=f"robot_{i}")
+            robot_messages(out.write, view.robot(i), ns, dt, prefix=f"robot_{i}", wants=wants)
             self._goal(i, infos.get(agent, {}), ns)
-        if view.dynamic:
-            self.out.write("/movers", movers_message(t, view.movers), ns)
+        if view.dynamic and out.wants("/movers"):
+            out.write("/movers", movers_message(t, view.movers), ns)
         self._last_infos = infos
+        out.pace(ns)
 
     def _begin(self, view: Any, agents: list[str], infos: dict[str, dict[str, Any]]) -> None:
         self._end()
@@ -72,6 +80,7 @@ class FleetMcapRecorder:
         mounts = []
         for i in range(len(agents)):
             mounts += static_mounts(ns, view.robot(i).geometry, prefix=f"robot_{i}")
+        self.out.pace(ns)
         self.out.write("/tf_static", {"transforms": mounts}, ns)
         self.out.write("/map_truth", truth_map_message(ns, view), ns)
         self._goals = [None] * len(agents)
@@ -99,7 +108,7 @@ class FleetMcapRecorder:
                 "legs": sum(int(i.get("legs_completed", 0)) for i in infos)}
         for kind in ("collisions_robot", "collisions_static", "collisions_mover", "collisions_person"):
             data[kind] = sum(int(i.get(kind, 0)) for i in infos)
-        self.out.writer.add_metadata("episode", {k: str(v) for k, v in data.items()})
+        self.out.add_metadata("episode", {k: str(v) for k, v in data.items()})
         self._last_infos = None
 
     def close(self, ok: bool = True) -> list[str]:
@@ -109,6 +118,8 @@ class FleetMcapRecorder:
             return []
         self._end()
         self.out.close()
+        if self.path is None:
+            return []
         return [f"recording: {self.path} (ROS 2 MCAP, {self.episodes} episodes, one namespace per robot)"]
 
 

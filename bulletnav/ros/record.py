@@ -4,7 +4,8 @@
 one) and writes, for every control step, what a ROS 2 robot driver and navigation stack would
 publish: the file opens beside a real robot's bag in Foxglove or RViz, and any ROS 2 tool reads
 it. Messages are CDR-encoded with their definitions embedded (``mcap`` + ``mcap-ros2-support``;
-no ROS installation).
+no ROS installation). The same messages, the same bytes, can also go to a live Foxglove server
+(``live``: :mod:`bulletnav.ros.live`), with or without a file (:mod:`bulletnav.ros.outputs`).
 
 Topics (frames: ``map`` the world, ``odom`` where the wheel odometry started, ``base_link``
 the robot, ``laser`` and ``camera_link`` its sensors):
@@ -28,6 +29,10 @@ the robot, ``laser`` and ``camera_link`` its sensors):
 - ``/movers`` (``visualization_msgs/msg/MarkerArray``): forklifts (cubes) and workers
   (cylinders), every step in dynamic worlds.
 - ``/reward`` (``std_msgs/msg/Float64``): the step's reward, every step.
+- ``/goal_distance`` (``std_msgs/msg/Float64``): metres from the robot's true position to the
+  goal, every step; ``/shield/interventions`` (``std_msgs/msg/Float64``): how many steps of the
+  episode so far the safety shield replaced the command, every step behind a shield
+  (``ShieldWrapper``).
 - ``/camera/image/compressed`` (``sensor_msgs/msg/CompressedImage``, JPEG) and ``/camera/depth``
   (``sensor_msgs/msg/Image``, ``32FC1`` metres), in ``camera_link``: every step when the camera
   is in the observation (``camera_obs=True``: the env renders it anyway), else at ``camera_hz``
@@ -57,29 +62,9 @@ import gymnasium as gym
 import numpy as np
 
 from bulletnav.errors import BulletnavError
-from bulletnav.files import discard, finish, temp_path
-from bulletnav.ros.msgdefs import msgdef
+from bulletnav.ros.outputs import TOPIC_TYPES, McapFile, Ros2Outputs, topic_type
 
 log = logging.getLogger(__name__)
-
-TOPIC_TYPES = {
-    "/clock": "rosgraph_msgs/msg/Clock",
-    "/tf": "tf2_msgs/msg/TFMessage",
-    "/tf_static": "tf2_msgs/msg/TFMessage",
-    "/scan": "sensor_msgs/msg/LaserScan",
-    "/odom": "nav_msgs/msg/Odometry",
-    "/imu": "sensor_msgs/msg/Imu",
-    "/cmd_vel": "geometry_msgs/msg/Twist",
-    "/goal_pose": "geometry_msgs/msg/PoseStamped",
-    "/plan": "nav_msgs/msg/Path",
-    "/map": "nav_msgs/msg/OccupancyGrid",
-    "/map_truth": "nav_msgs/msg/OccupancyGrid",
-    "/movers": "visualization_msgs/msg/MarkerArray",
-    "/reward": "std_msgs/msg/Float64",
-    "/camera/image/compressed": "sensor_msgs/msg/CompressedImage",
-    "/camera/depth": "sensor_msgs/msg/Image",
-}
-"""Every topic the recorder may write and its message type."""
 
 MAP_RESOLUTION = 0.1
 """Cell size (m) of ``/map`` and ``/map_truth``."""
@@ -130,47 +115,52 @@ def occupancy_message(ns: int, frame: str, cells: np.ndarray, resolution: float,
     return {"header": {"stamp": stamp(ns), "frame_id": frame},
             "info": {"map_load_time": stamp(ns), "resolution": float(resolution), "width": int(nx), "height": int(ny),
                      "origin": _pose(float(corner[0]), float(corner[1]), 0.0)},
-            "data": np.ascontiguousarray(cells.T, dtype=np.int8).reshape(-1).tolist()}
+            "data": np.ascontiguousarray(cells.T, dtype=np.int8).reshape(-1)}
 
 
 def robot_messages(write: Callable[[str, dict[str, Any], int], None], robot: Any, ns: int, dt: float,
-                   prefix: str = "") -> tuple[tuple[float, float, float], np.ndarray, np.ndarray]:
+                   prefix: str = "", wants: Callable[[str], bool] | None = None
+                   ) -> tuple[tuple[float, float, float], np.ndarray, np.ndarray]:
     """Write one robot's ``/tf`` (``map -> odom -> base_link``), ``/scan``, ``/odom`` and ``/imu`` for
     the step at ``ns`` (topics and frames under ``prefix``, e.g. ``robot_2``, but ``/tf`` is the one
     global topic, as RViz and Foxglove read it); returns its true pose, ray angles and ranges.
-    ``robot``: a scene view (``pose``, ``sensors``)."""
+    ``robot``: a scene view (``pose``, ``sensors``). ``wants(topic)``: whether anyone takes that
+    topic now (a live stream nobody watches); the others are not built (default: all are)."""
     t = stamp(ns)
     top = f"/{prefix}" if prefix else ""
     odom_f, base_f, laser_f = (f"{prefix}/{f}" if prefix else f for f in ("odom", "base_link", "laser"))
     truth = tuple(float(v) for v in robot.pose)
     sensors = robot.sensors
-    odo = [float(v) for v in sensors.odometry.read()]
-    est = (odo[0], odo[1], odo[2])
-    drift = compose(truth, inverse(est))  # map -> odom
-    write("/tf", {"transforms": [_transform(ns, "map", odom_f, *drift), _transform(ns, odom_f, base_f, *est)]}, ns)
     lidar = sensors.lidar
-    cfg = lidar.config
     ranges = np.asarray(lidar.read(), dtype=np.float32)
     angles = lidar.angles
-    increment = float(angles[1] - angles[0]) if len(angles) > 1 else 0.0
-    write(f"{top}/scan", {"header": {"stamp": t, "frame_id": laser_f}, "angle_min": float(angles[0]),
-                          "angle_max": float(angles[-1]), "angle_increment": increment, "time_increment": 0.0,
-                          "scan_time": dt, "range_min": float(cfg.min_range), "range_max": float(cfg.max_range),
-                          "ranges": ranges.tolist(), "intensities": []}, ns)
-    zeros36 = [0.0] * 36
-    write(f"{top}/odom", {"header": {"stamp": t, "frame_id": odom_f}, "child_frame_id": base_f,
-                          "pose": {"pose": _pose(*est), "covariance": zeros36},
-                          "twist": {"twist": {"linear": {"x": odo[3], "y": 0.0, "z": 0.0},
-                                              "angular": {"x": 0.0, "y": 0.0, "z": odo[4]}},
-                                    "covariance": zeros36}}, ns)
-    imu = [float(v) for v in sensors.imu.read()] if sensors.imu is not None else [0.0] * 6
-    write(f"{top}/imu", {"header": {"stamp": t, "frame_id": base_f},
-                         "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
-                         "orientation_covariance": [-1.0] + [0.0] * 8,
-                         "angular_velocity": {"x": imu[3], "y": imu[4], "z": imu[5]},
-                         "angular_velocity_covariance": [0.0] * 9,
-                         "linear_acceleration": {"x": imu[0], "y": imu[1], "z": imu[2]},
-                         "linear_acceleration_covariance": [0.0] * 9}, ns)
+    if wants is None or wants("/tf") or wants(f"{top}/odom"):
+        odo = [float(v) for v in sensors.odometry.read()]
+        est = (odo[0], odo[1], odo[2])
+        drift = compose(truth, inverse(est))  # map -> odom
+        write("/tf", {"transforms": [_transform(ns, "map", odom_f, *drift), _transform(ns, odom_f, base_f, *est)]}, ns)
+        zeros36 = [0.0] * 36
+        write(f"{top}/odom", {"header": {"stamp": t, "frame_id": odom_f}, "child_frame_id": base_f,
+                              "pose": {"pose": _pose(*est), "covariance": zeros36},
+                              "twist": {"twist": {"linear": {"x": odo[3], "y": 0.0, "z": 0.0},
+                                                  "angular": {"x": 0.0, "y": 0.0, "z": odo[4]}},
+                                        "covariance": zeros36}}, ns)
+    if wants is None or wants(f"{top}/scan"):
+        cfg = lidar.config
+        increment = float(angles[1] - angles[0]) if len(angles) > 1 else 0.0
+        write(f"{top}/scan", {"header": {"stamp": t, "frame_id": laser_f}, "angle_min": float(angles[0]),
+                              "angle_max": float(angles[-1]), "angle_increment": increment, "time_increment": 0.0,
+                              "scan_time": dt, "range_min": float(cfg.min_range), "range_max": float(cfg.max_range),
+                              "ranges": ranges.tolist(), "intensities": []}, ns)
+    if wants is None or wants(f"{top}/imu"):
+        imu = [float(v) for v in sensors.imu.read()] if sensors.imu is not None else [0.0] * 6
+        write(f"{top}/imu", {"header": {"stamp": t, "frame_id": base_f},
+                             "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
+                             "orientation_covariance": [-1.0] + [0.0] * 8,
+                             "angular_velocity": {"x": imu[3], "y": imu[4], "z": imu[5]},
+                             "angular_velocity_covariance": [0.0] * 9,
+                             "linear_acceleration": {"x": imu[0], "y": imu[1], "z": imu[2]},
+                             "linear_acceleration_covariance": [0.0] * 9}, ns)
     return truth, angles, ranges
 
 
@@ -216,71 +206,13 @@ def movers_message(t: dict[str, int], movers: Any) -> dict[str, Any]:
     return {"markers": markers}
 
 
-def topic_type(topic: str) -> str:
-    """The message type of ``topic``: :data:`TOPIC_TYPES`'s, a robot's namespaced topic
-    (``/robot_2/scan``) that of its last part (``/scan``)."""
-    if topic in TOPIC_TYPES:
-        return TOPIC_TYPES[topic]
-    for name, kind in sorted(TOPIC_TYPES.items(), key=lambda kv: -len(kv[0])):
-        if topic.endswith(name):
-            return kind
-    raise KeyError(f"no message type for topic {topic!r}")
-
-
-class McapFile:
-    """An MCAP file of ROS 2 messages written beside ``path`` and renamed by :meth:`close`
-    (:meth:`abort` removes it): schemas registered once per type, channels once per topic,
-    ``counts`` per topic.
-
-    Raises:
-        BulletnavError: ``path`` exists and ``overwrite`` is off, or does not end in ``.mcap``.
-    """
-
-    def __init__(self, path: str | Path, overwrite: bool = False) -> None:
-        from mcap_ros2.writer import Writer
-
-        self.path = Path(path)
-        if self.path.suffix != ".mcap":
-            raise BulletnavError(f"--record {self.path}: a recording is an .mcap file")
-        if self.path.exists() and not overwrite:
-            raise BulletnavError(f"--record {self.path}: the file already exists; pass --overwrite to replace it")
-        self._tmp = temp_path(self.path)
-        self._file = open(self._tmp, "wb")  # noqa: SIM115  (closed in close/abort)
-        self.writer = Writer(self._file)
-        self._schemas: dict[str, Any] = {}
-        self.counts: dict[str, int] = {}
-        """Messages written per topic."""
-        self.closed = False
-
-    def write(self, topic: str, message: dict[str, Any], ns: int) -> None:
-        kind = topic_type(topic)
-        schema = self._schemas.get(kind)
-        if schema is None:
-            schema = self._schemas[kind] = self.writer.register_msgdef(kind, msgdef(kind))
-        seq = self.counts.get(topic, 0)
-        self.writer.write_message(topic, schema, message, log_time=ns, publish_time=ns, sequence=seq)
-        self.counts[topic] = seq + 1
-
-    def close(self) -> None:
-        if not self.closed:
-            self.closed = True
-            self.writer.finish()
-            self._file.close()
-            finish(self._tmp, self.path)
-
-    def abort(self) -> None:
-        if not self.closed:
-            self.closed = True
-            self._file.close()
-            discard(self._tmp)
-
-
 class McapRecorder(gym.Wrapper):
-    """Record every episode of ``env`` into ``path`` (see the module docstring).
+    """Publish every episode of ``env`` as ROS 2 messages (see the module docstring): recorded
+    into ``path``, streamed live to ``live``'s clients, or both (the same bytes to each).
 
     Args:
         env: a single-robot bulletnav env (``gym.make``), possibly shielded.
-        path: the ``.mcap`` file to write.
+        path: the ``.mcap`` file to write; None: no recording (``live`` only).
         plan: called after each step, returns the classical planner's current path (a list of
             (x, y) in m) or None; None: no ``/plan``.
         map_period_s: seconds of simulated time between two ``/map`` messages.
@@ -288,28 +220,31 @@ class McapRecorder(gym.Wrapper):
         overwrite: replace an existing ``path`` (else refused).
         camera_hz: record camera images at this rate (per simulated second) when the camera is
             not in the observation; None: only when it is.
+        live: a :class:`~bulletnav.ros.live.LiveServer` to stream to (paced at its speed); the
+            caller starts and stops it. Topics no client subscribes to are not built.
 
     Raises:
-        BulletnavError: ``path`` exists and ``overwrite`` is off, or does not end in ``.mcap``.
+        BulletnavError: ``path`` exists and ``overwrite`` is off, or does not end in ``.mcap``;
+            neither ``path`` nor ``live`` is given.
     """
 
-    def __init__(self, env: gym.Env, path: str | Path, plan: Callable[[], Any] | None = None,
+    def __init__(self, env: gym.Env, path: str | Path | None, plan: Callable[[], Any] | None = None,
                  map_period_s: float = 1.0, gap_s: float = 1.0, overwrite: bool = False,
-                 camera_hz: float | None = None) -> None:
+                 camera_hz: float | None = None, live: Any = None) -> None:
         super().__init__(env)
-        self.path = Path(path)
+        self.path = None if path is None else Path(path)
         self.plan = plan
         if camera_hz is not None and not camera_hz > 0:
             raise BulletnavError(f"camera_hz must be > 0 (images per simulated second), got {camera_hz!r}")
         self.camera_hz = camera_hz
         self.map_period_s = float(map_period_s)
         self.gap_s = float(gap_s)
-        self._out = McapFile(self.path, overwrite)
-        self._writer = self._out.writer
+        self._out = Ros2Outputs(None if path is None else McapFile(path, overwrite), live)
         self.counts = self._out.counts
         """Messages written per topic."""
         self._write = self._out.write
         self._next_start_ns = 0
+        self._closed = False
         self._episode: dict[str, Any] | None = None
         self.episodes = 0
         """Episodes recorded so far."""
@@ -328,6 +263,7 @@ class McapRecorder(gym.Wrapper):
         start_ns = self._next_start_ns
         self._episode = {"index": self.episodes, "seed": kwargs.get("seed"), "start_ns": start_ns, "steps": 0}
         self._goal: tuple[float, float] | None = None
+        self._interventions = 0
         self._plan_sent: Any = None
         self._map_due = 0.0
         self._camera_due = 0.0
@@ -339,6 +275,7 @@ class McapRecorder(gym.Wrapper):
         from bulletnav.planning.mapping import LidarMapper
 
         self._mapper = LidarMapper(self._bounds, MAP_RESOLUTION)
+        self._out.pace(start_ns)
         self._write("/tf_static", {"transforms": static_mounts(start_ns, scene.geometry)}, start_ns)
         self._write("/map_truth", truth_map_message(start_ns, scene), start_ns)
         self._publish_goal(scene, start_ns)
@@ -359,8 +296,7 @@ class McapRecorder(gym.Wrapper):
                   "control_dt": self._dt, "env_id": getattr(spec, "id", None),
                   "mover_routes": [[[float(x), float(y)] for x, y in m.path] for m in scene.movers] if scene.dynamic else [],
                   "max_episode_steps": getattr(spec, "max_episode_steps", None)}
-        self._writer.add_attachment(create_time=ns, log_time=ns, name=f"episode-{self.episodes}.json",
-                                    media_type="application/json", data=json.dumps(record).encode())
+        self._out.add_attachment(ns, f"episode-{self.episodes}.json", "application/json", json.dumps(record).encode())
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         obs, reward, terminated, truncated, info = self.env.step(action)
@@ -371,12 +307,28 @@ class McapRecorder(gym.Wrapper):
         ns = self._now_ns()
         scene = self.env.unwrapped.scene
         self._record_step(scene, action, info, ns)
-        self._write("/reward", {"data": float(reward)}, ns)
+        self._record_progress(scene, reward, info, ns)
+        self._out.pace(ns)
         if terminated or truncated:
             self._end_episode(info, truncated=truncated and not terminated)
         return obs, reward, terminated, truncated, info
 
     # ------------------------------------------------------------------ one step
+    def _record_progress(self, scene: Any, reward: float, info: dict[str, Any], ns: int) -> None:
+        """``/reward``, ``/goal_distance`` and (behind a shield) ``/shield/interventions``."""
+        wants = self._out.wants
+        if wants("/reward"):
+            self._write("/reward", {"data": float(reward)}, ns)
+        goal = scene.goal
+        if goal is not None and wants("/goal_distance"):
+            x, y = (float(v) for v in scene.pose[:2])
+            self._write("/goal_distance", {"data": math.hypot(float(goal[0]) - x, float(goal[1]) - y)}, ns)
+        veto = info.get("shield")
+        if isinstance(veto, dict) and "intervened" in veto:
+            self._interventions += bool(veto["intervened"])
+            if wants("/shield/interventions"):
+                self._write("/shield/interventions", {"data": float(self._interventions)}, ns)
+
     def _command(self, action: Any, info: dict[str, Any]) -> tuple[float, float]:
         """The command carried out: the shield's, else the env's own reading of the action
         (``WarehouseEnv.command``: scaled and clipped to the robot's limits)."""
@@ -387,11 +339,14 @@ class McapRecorder(gym.Wrapper):
 
     def _record_step(self, scene: Any, action: Any, info: dict[str, Any], ns: int) -> None:
         t = stamp(ns)
-        self._write("/clock", {"clock": t}, ns)
-        truth, angles, ranges = robot_messages(self._write, scene, ns, self._dt)
+        wants = self._out.wants
+        if wants("/clock"):
+            self._write("/clock", {"clock": t}, ns)
+        truth, angles, ranges = robot_messages(self._write, scene, ns, self._dt, wants=None if self._out.recording else wants)
         cfg = self._lidar.config
-        v, w = self._command(action, info)
-        self._write("/cmd_vel", {"linear": {"x": v, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": w}}, ns)
+        if wants("/cmd_vel"):
+            v, w = self._command(action, info)
+            self._write("/cmd_vel", {"linear": {"x": v, "y": 0.0, "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": w}}, ns)
         self._publish_goal(scene, ns)
         if self.plan is not None:
             path = self.plan()
@@ -400,21 +355,24 @@ class McapRecorder(gym.Wrapper):
                 self._plan_sent = key
                 poses = [{"header": {"stamp": t, "frame_id": "map"}, "pose": _pose(x, y, 0.0)} for x, y in (key or ())]
                 self._write("/plan", {"header": {"stamp": t, "frame_id": "map"}, "poses": poses}, ns)
-        self._mapper.integrate(truth, angles, ranges.astype(np.float64), float(cfg.max_range),
-                               sensor_offset=float(scene.geometry.lidar_mount[0]))
         now_s = self._episode["steps"] * self._dt
-        if now_s + 1e-9 >= self._map_due:
+        if self._out.watched("/map"):  # the lidar map costs ~half a step: built while anyone takes it
+            self._mapper.integrate(truth, angles, ranges.astype(np.float64), float(cfg.max_range),
+                                   sensor_offset=float(scene.geometry.lidar_mount[0]))
+        else:
+            self._map_due = now_s  # a client that subscribes gets the map at once
+        if now_s + 1e-9 >= self._map_due and self._out.watched("/map"):
             self._map_due = now_s + self.map_period_s
             state = self._mapper.state()
             cells = np.where(state < 0, -1, np.where(state > 0, 100, 0))
             self._write("/map", occupancy_message(ns, "map", cells, MAP_RESOLUTION, self._bounds[:2]), ns)
         self._record_camera(scene, t, ns, now_s)
-        if scene.dynamic:
+        if scene.dynamic and wants("/movers"):
             self._write("/movers", movers_message(t, scene.movers), ns)
 
     def _record_camera(self, scene: Any, t: dict[str, int], ns: int, now_s: float) -> None:
         camera = scene.sensors.camera
-        if camera is None:
+        if camera is None or not (self._out.wants("/camera/image/compressed") or self._out.wants("/camera/depth")):
             return
         if not self._camera_in_obs:
             if self.camera_hz is None or now_s + 1e-9 < self._camera_due:
@@ -455,17 +413,19 @@ class McapRecorder(gym.Wrapper):
             data.update(end_reason=reason, is_success=info.get("is_success"), collision=info.get("collision"))
         else:
             data.update(end_reason="reset before the end")
-        self._writer.add_metadata("episode", {k: str(v) for k, v in data.items()})
+        self._out.add_metadata("episode", {k: str(v) for k, v in data.items()})
         self._next_start_ns = end_ns + int(round(self.gap_s * 1e9))
         self._episode = None
 
     # ------------------------------------------------------------------ files
     def close(self) -> None:
         """Finish the file and move it to ``path`` (an episode still open is ended first)."""
-        if not self._out.closed:
+        if not self._closed:
+            self._closed = True
             self._end_episode(None)
             self._out.close()
-            log.info("recorded %d episode(s) into %s", self.episodes, self.path)
+            if self.path is not None:
+                log.info("recorded %d episode(s) into %s", self.episodes, self.path)
         super().close()
 
     def abort(self) -> None:

@@ -328,8 +328,8 @@ def _plot(tracks: list[dict[str, Any]], out: str | Path) -> None:
 
 
 def panel_view(path: str | Path, out: str | Path, at_s: float | None = None, episode: int = 0, span_m: float = 14.0) -> dict:
-    """What ``docs/foxglove_layout.json``'s 3D panel shows at ``at_s`` simulated seconds into
-    ``episode`` (default: its middle), drawn top-down from the recording's own messages: the
+    """What the shipped Foxglove layout's 3D panel (``bulletnav/assets/foxglove_layout.json``)
+    shows at ``at_s`` simulated seconds into ``episode`` (default: its middle), drawn top-down from the recording's own messages: the
     true map (``/map_truth``) under the lidar map (``/map``, the last one before that time), the
     scan placed through ``/tf`` and ``/tf_static``, the plan, the goal, the movers' markers and the
     robot with its trajectory, in a ``span_m`` window that follows the robot as the panel does

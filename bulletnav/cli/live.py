@@ -1,0 +1,32 @@
+"""``--live``: the Foxglove WebSocket server a command streams its run to (:mod:`bulletnav.ros.live`)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from bulletnav.errors import BulletnavError
+
+
+def start_live(args: argparse.Namespace):
+    """The :class:`~bulletnav.ros.live.LiveServer` ``args.live`` asks for (None without ``--live``),
+    announced in one line (on stderr under ``--json``, whose stdout is the document alone).
+
+    Raises:
+        BulletnavError: ``--speed`` without ``--live``; the port cannot be bound.
+    """
+    live, speed = getattr(args, "live", None), getattr(args, "speed", None)
+    if live is None:
+        if speed is not None:
+            raise BulletnavError("--speed paces a live stream: give --live [HOST:]PORT too")
+        return None
+    from bulletnav.ros.live import LAYOUT, LiveServer
+
+    server = LiveServer(live, 1.0 if speed is None else speed)
+    pace = "as fast as it goes" if server.speed == 0 else ("real time" if server.speed == 1 else f"{server.speed:g} x real time")
+    exposed = "" if server.host in ("127.0.0.1", "localhost", "::1") else \
+        f"; listening on {server.host}: anyone who reaches this port can watch (no password, no encryption)"
+    notes = sys.stderr if getattr(args, "json", False) else sys.stdout
+    print(f"live: {server.url} ({pace}){exposed}; in Foxglove: Open connection -> Foxglove WebSocket -> {server.url}; "
+          f"layout: {LAYOUT}", file=notes, flush=True)
+    return server

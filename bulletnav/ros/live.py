@@ -1,0 +1,200 @@
+"""A live stream of a run's ROS 2 messages: a Foxglove WebSocket server (``--live [HOST:]PORT``).
+
+:class:`LiveServer` serves the messages :class:`~bulletnav.ros.outputs.Ros2Outputs` hands it
+(the same CDR bytes a recording gets) on one channel per topic, with the ``ros2msg`` definition
+as the channel's schema, through the ``foxglove-sdk`` server. Foxglove (desktop or web app)
+connects to ``ws://HOST:PORT``; so can any client of the Foxglove WebSocket protocol.
+
+- **Listening**: on 127.0.0.1 (this machine only) unless a host is given. ``0.0.0.0`` exposes the
+  stream, unauthenticated and unencrypted, to every machine that can reach the port.
+- **Pacing**: :meth:`LiveServer.pace` holds the run to ``speed`` times real time (1: real time;
+  0: as fast as it goes). A run slower than that is not hurried to catch up.
+- **Late join**: the last message of each latched topic (:data:`LATCHED`: static transforms,
+  maps, goals, plans) is sent again when a client subscribes to it (the others already
+  subscribed get it twice).
+- **Clients never slow the run**: messages go into each client's own queue (``foxglove-sdk``
+  drops the oldest data of a client that falls 1,024 messages behind); a client that leaves
+  changes nothing but the queue.
+- **Nobody watching costs little**: :meth:`LiveServer.wants` is false for a topic no client
+  subscribes to, and the publisher then does not build its messages.
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+import time
+from pathlib import Path
+from typing import Any
+
+from bulletnav.errors import BulletnavError
+from bulletnav.ros.msgdefs import msgdef
+
+log = logging.getLogger(__name__)
+
+DEFAULT_HOST = "127.0.0.1"
+"""Where the server listens when ``--live`` names only a port: this machine alone."""
+
+LAYOUT = Path(__file__).resolve().parent.parent / "assets" / "foxglove_layout.json"
+"""The Foxglove layout shipped with bulletnav (Layouts -> Import from file): a 3D panel following
+``base_link`` with the maps, scan, plan, goal and movers; the camera image; plots of commanded and
+measured speeds, distance to goal, the shield's interventions and the reward. It serves a live
+stream and a recording alike (one robot's topics)."""
+
+LATCHED = ("/tf_static", "/map_truth", "/map", "/goal_pose", "/plan")
+"""Topics (and a fleet robot's ``/robot_<i>/...`` of them) whose last message a client that
+subscribes later still gets, as a ROS 2 transient-local publisher would give it."""
+
+
+def parse_address(text: str) -> tuple[str, int]:
+    """``[HOST:]PORT`` (``8765``, ``0.0.0.0:8765``, ``[::1]:8765``) as ``(host, port)``; the host
+    defaults to :data:`DEFAULT_HOST`, port 0 takes any free port.
+
+    Raises:
+        BulletnavError: not of that form, or the port is outside 0-65535.
+    """
+    text = str(text).strip()
+    host, sep, port_text = text.rpartition(":")
+    if not sep:
+        host = DEFAULT_HOST
+    elif host.startswith("[") and host.endswith("]"):
+        host = host[1:-1]
+    if sep and not host:
+        raise BulletnavError(f"--live {text!r}: the host before ':' is empty (give [HOST:]PORT, e.g. 8765 or 0.0.0.0:8765)")
+    try:
+        port = int(port_text)
+    except ValueError:
+        raise BulletnavError(f"--live {text!r}: the port is not a number (give [HOST:]PORT, e.g. 8765 or 0.0.0.0:8765)") from None
+    if not 0 <= port <= 65535:
+        raise BulletnavError(f"--live {text!r}: port {port} is outside 0-65535")
+    return host, port
+
+
+@functools.lru_cache(maxsize=1024)
+def is_latched(topic: str) -> bool:
+    """Whether ``topic`` is one of :data:`LATCHED` (also under a robot's namespace)."""
+    return any(topic == t or topic.endswith(t) for t in LATCHED)
+
+
+class _Listener:
+    """The server's callbacks (its own thread): a subscription to a latched topic gets its last
+    message again."""
+
+    def __init__(self, owner: LiveServer) -> None:
+        self.owner = owner
+
+    def on_subscribe(self, client: Any, channel: Any) -> None:
+        self.owner._subscribed(channel.topic)
+
+    def on_unsubscribe(self, client: Any, channel: Any) -> None:
+        pass
+
+
+class LiveServer:
+    """A Foxglove WebSocket server for one run (see the module docstring).
+
+    Args:
+        address: ``[HOST:]PORT`` (:func:`parse_address`).
+        speed: simulated seconds per wall-clock second (1: real time); 0: unpaced.
+        name: the server's name, shown by Foxglove.
+
+    Raises:
+        BulletnavError: the address is malformed, ``speed`` is negative, or the port cannot be
+            bound (in use, or not this machine's address).
+    """
+
+    def __init__(self, address: str = f"{DEFAULT_HOST}:8765", speed: float = 1.0, name: str = "bulletnav") -> None:
+        import foxglove
+        from foxglove.websocket import Capability
+
+        if not speed >= 0:
+            raise BulletnavError(f"--speed {speed!r}: give a speed >= 0 (1: real time, 0: as fast as it goes)")
+        self.host, port = parse_address(address)
+        self.speed = float(speed)
+        self._context = foxglove.Context()
+        try:
+            self._server = foxglove.start_server(name=name, host=self.host, port=port, context=self._context,
+                                                 server_listener=_Listener(self), capabilities=[Capability.Time])
+        except RuntimeError as e:
+            reason = str(e).removeprefix("FoxgloveError: ")
+            raise BulletnavError(f"--live {address}: cannot listen on {self.host}:{port}: {reason}") from None
+        self.port = int(self._server.port)
+        """The port listened on (the one asked for, or the free one port 0 found)."""
+        self._channels: dict[str, Any] = {}
+        self._latched: dict[str, tuple[bytes, int]] = {}
+        self._anchor: tuple[float, int] | None = None  # (wall s, simulated ns) pacing counts from
+        self.closed = False
+        log.info("live: Foxglove WebSocket server on ws://%s:%d", self.host, self.port)
+
+    @property
+    def url(self) -> str:
+        """``ws://HOST:PORT`` (IPv6 hosts in brackets)."""
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"ws://{host}:{self.port}"
+
+    def _subscribed(self, topic: str) -> None:
+        last = self._latched.get(topic)  # (one dict read: atomic beside the run's thread)
+        if last is not None and not self.closed:
+            self._channels[topic].log(last[0], log_time=last[1])
+
+    def _channel(self, topic: str, kind: str) -> Any:
+        channel = self._channels.get(topic)
+        if channel is None:
+            from foxglove import Channel, Schema
+
+            schema = Schema(name=kind, encoding="ros2msg", data=msgdef(kind).encode())
+            channel = self._channels[topic] = Channel(topic, message_encoding="cdr", schema=schema, context=self._context)
+        return channel
+
+    def wants(self, topic: str) -> bool:
+        """Whether a client subscribes to ``topic`` now; true too for a latched topic (its last
+        message is kept for later clients) and for one not yet advertised."""
+        channel = self._channels.get(topic)
+        return channel is None or is_latched(topic) or channel.has_sinks()
+
+    def watched(self, topic: str) -> bool:
+        """Whether a client subscribes to ``topic`` now (true too before it is advertised)."""
+        channel = self._channels.get(topic)
+        return channel is None or channel.has_sinks()
+
+    def write_encoded(self, topic: str, kind: str, data: bytes, ns: int) -> None:
+        """Send one message of ``topic`` (type ``kind``, CDR ``data``, simulated time ``ns``) to the
+        clients subscribed to it (advertising the topic on its first message)."""
+        if self.closed:
+            return
+        if is_latched(topic):
+            self._latched[topic] = (data, ns)
+        self._channel(topic, kind).log(data, log_time=ns)
+
+    def pace(self, ns: int) -> None:
+        """Wait until simulated time ``ns`` is due at :attr:`speed` (no wait when unpaced or late);
+        also tells clients the time (``ns``)."""
+        if self.closed:
+            return
+        self._server.broadcast_time(int(ns))
+        if self.speed <= 0:
+            return
+        now = time.perf_counter()
+        if self._anchor is None or ns < self._anchor[1]:
+            self._anchor = (now, int(ns))
+            return
+        due = self._anchor[0] + (ns - self._anchor[1]) / 1e9 / self.speed
+        if due > now:
+            time.sleep(due - now)
+        elif now - due > 0.5:  # behind (the run is slower than the speed): go on from here, no catching up
+            self._anchor = (now, int(ns))
+
+    def close(self) -> None:
+        """Stop the server (clients are disconnected)."""
+        if not self.closed:
+            self.closed = True
+            self._server.stop()
+
+    def __enter__(self) -> LiveServer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+__all__ = ["DEFAULT_HOST", "LATCHED", "LAYOUT", "LiveServer", "is_latched", "parse_address"]
