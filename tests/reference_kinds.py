@@ -384,6 +384,7 @@ KINDS: dict[str, str] = {
     "test_live.py::test_cli_port_in_use_and_speed_alone": "contract",
     "test_live.py::test_cli_navigate_live_announces_and_finishes": "smoke",
     "test_live.py::test_grid_shortcut_is_the_serializer_byte_for_byte": "library",
+    "test_live.py::test_fleet_stream_one_namespace_per_robot": "library",
     # ---- test_foxglove_client.py
     # against a real foxglove-sdk server, payloads encoded by mcap_ros2's encoder with values written in the test
     "test_foxglove_client.py::test_the_client_receives_and_decodes_what_the_server_logs": "library",

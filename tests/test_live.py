@@ -227,3 +227,53 @@ def test_grid_shortcut_is_the_serializer_byte_for_byte(shape, frame):
     msg = occupancy_message(1_234_567_891, frame, cells, 0.1, (-1.5, 2.25))
     slow = serialize_dynamic(kind, msgdef(kind))[kind]({**msg, "data": msg["data"].tolist()})
     assert Ros2Encoder().encode(kind, msg) == slow
+
+
+def test_fleet_stream_one_namespace_per_robot():
+    """``fleet --live``: each robot's scan under ``/robot_<i>/scan`` equals that robot's lidar at
+    that step (a client joining after the first step, so the fleet's static transforms come by
+    late join)."""
+    from bulletnav.fleet.controllers import make_controller
+    from bulletnav.fleet.metrics import run_fleet_episodes
+    from bulletnav.fleet.view import FleetView
+    from bulletnav.ros.fleet_record import FleetMcapRecorder
+
+    live = LiveServer("127.0.0.1:0", speed=0)
+    stream = FleetMcapRecorder(None, live=live)
+    topics = ["/robot_0/scan", "/robot_1/scan", "/tf_static"]
+    seen: dict[tuple[int, int], np.ndarray] = {}
+    state: dict = {"client": None, "calls": 0}
+
+    def hook(env, infos):
+        stream(env, infos)
+        state["calls"] += 1
+        if state["calls"] == 2:  # after the first step: every topic is advertised
+            state["client"] = FoxgloveClient(live.url)
+            state["client"].subscribe(topics)
+            _wait_watched(live, topics)
+        elif state["calls"] > 2:
+            ns = int(round(float(next(iter(infos.values()))["time_s"]) * 1e9))
+            view = FleetView(env)
+            for i in range(2):
+                seen[(i, ns)] = view.robot(i).sensors.lidar.read().astype(np.float32)
+
+    try:
+        run_fleet_episodes({"num_robots": 2, "duration_s": 1.0}, lambda env: make_controller("independent", env), 1,
+                           seed=5, on_step=hook)
+        client = state["client"]
+        for i in range(2):
+            client.wait_for(lambda ms, n=len(seen) // 2: len(ms) >= n, topic=f"/robot_{i}/scan")
+    finally:
+        stream.close(ok=False)
+        live.close()
+        if state["client"] is not None:
+            state["client"].close()
+    assert client.errors == [] and len(seen) == 2 * 23  # steps 2-24 of 24 (1 s at 24 Hz)
+    for i in range(2):
+        got = {m.log_time_ns: m.decoded for m in client.messages(f"/robot_{i}/scan")}
+        for (j, ns), ranges in seen.items():
+            if j == i:
+                assert got[ns].header.frame_id == f"robot_{i}/laser"
+                assert np.array_equal(np.asarray(got[ns].ranges, dtype=np.float32), ranges)
+    static = {t.child_frame_id for t in client.messages("/tf_static")[0].decoded.transforms}
+    assert {"robot_0/laser", "robot_1/laser"} <= static

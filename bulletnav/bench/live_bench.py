@@ -1,7 +1,8 @@
 """What ``--live`` costs a run: the same seeded ``navigate`` episodes (PID + A* on
 ``Warehouse-v0``, unpaced) without a stream, streaming with no client, and streaming to one
 client subscribed to every topic, interleaved in rounds so that the machine's noise hits all
-three alike; the ratios of their wall times (median over rounds) are the figures.
+three alike; the ratios of their wall times (median over rounds) are the figures, beside the
+ratios of the run's process CPU time (the server's threads included, the client's process not).
 
 The client is a separate process (as Foxglove would be), speaking the Foxglove WebSocket
 protocol through the ``websockets`` library: it subscribes to every channel the server
@@ -108,10 +109,12 @@ def bench_live(episodes: int = 4, rounds: int = 5, seed: int = 0, env_id: str = 
         watched.close()
         base.close()
     ratio = {name: float(np.median(np.asarray(times[name]) / np.asarray(times["no_stream"]))) for name in variants}
+    cpu_ratio = {name: float(np.median(np.asarray(cpu[name]) / np.asarray(cpu["no_stream"]))) for name in variants}
     return {"benchmark": "live", "env_id": env_id, "episodes": episodes, "rounds": rounds, "seed": seed,
             "steps_per_round": steps, "wall_s": times, "cpu_s": cpu,
             "steps_per_s_median": {k: float(np.median([steps[k] / t for t in v])) for k, v in times.items()},
             "ratio_live_no_client": ratio["live_no_client"], "ratio_live_one_client": ratio["live_one_client"],
+            "cpu_ratio_live_no_client": cpu_ratio["live_no_client"], "cpu_ratio_live_one_client": cpu_ratio["live_one_client"],
             "target_no_client": 1.05, "meets_target": ratio["live_no_client"] <= 1.05, "client": counts}
 
 

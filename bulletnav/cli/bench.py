@@ -205,9 +205,10 @@ def _live(args: argparse.Namespace) -> tuple[dict, list[str]]:
              f"the no-stream run's",
              f"  no stream                {sps['no_stream']:8.1f} steps/s",
              f"  live, no client          {sps['live_no_client']:8.1f} steps/s   ratio {result['ratio_live_no_client']:.3f} "
-             f"(target <= 1.05: {'met' if result['meets_target'] else 'NOT met'})",
+             f"(target <= 1.05: {'met' if result['meets_target'] else 'NOT met'}); CPU ratio {result['cpu_ratio_live_no_client']:.3f}",
              f"  live, one client (all)   {sps['live_one_client']:8.1f} steps/s   ratio {result['ratio_live_one_client']:.3f} "
-             f"({c['frames']} frames, {c['bytes'] / 1e6:.1f} MB to the client on {c['channels']} channels)"]
+             f"({c['frames']} frames, {c['bytes'] / 1e6:.1f} MB to the client on {c['channels']} channels); "
+             f"CPU ratio {result['cpu_ratio_live_one_client']:.3f} (the run's process; the client's is apart)"]
     return result, lines
 
 
