@@ -30,7 +30,7 @@ def _wait_watched(live: LiveServer, topics) -> None:
     import time
 
     end = time.monotonic() + HANG_S
-    while not all(live.watched(t) and t in live._channels for t in topics):
+    while not all(t in live.topics and live.watched(t) for t in topics):
         assert time.monotonic() < end, f"subscriptions to {topics} not taken in: a hang?"
         time.sleep(0.01)
 

@@ -64,7 +64,7 @@ def _start_client(url: str, live: Any, timeout_s: float = 120.0) -> subprocess.P
     client = subprocess.Popen([sys.executable, "-c", CLIENT, url], stdout=subprocess.PIPE, text=True)
     end = time.monotonic() + timeout_s
     client.stdout.readline()  # "subscribed N": its first subscribe is sent
-    while not all(live.watched(t) for t in list(live._channels)):
+    while not all(live.watched(t) for t in live.topics):
         if time.monotonic() > end or client.poll() is not None:
             client.kill()
             raise RuntimeError("the benchmark's live client did not subscribe in time")

@@ -152,6 +152,11 @@ class LiveServer:
         channel = self._channels.get(topic)
         return channel is None or is_latched(topic) or channel.has_sinks()
 
+    @property
+    def topics(self) -> tuple[str, ...]:
+        """The topics advertised so far (one channel each)."""
+        return tuple(self._channels)
+
     def watched(self, topic: str) -> bool:
         """Whether a client subscribes to ``topic`` now (true too before it is advertised)."""
         channel = self._channels.get(topic)
