@@ -54,37 +54,32 @@ FLEET_ROBOTS = int_type(1, 16, "a robot count, a whole number")
 """Robots in a fleet: 1 to 16 (``bulletnav.fleet.MAX_ROBOTS``)."""
 
 
-def non_negative_seconds(text: str) -> float:
-    """Seconds >= 0 (``--frame-at``)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected seconds >= 0, got {text!r}") from None
-    if not 0 <= value < float("inf"):
-        raise argparse.ArgumentTypeError(f"expected seconds >= 0, got {text!r}")
-    return value
+def float_type(accept, what: str, name: str):
+    """An argparse type: a float for which ``accept(value)`` holds, else the one line
+    ``expected WHAT, got 'TEXT'``."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}") from None
+        if not accept(value):
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+        return value
+
+    parse.__name__ = parse.__qualname__ = name
+    return parse
 
 
-def FRACTION(text: str) -> float:
-    """A rate in (0, 1] (``--stop-at-success``)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a rate above 0 and at most 1, got {text!r}") from None
-    if not 0 < value <= 1:
-        raise argparse.ArgumentTypeError(f"expected a rate above 0 and at most 1, got {text!r}")
-    return value
-
-
-def positive_seconds(text: str) -> float:
-    """Seconds > 0, finite (``--duration``, ``--seconds``)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected seconds > 0, got {text!r}") from None
-    if not 0 < value < float("inf"):
-        raise argparse.ArgumentTypeError(f"expected seconds > 0, got {text!r}")
-    return value
+_INF = float("inf")
+non_negative_seconds = float_type(lambda v: 0 <= v < _INF, "seconds >= 0", "non_negative_seconds")
+"""Seconds >= 0 (``--frame-at``)."""
+FRACTION = float_type(lambda v: 0 < v <= 1, "a rate above 0 and at most 1", "FRACTION")
+"""A rate in (0, 1] (``--stop-at-success``)."""
+positive_seconds = float_type(lambda v: 0 < v < _INF, "seconds > 0", "positive_seconds")
+"""Seconds > 0, finite (``--duration``, ``--seconds``)."""
+speed_factor = float_type(lambda v: 0 <= v < _INF, "a speed >= 0 (1: real time, 0: as fast as it goes)", "speed_factor")
+"""``--speed``: simulated seconds per wall-clock second, >= 0 (0: unpaced)."""
 
 
 def hz_list(text: str) -> tuple[int, ...]:
@@ -165,17 +160,6 @@ def live_address(text: str) -> str:
     except BulletnavError as e:
         raise argparse.ArgumentTypeError(str(e).split(": ", 1)[1]) from None
     return text
-
-
-def speed_factor(text: str) -> float:
-    """``--speed``: simulated seconds per wall-clock second, >= 0 (0: unpaced)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a speed >= 0 (1: real time, 0: as fast as it goes), got {text!r}") from None
-    if not 0 <= value < float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a speed >= 0 (1: real time, 0: as fast as it goes), got {text!r}")
-    return value
 
 
 def add_live_args(parser: argparse.ArgumentParser) -> None:
