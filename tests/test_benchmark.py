@@ -269,7 +269,9 @@ def test_tiny_suite_through_a_ray_cluster_gives_the_committed_rows(tmp_path):
     ray = pytest.importorskip("ray")
     from ray.cluster_utils import Cluster
 
-    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 0})
+    # no dashboard, as the sweep tests' cluster: nothing here reads it, and in the suite its process
+    # takes CPU from the other test worker
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 0, "include_dashboard": False})
     for _ in range(2):
         cluster.add_node(num_cpus=1)
     try:
