@@ -64,9 +64,8 @@ class FleetMcapRecorder:
         if out.wants("/clock"):
             out.write("/clock", {"clock": t}, ns)
         dt = view.control_dt
-        wants = None if out.recording else out.wants
         for i, agent in enumerate(agents):
-            robot_messages(out.write, view.robot(i), ns, dt, prefix=f"robot_{i}", wants=wants)
+            robot_messages(out.write, view.robot(i), ns, dt, prefix=f"robot_{i}", wants=out.wants)
             self._goal(i, infos.get(agent, {}), ns)
         if view.dynamic and out.wants("/movers"):
             out.write("/movers", movers_message(t, view.movers), ns)

@@ -149,8 +149,7 @@ class LiveServer:
     def wants(self, topic: str) -> bool:
         """Whether a client subscribes to ``topic`` now; true too for a latched topic (its last
         message is kept for later clients) and for one not yet advertised."""
-        channel = self._channels.get(topic)
-        return channel is None or is_latched(topic) or channel.has_sinks()
+        return is_latched(topic) or self.watched(topic)
 
     @property
     def topics(self) -> tuple[str, ...]:

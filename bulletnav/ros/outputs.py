@@ -158,11 +158,6 @@ class Ros2Outputs:
         self.counts: dict[str, int] = {}
         """Messages written per topic."""
 
-    @property
-    def recording(self) -> bool:
-        """Whether an MCAP file is written (it wants every topic)."""
-        return self.mcap is not None
-
     def wants(self, topic: str) -> bool:
         """Whether a message of ``topic`` goes anywhere now: always while recording; live, while a
         client subscribes to it (or before its channel exists, so that it is advertised)."""

@@ -342,7 +342,7 @@ class McapRecorder(gym.Wrapper):
         wants = self._out.wants
         if wants("/clock"):
             self._write("/clock", {"clock": t}, ns)
-        truth, angles, ranges = robot_messages(self._write, scene, ns, self._dt, wants=None if self._out.recording else wants)
+        truth, angles, ranges = robot_messages(self._write, scene, ns, self._dt, wants=wants)
         cfg = self._lidar.config
         if wants("/cmd_vel"):
             v, w = self._command(action, info)
