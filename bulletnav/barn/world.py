@@ -25,7 +25,7 @@ from bulletnav.barn.metric import CYLINDER_RADIUS_M, GOAL_OFFSET, START
 from bulletnav.errors import LayoutError
 from bulletnav.sim.layout import Layout
 from bulletnav.sim.specs import Obstacle
-from bulletnav.sim.world import STATIC_GROUP, STATIC_MASK, World
+from bulletnav.sim.world import STATIC_GROUP, STATIC_MASK, Primitive, World
 
 FLOOR_SIZE = (10.0, 30.0)
 """Floor extent (m) of every BARN layout, centred on BARN's origin."""
@@ -74,6 +74,8 @@ class BarnPhysicsWorld(World):
             p.setCollisionFilterGroupMask(body, -1, STATIC_GROUP, STATIC_MASK, physicsClientId=cid)
             self.labels[body] = LABEL
         self.obstacle_ids = [*self.obstacle_ids, *bodies]
+        self.primitives += [Primitive("cylinder", (o.center[0], o.center[1], height / 2), (radius, radius, height / 2))
+                            for o in cylinders]
         self.static_set = frozenset((*self.wall_ids, *self.obstacle_ids))
 
 

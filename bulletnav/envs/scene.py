@@ -23,6 +23,7 @@ import numpy as np
 
 from bulletnav.config import EnvConfig, ShiftConfig
 from bulletnav.envs.actions import ActionMap
+from bulletnav.errors import ConfigError
 from bulletnav.geometry import RobotGeometry, robot_geometry
 from bulletnav.planning.grid import OccupancyGrid
 from bulletnav.sensors.suite import SensorSuite
@@ -230,8 +231,12 @@ class Scene(SceneCore):
         layout = self.layout
         if layout is None:
             raise RuntimeError("use_layout() before place_robot()")
+        builds = self.sim.rebuilds
         self.sim.reset(layout, start, rebuild=self._rebuild)
         self._rebuild = False
+        lidar = self.sensors.lidar
+        if lidar is not None and self.sim.rebuilds != builds:
+            lidar.use_world(self.sim.world.primitives)
         if self._shifted or not self.shift.nominal:  # a nominal env never touches these
             self._apply_shift(self.shift)
         self.sensors.reset(rng)
@@ -241,6 +246,9 @@ class Scene(SceneCore):
         self.dynamic = dyn.active or bool(layout.dynamic) or bool(layout.events)
         if not self.dynamic:
             return
+        if lidar is not None and lidar.config.caster == "exact":
+            raise ConfigError(f"lidar caster 'exact' sees only the static world, and {layout.name or layout.source or 'this world'} "
+                              "has movers or events: use caster 'bullet'")
         self._start_dynamic(layout, rng, (self.start[:2], *self.goals), self.shift.mover_speed_scale)
         self.collision_with = None
         self.step_events = []

@@ -35,6 +35,7 @@ _KWARGS = {
     "lidar_rays": (("sensors", "lidar"), "num_rays"),
     "lidar_range": (("sensors", "lidar"), "max_range"),
     "lidar_noise": (("sensors", "lidar"), "noise_std"),
+    "lidar_caster": (("sensors", "lidar"), "caster"),
     "imu_accel_noise": (("sensors", "imu"), "accel_noise_std"),
     "imu_gyro_noise": (("sensors", "imu"), "gyro_noise_std"),
     "odometry_noise": (("sensors", "odometry"), "encoder_noise_std"),

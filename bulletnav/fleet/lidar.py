@@ -47,6 +47,8 @@ class FleetLidar(Lidar):
 
     def __init__(self, robot: Robot, clock: Clock, config: LidarConfig, others_mask: int, drop: float,
                  robots: list[Robot]) -> None:
+        if config.caster != "bullet":
+            raise ValueError(f"the fleet's lidar casts with PyBullet (it sees the other robots), not caster {config.caster!r}")
         super().__init__(robot, clock, config)
         self.others_mask = others_mask
         self.robots = robots

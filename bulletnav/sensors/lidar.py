@@ -1,4 +1,5 @@
-"""2-D scanning lidar: one ``rayTestBatch`` per scan, cast in the lidar link's frame."""
+"""2-D scanning lidar: one ``rayTestBatch`` per scan, cast in the lidar link's frame (or, with
+``LidarConfig.caster="exact"``, closed-form casts against the world's shapes: :mod:`bulletnav.sensors.raycast`)."""
 
 from __future__ import annotations
 
@@ -10,9 +11,10 @@ from gymnasium import spaces
 
 from bulletnav.config import LidarConfig
 from bulletnav.sensors.base import VectorSensor, float32_list
+from bulletnav.sensors.raycast import ExactCaster
 from bulletnav.sim.client import Clock
 from bulletnav.sim.robot import Robot
-from bulletnav.sim.world import STATIC_GROUP
+from bulletnav.sim.world import STATIC_GROUP, Primitive
 
 
 def ray_angles(num_rays: int, fov_deg: float) -> np.ndarray:
@@ -33,6 +35,9 @@ class Lidar(VectorSensor):
     starting at 0 (straight ahead) for a 360 deg scan. Rays are given in the link frame
     (PyBullet's ``parentObjectUniqueId``), so they tilt with the robot, and test only the
     static collision group: the robot never sees itself. Nothing hit reads ``max_range``.
+
+    With ``config.caster == "exact"`` the same rays (from the lidar link's pose) are cast in
+    closed form against the primitives handed to :meth:`use_world` instead of by PyBullet.
     """
 
     name = "lidar"
@@ -44,6 +49,8 @@ class Lidar(VectorSensor):
         directions = np.stack([np.cos(self.angles), np.sin(self.angles), np.zeros_like(self.angles)], axis=1)
         self._ray_from = np.zeros((config.num_rays, 3)).tolist()
         self._ray_to = (directions * config.max_range).tolist()
+        self._directions = directions
+        self._caster: ExactCaster | None = None
         self.extra_noise_std = 0.0
         """Extra range noise (m) of an evaluation shift or randomization, on top of the config's."""
         self.dropout = 0.0
@@ -52,6 +59,25 @@ class Lidar(VectorSensor):
     def space(self) -> spaces.Box:
         cfg = self.config
         return spaces.Box(np.float32(cfg.min_range), np.float32(cfg.max_range), (cfg.num_rays,), dtype=np.float32)
+
+    def use_world(self, primitives: list[Primitive]) -> None:
+        """The static shapes the exact caster casts against (call after every world build);
+        nothing for PyBullet's caster."""
+        if self.config.caster == "exact":
+            self._caster = ExactCaster(primitives)
+
+    def _fractions(self) -> list[float]:
+        """Hit fraction of each ray in [0, 1] (1 = nothing within ``max_range``)."""
+        if self.config.caster == "bullet":
+            return [r[2] for r in self._rays()]
+        if self._caster is None:
+            raise RuntimeError("lidar caster 'exact' has no world: call use_world() after building one")
+        cid, body, link = self.robot.cid, self.robot.body, self.robot.lidar_link
+        pos, orn = p.getLinkState(body, link, physicsClientId=cid)[4:6]
+        rotation = np.array(p.getMatrixFromQuaternion(orn, physicsClientId=cid)).reshape(3, 3)
+        max_range = self.config.max_range
+        t = self._caster.cast(np.array(pos), self._directions @ rotation.T, max_range)
+        return np.minimum(t / max_range, 1.0).tolist()
 
     def _rays(self) -> tuple:
         return p.rayTestBatch(
@@ -62,7 +88,7 @@ class Lidar(VectorSensor):
 
     def cast(self) -> np.ndarray:
         """Hit fractions of the rays in [0, 1] (1 = nothing within ``max_range``), noise-free."""
-        return np.array([r[2] for r in self._rays()])
+        return np.array(self._fractions())
 
     def measure_floats(self) -> list[float]:
         cfg = self.config
@@ -77,7 +103,7 @@ class Lidar(VectorSensor):
             return float32_list(ranges.tolist())
         # Noise-free (the default, once per step): the double products rounded to float32.
         max_range = cfg.max_range
-        ranges = float32_list([r[2] * max_range for r in self._rays()])
+        ranges = float32_list([f * max_range for f in self._fractions()])
         if cfg.min_range > 0:
             floor = float32_list([cfg.min_range])[0]
             ranges = [r if r > floor else floor for r in ranges]

@@ -7,6 +7,7 @@ bodies are never added and removed per episode (PyBullet leaks memory that way).
 from __future__ import annotations
 
 import logging
+from typing import NamedTuple
 
 import pybullet as p
 
@@ -41,6 +42,19 @@ COLOURS = {
 }
 
 
+class Primitive(NamedTuple):
+    """One static collision shape of a built world, as :class:`World` made it (world frame)."""
+
+    kind: str
+    """``"box"``, ``"cylinder"`` (axis along z) or ``"plane"`` (horizontal, facing up)."""
+    center: tuple[float, float, float]
+    """Centre (m); a plane's point (its height is ``center[2]``)."""
+    half: tuple[float, float, float]
+    """Half extents (m): a box's along its own axes; a cylinder's (radius, radius, half height)."""
+    yaw: float = 0.0
+    """Rotation about z (rad) of a box."""
+
+
 FLOOR_FRICTION = 1.0
 """The floor's nominal lateral friction coefficient."""
 
@@ -60,6 +74,9 @@ class World:
         made once per :meth:`build`, because the collision check runs every step."""
         self.labels: dict[int, str] = {}
         """Body id -> category (floor, wall, rack, pallet, box, column, robot)."""
+        self.primitives: list[Primitive] = []
+        """The floor, walls and obstacles as plain shapes, made once per :meth:`build` (for
+        closed-form ray casts: :class:`~bulletnav.sensors.raycast.ExactCaster`)."""
 
     def set_floor_friction(self, mu: float) -> None:
         """Set the floor's lateral friction coefficient (PyBullet multiplies it with the wheels')."""
@@ -75,6 +92,7 @@ class World:
         configure_physics(cid, self.physics)
         self.layout = layout
         self.labels = {}
+        self.primitives = [Primitive("plane", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))]
         hx, hy = layout.half_extents
         margin = WALL_THICKNESS
         floor_col = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid)
@@ -108,6 +126,8 @@ class World:
             return self._box(o.center, (o.size[0] / 2, o.size[1] / 2, o.size[2] / 2), o.yaw, colour, o.label)
         body = static_body(self.cid, "cylinder", (o.radius, o.height), colour, (o.center[0], o.center[1], o.height / 2))
         self.labels[body] = o.label or "column"
+        self.primitives.append(Primitive("cylinder", (o.center[0], o.center[1], o.height / 2),
+                                         (o.radius, o.radius, o.height / 2)))
         return body
 
     def _box(self, center: tuple[float, float], half: tuple[float, float, float], yaw: float,
@@ -115,6 +135,7 @@ class World:
         orn = p.getQuaternionFromEuler([0.0, 0.0, yaw])
         body = static_body(self.cid, "box", half, colour, (center[0], center[1], half[2]), orn)
         self.labels[body] = label
+        self.primitives.append(Primitive("box", (center[0], center[1], half[2]), half, yaw))
         return body
 
 
