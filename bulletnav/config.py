@@ -639,8 +639,8 @@ def robot_preset(config: EnvConfig, name: str) -> EnvConfig:
     (``jackal_control/config/control.yaml``), and the Hokuyo UST-10 BARN's Jackal carries
     (``hokuyo_ust10.urdf.xacro``): 270 degrees, 0.1-30 m, Gaussian noise 1 mm, cast as
     :data:`JACKAL_LIDAR_RAYS` (72) rays spread evenly over the 270 degrees (every 3.8 degrees; the
-    UST-10 has 720, every 0.38 degrees), which is the scan the policy sees: 720 rays of 30 m cost
-    37 ms a step in a BARN world here, 72 rays 4.6 ms. ``lidar_rays=720`` gives the full scan.
+    UST-10 has 720, every 0.38 degrees), which is the scan the policy sees. ``lidar_rays=720``
+    gives the full scan. The preset keeps ``config``'s lidar caster (BARN-v0 sets ``"exact"``).
 
     Raises:
         ValueError: an unknown name (the message names it and the known ones).

@@ -25,7 +25,7 @@ def test_bench_env_barn_times_seeded_resets_and_the_bare_floor(capsys):
     row = json.loads(capsys.readouterr().out)["ids"]["bulletnav/BARN-v0"]
     # floor, 4 walls, the robot and world 0's cylinders: the batched ones counted too
     assert row["bodies_per_world"] == WORLD_0_CYLINDERS + 6 and row["world_idx"] == 0
-    for key in ("reset_ms", "unseeded_reset_ms", "switch_reset_ms", "raw_reset_ms", "raw_cylinders_ms",
+    for key in ("reset_ms", "unseeded_reset_ms", "switch_reset_ms", "raw_reset_ms", "raw_cylinders_ms", "scan_ms", "bullet_scan_ms",
                 "steps_per_s_with_resets"):
         assert row[key] > 0.0 and math.isfinite(row[key])
 

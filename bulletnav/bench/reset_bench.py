@@ -44,6 +44,7 @@ import pybullet as p
 from bulletnav.bench.env_bench import step_with_resets
 from bulletnav.errors import BulletnavError
 from bulletnav.sim.client import configure_physics
+from bulletnav.sim.world import STATIC_GROUP
 
 REGISTERED = ("bulletnav/Warehouse-v0", "bulletnav/WarehouseAisles-v0", "bulletnav/WarehouseDynamic-v0",
               "bulletnav/WarehouseMission-v0")
@@ -168,7 +169,9 @@ def bench_barn_resets(resets: int = 200, seed: int = 0, world_idx: int = 0) -> d
       (``resetSimulation``, the physics settings, floor and walls, the cylinders by one batched
       ``createMultiBody``, the robot's URDF): the floor of a rebuilding reset;
       ``raw_cylinders_ms`` the batched cylinder call alone. Batched bodies are not listed by
-      ``getNumBodies``, so the cylinders come from the layout, the other bodies from the client.
+      ``getNumBodies``, so the cylinders come from the layout, the other bodies from the client;
+    - ``scan_ms`` / ``bullet_scan_ms``: one lidar scan from the start pose, by the env's caster
+      and by PyBullet's ``rayTestBatch`` (:func:`_scan_costs`).
     """
     env = gym.make(BARN_ID, world_idx=world_idx)
     env.reset(seed=seed)  # compiles the kernels, loads the caches: not timed
@@ -192,6 +195,7 @@ def bench_barn_resets(resets: int = 200, seed: int = 0, world_idx: int = 0) -> d
     switch, _ = median_ms(lambda k: env.reset(options={"world_idx": (world_idx + 1 - k % 2) % 300}), min(resets, 40))
     config = env.unwrapped.config
     physics, urdf = config.physics, str(config.robot.urdf_path())
+    scan = _scan_costs(env, resets)
     env.close()
     raw_cid = p.connect(p.DIRECT)
     try:
@@ -209,7 +213,33 @@ def bench_barn_resets(resets: int = 200, seed: int = 0, world_idx: int = 0) -> d
         p.disconnect(physicsClientId=raw_cid)
     return {"resets": resets, "world_idx": world_idx, "reset_ms": seeded, "reset_ms_p90": seeded_p90,
             "unseeded_reset_ms": unseeded, "switch_reset_ms": switch, "raw_reset_ms": raw,
-            "raw_cylinders_ms": round(float(np.median(cylinders)) * 1e3, 2), "bodies_per_world": len(others) + len(batch[2]) + 1}
+            "raw_cylinders_ms": round(float(np.median(cylinders)) * 1e3, 2), "bodies_per_world": len(others) + len(batch[2]) + 1,
+            **scan}
+
+
+def _scan_costs(env: Any, n: int) -> dict[str, Any]:
+    """Median ms of one lidar scan from the robot's start pose: the env's own (its caster, BARN-v0's
+    ``"exact"``) and PyBullet's ``rayTestBatch`` of the same rays from the same link, in this process."""
+    scene = env.unwrapped.scene
+    lidar = scene.sensors.lidar
+    cfg = lidar.config
+    ray_to = [[cfg.max_range * np.cos(a), cfg.max_range * np.sin(a), 0.0] for a in lidar.angles]
+    ray_from = [[0.0, 0.0, 0.0]] * len(ray_to)
+    link = lidar.robot.lidar_link
+
+    def bullet() -> None:
+        p.rayTestBatch(ray_from, ray_to, parentObjectUniqueId=scene.robot_body, parentLinkIndex=link,
+                       collisionFilterMask=STATIC_GROUP, physicsClientId=scene.client)
+
+    times: dict[str, list[float]] = {"own": [], "bullet": []}
+    for _ in range(n):  # interleaved, so load from other processes hits both alike
+        for name, call in (("own", lidar.cast), ("bullet", bullet)):
+            t0 = time.perf_counter()
+            call()
+            times[name].append(time.perf_counter() - t0)
+    own, pyb = (float(np.median(times[k])) * 1e3 for k in ("own", "bullet"))
+    return {"lidar_caster": cfg.caster, "lidar_rays": cfg.num_rays, "scan_ms": round(own, 3),
+            "bullet_scan_ms": round(pyb, 3), "scan_speedup": round(pyb / own, 2)}
 
 
 def bench_throughput(env_id: str, steps: int = 6000, seed: int = 0) -> dict[str, Any]:
