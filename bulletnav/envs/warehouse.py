@@ -298,7 +298,8 @@ class WarehouseEnv(gym.Env):
     ``gym.make("bulletnav/Warehouse-v0", **kwargs)`` with any of: ``num_obstacles`` (31),
     ``world`` (YAML layout path or None), ``world_size`` ((14, 14) m),
     ``min_goal_distance`` (2 m), ``max_goal_distance`` (6 m), ``lidar_rays`` (36),
-    ``lidar_range`` (5 m), ``lidar_noise`` (0 m), ``imu_accel_noise`` (0.05 m/s^2),
+    ``lidar_range`` (5 m), ``lidar_noise`` (0 m), ``lidar_caster`` ("bullet"; "exact" casts in
+    closed form, static worlds only), ``imu_accel_noise`` (0.05 m/s^2),
     ``imu_gyro_noise`` (0.01 rad/s), ``odometry_noise`` (0 rad), ``physics`` ("default": 240 Hz;
     "fast": the measured fast profile of ``bulletnav.config.PHYSICS_PROFILES``), ``physics_hz`` (240),
     ``control_hz`` (24), ``solver_iterations``, ``goal_radius`` (0.5 m),
