@@ -167,7 +167,7 @@ def test_benchmark_suite_files(data):
 # --------------------------------------------------------------------------- env kwargs
 
 KNOWN_KWARGS = ["num_obstacles", "world_size", "min_goal_distance", "max_goal_distance", "lidar_rays", "lidar_range",
-                "lidar_noise", "imu_accel_noise", "imu_gyro_noise", "odometry_noise", "physics_hz", "control_hz",
+                "lidar_noise", "lidar_caster", "imu_accel_noise", "imu_gyro_noise", "odometry_noise", "physics_hz", "control_hz",
                 "solver_iterations", "goal_radius", "pose_source", "collision_terminates", "layout_style",
                 "lidar_rate_hz", "camera_enabled", "task_name", "layouts_every", "camera_obs", "normalize_actions",
                 "min_detour", "blocked_by", "detour_share", "aisles", "lidar_history", "guidance", "goals", "goal_order",
@@ -185,7 +185,7 @@ env_kwargs = st.dictionaries(
 plausible_kwargs = st.fixed_dictionaries({}, optional={
     "num_obstacles": st.integers(0, 25), "lidar_rays": st.integers(1, 72), "world_size": st.tuples(st.floats(6, 20),
                                                                                                      st.floats(6, 20)),
-    "lidar_noise": st.floats(0, 0.2), "task_name": st.sampled_from(["navigation", "mission"]), "goals": st.integers(1, 3),
+    "lidar_noise": st.floats(0, 0.2), "lidar_caster": st.sampled_from(["bullet", "exact"]), "task_name": st.sampled_from(["navigation", "mission"]), "goals": st.integers(1, 3),
     "forklifts": st.integers(0, 2), "workers": st.integers(0, 2), "pallet_events_per_min": st.floats(0, 5),
     "layout_style": st.sampled_from(["scattered", "aisles"]), "camera_enabled": st.booleans(),
     "normalize_actions": st.booleans(), "perturb": st.sampled_from([None, "slippery", "laggy"]),
