@@ -19,7 +19,8 @@ BARN_KWARGS: dict[str, Any] = {"task_name": "barn", "goal_radius": 1.0, "collisi
 """What BARN-v0 sets on top of Warehouse-v0's defaults: BARN's task, its 1 m goal radius, a
 collision ending the episode, BARN's robot (a Jackal, :func:`bulletnav.config.robot_preset`), and
 the lidar cast in closed form against BARN's cylinders (:mod:`bulletnav.sensors.raycast`: the
-true geometry, and a scan of 30 m rays through hundreds of cylinders in a fraction of PyBullet's time)."""
+true geometry, and a scan of 30 m rays through hundreds of cylinders in a fraction of PyBullet's time:
+``bulletnav bench env --env bulletnav/BARN-v0``)."""
 POOL_STREAM = 0xBA2
 """Second word of the pool generator's seed (``[seed, POOL_STREAM]``): the world draws are a stream
 of their own, apart from the episode's ``np_random``."""
