@@ -185,7 +185,8 @@ env_kwargs = st.dictionaries(
 plausible_kwargs = st.fixed_dictionaries({}, optional={
     "num_obstacles": st.integers(0, 25), "lidar_rays": st.integers(1, 72), "world_size": st.tuples(st.floats(6, 20),
                                                                                                      st.floats(6, 20)),
-    "lidar_noise": st.floats(0, 0.2), "lidar_caster": st.sampled_from(["bullet", "exact"]), "task_name": st.sampled_from(["navigation", "mission"]), "goals": st.integers(1, 3),
+    "lidar_noise": st.floats(0, 0.2), "lidar_caster": st.sampled_from(["bullet", "exact"]),
+    "task_name": st.sampled_from(["navigation", "mission"]), "goals": st.integers(1, 3),
     "forklifts": st.integers(0, 2), "workers": st.integers(0, 2), "pallet_events_per_min": st.floats(0, 5),
     "layout_style": st.sampled_from(["scattered", "aisles"]), "camera_enabled": st.booleans(),
     "normalize_actions": st.booleans(), "perturb": st.sampled_from([None, "slippery", "laggy"]),
