@@ -88,6 +88,11 @@ KINDS: dict[str, str] = {
     "test_barn_controllers.py::test_navigate_world_idx_drives_a_barn_training_world": "hand",  # 4 t_opt of BARN's score
     "test_barn_controllers.py::test_world_idx_needs_barn_and_a_valid_index": "contract",
     "test_barn_controllers.py::test_navigator_reset_fits_each_episodes_robot": "hand",
+    # ---- test_raycast.py
+    "test_raycast.py::test_hits_on_hand_geometry": "hand",  # distances worked out by hand
+    "test_raycast.py::test_box_plane_and_the_nearest_of_several": "hand",
+    "test_raycast.py::test_agrees_with_pybullet_to_its_convex_cast_tolerance": "library",  # PyBullet's rayTestBatch
+    "test_raycast.py::test_barn_lidar_matches_pybullet_and_the_caster_is_checked": "library",
     # ---- test_bench_barn.py
     "test_bench_barn.py::test_bench_env_barn_times_seeded_resets_and_the_bare_floor": "hand",  # 209 cylinders in world_0.world
     "test_bench_barn.py::test_bare_rebuild_holds_the_envs_world": "library",  # PyBullet's ray casts in a bare client

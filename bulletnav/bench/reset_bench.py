@@ -225,11 +225,13 @@ def _scan_costs(env: Any, n: int) -> dict[str, Any]:
     cfg = lidar.config
     ray_to = [[cfg.max_range * np.cos(a), cfg.max_range * np.sin(a), 0.0] for a in lidar.angles]
     ray_from = [[0.0, 0.0, 0.0]] * len(ray_to)
-    link = lidar.robot.lidar_link
+    cid, body = scene.client, scene.robot_body
+    link = next(j for j in range(p.getNumJoints(body, physicsClientId=cid))
+                if p.getJointInfo(body, j, physicsClientId=cid)[12].decode() == "lidar_link")
 
     def bullet() -> None:
-        p.rayTestBatch(ray_from, ray_to, parentObjectUniqueId=scene.robot_body, parentLinkIndex=link,
-                       collisionFilterMask=STATIC_GROUP, physicsClientId=scene.client)
+        p.rayTestBatch(ray_from, ray_to, parentObjectUniqueId=body, parentLinkIndex=link,
+                       collisionFilterMask=STATIC_GROUP, physicsClientId=cid)
 
     times: dict[str, list[float]] = {"own": [], "bullet": []}
     for _ in range(n):  # interleaved, so load from other processes hits both alike
