@@ -113,6 +113,11 @@ class RobotConfig:
     """Disc radius (m) standing for the robot in start/goal sampling, reachability, planning
     inflation and the evaluation's shortest path: the outline's farthest corner (0.18 m for
     the shipped URDF) plus 2 cm. Must be at least the outline's (checked at load)."""
+    wheel_accel: float | None = None
+    """How fast its wheels' rim speeds follow a command (m/s^2), as measured on the robot: the
+    safety shield then also checks each command the wheels cannot reach within one control
+    period along the sweep they can follow (``ShieldConfig.wheel_accel``). None: not used (the
+    article robot, whose shielded results were measured without it)."""
 
     def __post_init__(self) -> None:
         if not (self.park_brake_rate >= 0.0):
@@ -426,6 +431,11 @@ class TaskConfig:
     """Distance to the goal (m) under which the episode terminates with success."""
     max_speed: float = 0.5
     """Top forward speed (m/s): action bound and velocity normalisation."""
+    min_speed: float = 0.0
+    """Lowest speed (m/s) an action may command: 0 (the default) drives forward only; a negative
+    value lets the robot back up at down to that speed (move_base's ``escape_vel``). It moves the
+    action space's lower bound of v and nothing else: the observation still divides v by
+    ``max_speed``."""
     max_turn_rate: float = 1.5
     """Top yaw rate (rad/s): action bound and normalisation."""
     distance_scale: float = 10.0
@@ -470,6 +480,8 @@ class TaskConfig:
             raise ValueError(f"guidance must be 'none' or 'floorplan', got {self.guidance!r}")
         if self.goal_radius <= 0:
             raise ValueError(f"goal_radius must be > 0, got {self.goal_radius}")
+        if not (math.isfinite(self.min_speed) and self.min_speed <= 0.0):
+            raise ValueError(f"min_speed must be a finite number <= 0 m/s, got {self.min_speed!r}")
 
 
 @dataclass(frozen=True)
@@ -651,7 +663,7 @@ def robot_preset(config: EnvConfig, name: str) -> EnvConfig:
     if name != JACKAL:
         raise ValueError(f"unknown robot {name!r}; known: {', '.join(ROBOTS)}")
     robot = RobotConfig(urdf=str(asset_path("jackal.urdf")), max_wheel_torque=JACKAL_WHEEL_TORQUE,
-                        footprint_radius=0.35)
+                        footprint_radius=0.35, wheel_accel=JACKAL_WHEEL_ACCEL)
     lidar = LidarConfig(num_rays=JACKAL_LIDAR_RAYS, fov=270.0, max_range=30.0, min_range=0.1, noise_std=0.001,
                         rate_hz=config.sensors.lidar.rate_hz, enabled=config.sensors.lidar.enabled,
                         caster=config.sensors.lidar.caster)
@@ -661,6 +673,10 @@ def robot_preset(config: EnvConfig, name: str) -> EnvConfig:
 
 JACKAL_LIDAR_RAYS = 72
 """Rays of the Jackal's lidar scan by default (over its 270 degrees); the UST-10 itself has 720."""
+JACKAL_WHEEL_ACCEL = 3.5
+"""The Jackal's rim acceleration (m/s^2) at :data:`JACKAL_WHEEL_TORQUE` (measured there). A
+command to turn at 3 rad/s while speeding up from 1 to 2 m/s waits three control periods for its
+first yaw: the wheels' torque goes into the speed first."""
 JACKAL_WHEEL_TORQUE = 3.0
 """Motor torque limit per wheel of the Jackal (N*m): about 3.5 m/s^2 from rest to its 2.0 m/s in
 0.7 s, straight (yaw within 0.002 rad over 4 m and a full stop). Clearpath's controller allows

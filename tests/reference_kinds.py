@@ -211,6 +211,17 @@ KINDS: dict[str, str] = {
     "test_control.py::test_pid_output_is_clamped_and_integral_does_not_wind_up": "hand",
     "test_control.py::test_pid_integral_limit_derivative_and_reset": "hand",
     "test_control.py::test_lidar_map_matches_the_layout": "formula",  # truth: the layout's footprints rasterised, not the mapper
+    # ---- test_costmap.py
+    "test_costmap.py::test_barn_footprint_padded_and_its_radii_by_hand": "hand",  # 0.31 x 0.265 m; inscribed 0.265, hypot
+    # InflationLayer::computeCost written in the test per cell; 177 at 6 cells by hand
+    "test_costmap.py::test_inflation_costs_follow_costmap_2ds_formula": "formula",
+    "test_costmap.py::test_obstacle_layer_marks_hits_and_clears_rays_by_hand": "hand",  # cells cleared and marked, drawn by hand
+    "test_costmap.py::test_footprint_clearing_and_rolling_window_by_hand": "hand",
+    "test_costmap.py::test_clear_costmap_recovery_clears_outside_a_square_of_named_layers": "hand",  # 59 x 59 cells kept
+    "test_costmap.py::test_footprint_fill_cells_by_hand": "hand",
+    "test_costmap.py::test_navfn_straight_corridor_by_hand": "hand",  # 98 cells x COST_NEUTRAL; half-cell steps
+    # SciPy's Dijkstra (4-connected and octile) on navfn's costs: the bounds navfn's potential must keep
+    "test_costmap.py::test_navfn_path_cost_against_scipys_dijkstra": "library",
     # ---- test_curriculum.py
     "test_curriculum.py::test_promotion_waits_for_min_episodes_and_the_window_rate": "hand",
     "test_curriculum.py::test_demotion_below_the_threshold_and_no_move_past_the_ends": "hand",
@@ -234,6 +245,24 @@ KINDS: dict[str, str] = {
     "test_demo.py::test_demo_without_a_model_says_so": "contract",
     # the committed model card's first episode
     "test_demo.py::test_demo_runs_the_shipped_dynamic_policy_and_reproduces_its_card": "golden",
+    # ---- test_dwa.py
+    # forward Euler and the arc v/w written in the test; the ramp from rest by hand
+    "test_dwa.py::test_rollout_follows_the_closed_form_arc": "formula",
+    "test_dwa.py::test_dynamic_window_samples_match_the_formula": "formula",  # the window and np.linspace written in the test
+    "test_dwa.py::test_footprint_cost_follows_costmap_model_by_hand": "hand",  # outline costs 253, -1, 177, 0, -3 by hand
+    "test_dwa.py::test_a_wall_ahead_turns_the_robot_toward_the_gap_on_its_left": "hand",
+    "test_dwa.py::test_in_place_rotations_mark_the_stuck_side_and_moving_clears_it": "hand",
+    "test_dwa.py::test_escape_backs_up_when_nothing_else_is_legal_and_only_where_the_env_allows_it": "hand",  # escape_vel -0.5
+    "test_dwa.py::test_goal_tolerance_stop_then_rotate_by_hand": "hand",  # stopWithAccLimits and rotateToGoal worked by hand
+    # move_base.cpp's default recovery list and abort message; two full turns
+    "test_dwa.py::test_move_base_runs_its_default_recoveries_then_aborts_and_stands_still": "hand",
+    "test_dwa.py::test_barns_files_give_the_documented_values": "hand",  # BARN's files (commit bf5a226) and ROS's defaults
+    "test_dwa.py::test_a_users_yaml_overrides_and_bad_keys_name_file_key_and_nearest": "contract",
+    "test_dwa.py::test_suites_parse_dwa_controllers_with_params_and_env": "contract",
+    "test_dwa.py::test_min_speed_lets_the_robot_back_up_and_changes_nothing_else": "hand",  # -0.3 m/s x 2 s, v / 0.5
+    # never shorter than the evaluation's shortest path to the success disc
+    "test_dwa.py::test_dwa_reaches_the_goal_in_warehouse_v0": "formula",
+    "test_dwa.py::test_dwa_reaches_the_goal_in_barn_training_worlds": "formula",  # BARN's metric > 0: within 8 t_opt
     # ---- test_env.py
     "test_env.py::test_spaces_match_the_article": "hand",
     "test_env.py::test_checkers_pass_without_warnings_with_normalized_actions": "library",
@@ -739,6 +768,18 @@ KINDS: dict[str, str] = {
     "test_sensors.py::test_imu_noise_statistics_and_gravity_at_rest": "formula",
     "test_sensors.py::test_imu_bias_and_rotation_rate": "formula",
     "test_sensors.py::test_odometry_tracks_ground_truth": "formula",  # against PyBullet's true pose
+    # ---- test_shield_memory.py
+    "test_shield_memory.py::test_the_blind_sector_is_the_270_degree_lidars_back_and_a_full_circle_has_none": "hand",
+    "test_shield_memory.py::test_a_point_that_leaves_the_field_of_view_is_remembered_where_odometry_puts_it_and_dropped_when_seen_again":
+        "formula",
+    "test_shield_memory.py::test_remembered_points_beyond_the_radius_or_on_the_robot_are_forgotten": "hand",
+    "test_shield_memory.py::test_a_cylinder_in_the_blind_sector_stops_a_turn_in_place_that_the_current_scan_alone_lets_through":
+        "hand",
+    "test_shield_memory.py::test_backing_up_sweeps_the_forward_sweep_mirrored_and_stays_within_the_room_behind": "formula",
+    "test_shield_memory.py::test_the_wheel_sweep_brakes_straight_by_the_closed_form_and_turns_late_when_the_wheels_are_busy_speeding_up":
+        "formula",
+    "test_shield_memory.py::test_the_jackal_gets_the_wheel_sweep_and_the_article_robot_keeps_its_shield": "contract",
+    "test_shield_memory.py::test_random_commands_behind_the_shield_never_touch_a_cylinder_in_barn_worlds": "contract",
     # ---- test_shield.py
     # reach = v dt + v^2 / 2a past the front face
     "test_shield.py::test_a_wall_inside_the_stopping_sweep_stops_a_forward_command_and_one_just_beyond_does_not": "formula",

@@ -104,6 +104,17 @@ class NavigatorConfig:
     speed and turn rate, braking-limited speed, clearances to its outline, a narrow-gap plan.
     The article robot (the shipped URDF with Warehouse-v0's action bounds, which these defaults
     were tuned for) always gets the settings as given."""
+    back_up: bool = True
+    """Where the env lets the robot back up (``TaskConfig.min_speed`` < 0): a robot that has made
+    no headway for ``stuck_time`` backs along the way it came (:meth:`Navigator.act`) until its
+    turning circle is clear of what the lidar sees, then replans: the way out of a pocket too
+    tight to turn in. A forward-only env never backs up."""
+    stuck_time: float = 1.0
+    """Seconds without headway (under 3 cm and 0.2 rad net) after which the robot backs up."""
+    back_speed: float = 0.3
+    """Speed (m/s) of backing up."""
+    back_max: float = 1.0
+    """The farthest (m) one backing up goes."""
     narrow_inflation: float | None = None
     """A last plan is tried with this inflation (m) when none is found with ``inflation``
     (None: no such plan). :func:`fit_to_robot` sets it to a long, narrow robot's half width
@@ -120,6 +131,25 @@ def _wrap(angle: float) -> float:
     return math.remainder(angle, 2 * math.pi)
 
 
+TRAIL_STEP = 0.05
+"""Spacing (m) of the points of the robot's trail, the way it backs out along."""
+STUCK_DISTANCE = 0.03
+"""Net motion (m) under which ``stuck_time`` without headway counts as stuck."""
+STUCK_TURN = 0.2
+"""Net turn (rad) under which ``stuck_time`` without headway counts as stuck."""
+BACK_CLEARANCE = 0.06
+"""Backing up ends when no lidar hit lies within the outline's reach plus this (m): room to turn."""
+TURN_FIRST_RAD = 1.0
+"""A robot that can back up turns in place toward its target first when facing more than this
+(rad) away from it with something in the corridor ahead (:meth:`GoToGoal.turn_first`)..."""
+TURN_FIRST_DONE_RAD = 0.3
+"""... until it faces within this (rad) of it."""
+TABU_RADIUS = 0.2
+"""Plans keep this far (m, plus their inflation) from the places the robot had to back out of."""
+BACK_LOOKAHEAD = 0.3
+"""Backing up steers the rear at the trail point this far (m) behind."""
+BACK_GAIN = 2.0
+"""Yaw rate (rad/s) per rad of heading error of the rear while backing up."""
 NARROW_MARGIN = 0.03
 """What :func:`fit_to_robot`'s narrow-gap plan adds to the robot's half width (m)."""
 TURN_GUARD_RAD = 0.35
@@ -209,9 +239,36 @@ class GoToGoal:
         self.rectangles = np.array([(r.cx, r.cy, r.half_x, r.half_y) for r in geometry.rectangles])
         self.reach = geometry.outline_radius
         self.pid = PID(config.kp, config.ki, config.kd, -config.max_turn_rate, config.max_turn_rate, integral_limit=0.5)
+        self._turning = 0.0  # the way turn_first is turning (0: not)
 
     def reset(self) -> None:
         self.pid.reset()
+        self._turning = 0.0
+
+    def turn_first(self, pose: tuple[float, float, float], target: tuple[float, float], ranges: np.ndarray
+                   ) -> tuple[float, float] | None:
+        """For a robot that can back up, beside obstacles and facing well away from its target:
+        turn in place toward it before driving, where the outline's corners stay clear
+        (:data:`TURN_FIRST_RAD`; the avoidance blends, left alone there, swing the heading from
+        side to side). The command of that turn, ``(0, 0)`` when neither way is clear (back up),
+        or None to drive as :meth:`command` does."""
+        cfg = self.config
+        x, y, yaw = pose
+        error = _wrap(math.atan2(target[1] - y, target[0] - x) - yaw)
+        if self._turning and abs(error) < TURN_FIRST_DONE_RAD:
+            self._turning = 0.0
+        if not self._turning:
+            if abs(error) < TURN_FIRST_RAD or self._corridor(ranges) >= cfg.safety_distance:
+                return None
+            self._turning = math.copysign(1.0, error)
+        points = self._near_points(ranges)
+        for sign in (self._turning, -self._turning):
+            if not self._turn_hits(points, sign):
+                self._turning = sign
+                rate = min(cfg.max_turn_rate, TURN_GUARD_RATE if len(points) else cfg.max_turn_rate, max(0.8, 2.0 * abs(error)))
+                return 0.0, sign * rate
+        self._turning = 0.0
+        return 0.0, 0.0
 
     def command(self, pose: tuple[float, float, float], target: tuple[float, float], ranges: np.ndarray,
                 dt: float, goal_distance: float) -> tuple[float, float]:
@@ -371,6 +428,19 @@ class Navigator:
         self._since_plan = 0
         self._inflated: list[OccupancyGrid] = []
         self._waited = 0
+        (v_min, _), _ = scene.command_limits
+        self._can_back = self.config.back_up and v_min < 0.0
+        self._back_speed = min(self.config.back_speed, -v_min) if self._can_back else 0.0
+        self._turn_clear = geometry.outline_radius + BACK_CLEARANCE
+        self._trail: list[tuple[float, float]] = [(x, y)]
+        self._recent: list[tuple[float, float, float]] = []
+        self._backing = False
+        self._stuck_now = False
+        self._tabu: list[tuple[float, float]] = []
+        self._backed = 0.0
+        self._back_steps = 0
+        self.backups = 0
+        """Times this episode the robot backed out of a place it could not turn in."""
         # missions: visit the goals in the best order on the true static map (free order), or as given
         self.order: tuple[int, ...] | None = None
         """Mission goal indices in the order this navigator visits them (None: one goal)."""
@@ -414,6 +484,10 @@ class Navigator:
         ranges = np.asarray(state[: self.n_rays], dtype=np.float64) * self.max_range
         new_cells = self.mapper.integrate(pose, self.angles, ranges, self.max_range, sensor_offset=self.lidar_offset)
         goal_distance = math.hypot(self.goal[0] - pose[0], self.goal[1] - pose[1])
+        if self._can_back:
+            backing = self._back_up(pose, ranges, goal_distance)
+            if backing is not None:
+                return self._action(*backing)
         target = self.goal
         dynamic = self.scene.dynamic
         if dynamic and cfg.wait_for_movers:
@@ -439,11 +513,76 @@ class Navigator:
                 self._plan(pose)
             if self.path:
                 target = self._lookahead(pose)
+        if self._can_back and self.config.controller.outline_clearance:
+            turn = self.controller.turn_first(pose, target, ranges)
+            if turn is not None:
+                if turn == (0.0, 0.0):  # boxed in: back out now rather than wait to be stuck
+                    self._stuck_now = True
+                return self._action(*turn)
         v, w = self.controller.command(pose, target, ranges, self.dt, goal_distance)
         return self._action(v, w)
 
     def _action(self, v: float, w: float) -> np.ndarray:
         return self.scene.action_for(v, w)
+
+    # ------------------------------------------------------------------ backing out
+    def _back_up(self, pose: tuple[float, float, float], ranges: np.ndarray, goal_distance: float
+                 ) -> tuple[float, float] | None:
+        """The command that backs the robot along its trail, or None to drive on as usual.
+
+        The trail is the robot's own path (a point every :data:`TRAIL_STEP` m): free space it
+        came through. After ``stuck_time`` without headway away from the goal, the robot backs
+        along it, steering its rear at the trail point :data:`BACK_LOOKAHEAD` m behind, until
+        no lidar hit lies within its turning circle (the outline's reach plus
+        :data:`BACK_CLEARANCE`), it has backed ``back_max`` m, or the trail runs out; then it
+        replans from there."""
+        cfg = self.config
+        x, y, yaw = pose
+        tx, ty = self._trail[-1]
+        if not self._backing and math.hypot(x - tx, y - ty) >= TRAIL_STEP:
+            self._trail.append((x, y))
+        self._recent.append(pose)
+        window = max(1, int(round(cfg.stuck_time / self.dt)))
+        if len(self._recent) > window:
+            del self._recent[0]
+        if not self._backing:
+            x0, y0, yaw0 = self._recent[0]
+            stuck = ((self._stuck_now or (len(self._recent) == window and math.hypot(x - x0, y - y0) < STUCK_DISTANCE
+                                          and abs(_wrap(yaw - yaw0)) < STUCK_TURN))
+                     and goal_distance > 2.0 * self.scene.goal_radius and len(self._trail) > 1)
+            self._stuck_now = False
+            if not stuck:
+                return None
+            self._backing, self._backed, self._back_steps = True, 0.0, 0
+            self.backups += 1
+            self._tabu.append((x, y))  # plans go around this place from now on, where they can
+        # drop the trail points the robot has backed past; steer the rear at the one BACK_LOOKAHEAD behind
+        while len(self._trail) > 1 and math.hypot(self._trail[-1][0] - x, self._trail[-1][1] - y) < TRAIL_STEP:
+            self._trail.pop()
+        hx = self.lidar_offset + ranges * np.cos(self.angles)
+        hy = ranges * np.sin(self.angles)
+        hits = ranges < self.max_range * 0.999
+        roomy = not np.any(hits & (hx * hx + hy * hy < self._turn_clear ** 2))
+        self._back_steps += 1
+        ended = (roomy or self._backed >= cfg.back_max or len(self._trail) <= 1
+                 or self._back_steps * self.dt > 2.0 * cfg.back_max / max(self._back_speed, 1e-6))
+        if ended:
+            self._backing = False
+            self._recent = []
+            self._trail.append((x, y))
+            self.path = None  # replan from here
+            return None
+        target = self._trail[-1]
+        for px, py in reversed(self._trail):
+            target = (px, py)
+            if math.hypot(px - x, py - y) >= BACK_LOOKAHEAD:
+                break
+        error = _wrap(math.atan2(target[1] - y, target[0] - x) - (yaw + math.pi))
+        (_, _), (_, w_max) = self.scene.command_limits
+        w = max(-w_max, min(w_max, BACK_GAIN * error))
+        v = -self._back_speed * max(0.0, math.cos(error))
+        self._backed += -v * self.dt
+        return v, w
 
     def _mover_ahead(self, pose) -> bool:
         """A moving mover overlaps the corridor ahead: the robot's disc swept ``wait_distance``
@@ -466,7 +605,10 @@ class Navigator:
         start = (pose[0], pose[1])
         t0 = time.perf_counter()
         path = None
-        for inflated in self._inflated:  # wide berth first, then the robot radius alone
+        grids = self._inflated
+        if self._tabu:  # around the places it had to back out of first, then through them as a last resort
+            grids = [self._blocked_at(g, self._tabu) for g in self._inflated] + list(self._inflated)
+        for inflated in grids:  # wide berth first, then the robot radius alone
             grid = self._clear_around(inflated, [start, self.goal])
             if self.config.planner == "astar":
                 path = astar(grid, start, self.goal)
@@ -480,6 +622,19 @@ class Navigator:
             self.replans += 1
         self.path = path
         self._since_plan = 0
+
+    def _blocked_at(self, grid: OccupancyGrid, points: list[tuple[float, float]]) -> OccupancyGrid:
+        """``grid`` with the cells within :data:`TABU_RADIUS` of ``points`` occupied."""
+        occ = grid.occupied.copy()
+        r = TABU_RADIUS / grid.resolution
+        n = int(math.ceil(r))
+        for px, py in points:
+            ix, iy = grid.world_to_cell((px, py))
+            for dx in range(-n, n + 1):
+                for dy in range(-n, n + 1):
+                    if dx * dx + dy * dy <= r * r and grid.in_bounds(ix + dx, iy + dy):
+                        occ[ix + dx, iy + dy] = True
+        return OccupancyGrid(occ, grid.resolution, grid.origin)
 
     def _clear_around(self, grid: OccupancyGrid, points) -> OccupancyGrid:
         """Inflation can swallow a robot standing close to an obstacle (or the goal), which

@@ -55,7 +55,7 @@ mover yields).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import gymnasium as gym
@@ -69,7 +69,9 @@ from bulletnav.control.shield_kernels import (
     start_speed,
     sweep_profile,
     travel,
+    wheel_sweep,
 )
+from bulletnav.control.shield_memory import ScanMemory
 from bulletnav.geometry import RobotGeometry
 
 _BATCH = 8
@@ -139,11 +141,24 @@ class ShieldConfig:
     a few millimetres, so a creep that keeps the measured clearance can shrink the true one
     until the robot touches. The fleet's shield sets it to ``close_margin``."""
 
+    wheel_accel: float | None = None
+    """How fast (m/s^2) each wheel's rim speed follows a command, for the second sweep of a command
+    the wheels cannot reach within one control period (see :meth:`Shield.check`). None: the
+    robot's own (``RobotConfig.wheel_accel``: the Jackal's 3.5), and no second sweep for a robot
+    without one (the article robot). Without it a big change of yaw rate at speed (the Jackal's
+    4 rad/s turns) counts on a turn the robot cannot make in time."""
+    memory_radius: float = 1.2
+    """The shield remembers what the lidar saw within this distance (m) of the body centre once
+    it has left a blind sector (:mod:`bulletnav.control.shield_memory`; the Jackal's lidar sees
+    270 degrees), carried forward by odometry, and checks every sweep against it too. A lidar
+    that sees all the way round has nothing to remember. 0 turns the memory off."""
+
     def __post_init__(self) -> None:
         if (not 0 <= self.margin_min <= self.margin or self.decel <= 0 or self.samples < 3 or self.join < 0
-                or self.patience < 1 or self.creep_speed < 0 or self.creep_floor < 0):
+                or self.patience < 1 or self.creep_speed < 0 or self.creep_floor < 0 or not self.memory_radius >= 0
+                or not (self.wheel_accel is None or self.wheel_accel > 0)):
             raise ValueError("shield needs 0 <= margin_min <= margin, decel > 0, samples >= 3, join >= 0, patience >= 1, "
-                             f"creep_speed >= 0, creep_floor >= 0; got {self}")
+                             f"creep_speed >= 0, creep_floor >= 0, memory_radius >= 0, wheel_accel > 0; got {self}")
 
 
 @dataclass(frozen=True)
@@ -312,9 +327,10 @@ class Shield:
     # ------------------------------------------------------------------ decisions
     def check(self, v: float | np.ndarray, w: float | np.ndarray, v_now: float, points: np.ndarray,
               movers: list[Any] | None = None, pose: tuple[float, float, float] = (0.0, 0.0, 0.0),
-              w_now: float | None = None) -> np.ndarray:
+              w_now: float | None = None, back_room: float = math.inf) -> np.ndarray:
         """(C,) True where the sweep of command (v, w) is clear of ``points`` (body frame) and
-        ``movers`` for the outline grown by the sweep's margin (see :meth:`margin`)."""
+        ``movers`` for the outline grown by the sweep's margin (see :meth:`margin`); a command
+        that backs up (v < 0) must also stay within ``back_room`` m behind the robot."""
         poses, times = self.sweep(v, w, v_now, w_now)
         margin = self.margin(start_speed(np.atleast_1d(np.asarray(v, dtype=np.float64)), v_now))
         if len(points):  # only points within the grown outline's reach of some pose can be hit
@@ -324,6 +340,35 @@ class Shield:
         blocked = self._blocked(poses, points, margin)
         if movers:
             blocked |= self._blocked(poses, self._mover_points(movers, times, pose), margin)
+        if w_now is not None and self.config.wheel_accel is not None:
+            # commands the wheels cannot reach in one period: also their sweep as the wheels can follow it
+            vv = np.atleast_1d(np.asarray(v, dtype=np.float64))
+            ww = np.broadcast_to(np.atleast_1d(np.asarray(w, dtype=np.float64)), vv.shape)
+            hb, reach = self._half_base, self.config.wheel_accel * self.dt
+            slow = ((np.abs((vv - ww * hb) - (v_now - w_now * hb)) > reach)
+                    | (np.abs((vv + ww * hb) - (v_now + w_now * hb)) > reach)) & ~blocked
+            if slow.any():
+                idx = np.flatnonzero(slow)
+                lag = np.zeros((len(idx), self.config.samples, 3))
+                lag_t = np.zeros((len(idx), self.config.samples))
+                wheel_sweep(np.ascontiguousarray(vv[idx]), np.ascontiguousarray(ww[idx]), float(v_now), float(w_now), self.dt,
+                            self.config.wheel_accel, self.config.decel, hb, lag, lag_t)
+                lag_pts = points
+                if len(points):
+                    m = float(margin.max())
+                    far = travel(lag) + float(np.hypot(self._outline_abs[:, 0] + m, self._outline_abs[:, 1] + m).max())
+                    lag_pts = points[points[:, 0] ** 2 + points[:, 1] ** 2 <= far * far]
+                hit = self._blocked(lag, lag_pts, margin[idx])
+                if movers:
+                    hit |= self._blocked(lag, self._mover_points(movers, lag_t, pose), margin[idx])
+                blocked[idx] |= hit
+        back = np.atleast_1d(np.asarray(v, dtype=np.float64)) < 0.0
+        if back.any():
+            # backing up goes no farther back than the room behind (the way the robot came);
+            # from a forward roll it first coasts to a stop, and that stop must be clear too
+            blocked |= back & (-poses[:, :, 0].min(axis=1) > back_room)
+            if v_now > 0.0:
+                blocked |= back & ~self.check(0.0, 0.0, v_now, points, movers, pose, w_now=w_now)[0]
         return ~blocked
 
     def _touch_free(self, v_now: float, points: np.ndarray, movers: list[Any], pose: tuple[float, float, float],
@@ -336,26 +381,31 @@ class Shield:
         return gap > 0.0
 
     def _close_clear(self, v: np.ndarray, w: np.ndarray, v_now: float, ranges: np.ndarray, movers: list[Any],
-                     pose: tuple[float, float, float], w_now: float | None) -> np.ndarray:
+                     pose: tuple[float, float, float], w_now: float | None, memory: np.ndarray | None = None,
+                     back_room: float = math.inf) -> np.ndarray:
         """(C,) True where the sweep keeps the bare outline grown by ``close_margin`` off the scan
-        filled in every 1 cm and off the movers: the test for turning in place once inside the margin."""
+        filled in every 1 cm and off the movers: the test for turning in place (or backing up,
+        within ``back_room``) once inside the margin."""
         cfg = self.config
         poses, times = self.sweep(v, w, v_now, w_now)
-        dense = self.points(ranges, within=self._bare_radius + cfg.close_margin + travel(poses), fill=0.01)
+        within = self._bare_radius + cfg.close_margin + travel(poses)
+        dense = _joined(self.points(ranges, within=within, fill=0.01), memory, within)
         margin = np.full(poses.shape[0], cfg.close_margin)
         blocked = self._blocked(poses, dense, margin)
         if movers:
             blocked |= self._blocked(poses, self._mover_points(movers, times, pose), margin)
+        blocked |= (v < 0.0) & (-poses[:, :, 0].min(axis=1) > back_room)
         return ~blocked
 
     def _creep_clear(self, v: np.ndarray, w: np.ndarray, v_now: float, ranges: np.ndarray, movers: list[Any],
-                     pose: tuple[float, float, float], w_now: float | None) -> np.ndarray:
+                     pose: tuple[float, float, float], w_now: float | None, memory: np.ndarray | None = None) -> np.ndarray:
         """(C,) True where no pose of the sweep brings the bare outline closer to the scan
         (filled in every 1 cm) or to a mover than the robot already is: the test for creeping
         past a mover that waits for the robot. The clearance never shrinks while it creeps, so
         a creep can pass a gap that is there but never wedge the robot in tighter."""
         poses, times = self.sweep(v, w, v_now, w_now)
-        dense = self.points(ranges, within=self._reach + travel(poses), fill=0.01)  # all within the margin of a pose
+        within = self._reach + travel(poses)
+        dense = _joined(self.points(ranges, within=within, fill=0.01), memory, within)  # all within the margin of a pose
         gaps = pose_gaps(np.ascontiguousarray(dense[:, 0]), np.ascontiguousarray(dense[:, 1]),
                           np.ascontiguousarray(poses[:, :, 0]), np.ascontiguousarray(poses[:, :, 1]),
                           np.cos(poses[:, :, 2]), np.sin(poses[:, :, 2]), self._outline)
@@ -374,16 +424,18 @@ class Shield:
 
     def filter(self, v: float, w: float, v_now: float, ranges: np.ndarray, movers: list[Any] | None = None,
                pose: tuple[float, float, float] = (0.0, 0.0, 0.0), w_now: float | None = None,
-               stuck: float | None = None) -> ShieldDecision:
+               stuck: float | None = None, memory: np.ndarray | None = None, back_room: float = math.inf) -> ShieldDecision:
         """The command to send instead of (v, w) (itself when its sweep is clear). ``stuck``
         (see ``ShieldConfig.patience``): 0 adds turns in place both ways and puts the stop
-        last; +1 or -1 also puts the turns in place of the other sign after the stop."""
+        last; +1 or -1 also puts the turns in place of the other sign after the stop. ``memory``:
+        points the lidar no longer sees (body frame; :mod:`~bulletnav.control.shield_memory`),
+        checked as the scan's are; ``back_room``: how far (m) a command may back the robot."""
         cfg = self.config
         if v == 0.0 and w == 0.0:  # a stop passes: nothing is safer, and the shield never drives
             return ShieldDecision(False, v, w, 0.0, True)
         coast = self.dt + self.v_max / cfg.decel
         reach = self._reach + max(v_now, self.v_max) * coast  # the farthest any sweep gets
-        points = self.points(ranges, within=reach)
+        points = _joined(self.points(ranges, within=reach), memory, reach)
         near = [m for m in (movers or ()) if math.hypot(m.pose[0] - pose[0], m.pose[1] - pose[1])
                 < reach + max(m.size[:2]) + m.speed * coast]
         # inside the margin already: every sweep starts here, so none is clear (skip to the fallback)
@@ -391,7 +443,7 @@ class Shield:
         m_now = self.margin(max(v_now, 0.0))
         inside = bool(self._blocked(here, points, m_now)[0]) or bool(
             near and self._blocked(here, self._mover_points(near, np.zeros((1, 1)), pose), m_now)[0])
-        if not inside and self.check(v, w, v_now, points, near, pose, w_now=w_now)[0]:
+        if not inside and self.check(v, w, v_now, points, near, pose, w_now=w_now, back_room=back_room)[0]:
             return ShieldDecision(False, v, w, 0.0, True)
         hb = self._half_base
         options = [(v * scale, min(max(w + dw, -self.w_max), self.w_max))
@@ -427,29 +479,37 @@ class Shield:
         for i, (lo, hi) in enumerate(batches):
             if i == 2 and creep:
                 by = np.argsort(crawl_change, kind="stable")
-                clear = self._creep_clear(crawl[by, 0], crawl[by, 1], v_now, ranges, near, pose, w_now)
+                clear = self._creep_clear(crawl[by, 0], crawl[by, 1], v_now, ranges, near, pose, w_now, memory)
                 if clear.any():
                     best = int(by[np.argmax(clear)])
                     return ShieldDecision(True, float(crawl[best, 0]), float(crawl[best, 1]), float(crawl_change[best]),
                                           True, creep=True)
             if inside or hi <= lo:
                 continue
-            clear = self.check(cand[lo:hi, 0], cand[lo:hi, 1], v_now, points, near, pose, w_now=w_now)
+            clear = self.check(cand[lo:hi, 0], cand[lo:hi, 1], v_now, points, near, pose, w_now=w_now, back_room=back_room)
             if clear.any():
                 best = lo + int(np.argmax(clear))
                 return ShieldDecision(True, float(cand[best, 0]), float(cand[best, 1]), float(change[best]), True)
         # already inside the margin: a turn in place (or the stop) that passes the close-range test
         # (stuck: its own way first, then the other way, then the stop -- the ranks already put
         # the other way after this one; standing beside a wall is the last resort)
-        turns = np.flatnonzero(cand[:, 0] == 0.0)
+        turns = np.flatnonzero(cand[:, 0] <= 0.0)  # turns in place, and backing up where the env allows it
         if stuck:
             turns = np.concatenate([turns[cand[turns, 1] != 0.0], turns[cand[turns, 1] == 0.0]])
-        clear = self._close_clear(cand[turns, 0], cand[turns, 1], v_now, ranges, near, pose, w_now)
+        clear = self._close_clear(cand[turns, 0], cand[turns, 1], v_now, ranges, near, pose, w_now, memory, back_room)
         if not clear.any():  # the last resort; safe when even its coasting keeps off the bare outline
             stop = int(np.flatnonzero((cand[:, 0] == 0.0) & (cand[:, 1] == 0.0))[0])
             return ShieldDecision(True, 0.0, 0.0, float(change[stop]), self._touch_free(v_now, points, near, pose, w_now))
         best = int(turns[np.argmax(clear)])
         return ShieldDecision(True, float(cand[best, 0]), float(cand[best, 1]), float(change[best]), True)
+
+
+def _joined(points: np.ndarray, memory: np.ndarray | None, within: float) -> np.ndarray:
+    """``points`` and the remembered ones within ``within`` m of the body centre (body frame)."""
+    if memory is None or not len(memory):
+        return points
+    near = memory[memory[:, 0] ** 2 + memory[:, 1] ** 2 <= within * within]
+    return np.concatenate([points, near]) if len(near) else points
 
 
 NO_DECISION = ShieldDecision(False, 0.0, 0.0, 0.0, True)
@@ -472,10 +532,20 @@ class Veto:
         """Consecutive steps the shield has replaced the command by a stop or a turn in place."""
         self.escape = 0.0
         """The sign of the turn in place it took while stuck (0: none yet)."""
+        scene = self.base.scene
+        self.memory = ScanMemory(scene.geometry, scene.sensors.lidar.angles, config.memory_radius)
+        """What the lidar saw and no longer sees (empty for a lidar that sees all the way round)."""
+        self.back_room = 0.0
+        """How far (m, by odometry) the robot may back up: the forward distance it has driven,
+        less what it has backed since, at most ``config.memory_radius`` (the space it came
+        through, whose sides the lidar saw on the way in)."""
+        self._dt = scene.control_dt
 
     def reset(self) -> None:
         """Forget the last episode (call at every env reset)."""
         self.held, self.escape = 0, 0.0
+        self.memory.reset()
+        self.back_room = 0.0
 
     def __call__(self, action: Any) -> tuple[Any, ShieldDecision]:
         """The action to send instead of ``action`` (``action`` itself, the same object, when
@@ -486,8 +556,15 @@ class Veto:
         odometry = scene.sensors.odometry.read()
         movers = list(scene.movers) if scene.dynamic else None
         stuck = self.held >= self.shield.config.patience
-        d = self.shield.filter(v, w, float(odometry[3]), ranges, movers, tuple(scene.pose), w_now=float(odometry[4]),
-                               stuck=self.escape if stuck else None)
+        memory = None
+        if self.memory.active:
+            seen = self.shield.points(ranges, within=self.memory.radius, fill=0.01)
+            memory = self.memory.update((float(odometry[0]), float(odometry[1]), float(odometry[2])), seen)
+        v_now = float(odometry[3])
+        self.back_room = min(max(self.back_room + v_now * self._dt, 0.0), self.shield.config.memory_radius)
+        d = self.shield.filter(v, w, v_now, ranges, movers, tuple(scene.pose), w_now=float(odometry[4]),
+                               stuck=self.escape if stuck else None, memory=memory,
+                               back_room=self.back_room if v < 0.0 else math.inf)
         if d.intervened and (d.v == 0.0 or d.creep):  # creeping past a waiting mover stays stuck
             self.held += 1
             if stuck and d.v == 0.0 and d.w != 0.0 and not self.escape:
@@ -574,4 +651,6 @@ def shield_for(env: Any, config: ShieldConfig = ShieldConfig()) -> Shield:
     lidar = scene.sensors.lidar
     space = env.action_space
     v_max, w_max = env.unwrapped.command(space.high.astype(np.float64))
+    if config.wheel_accel is None and scene.wheel_accel is not None:
+        config = replace(config, wheel_accel=scene.wheel_accel)
     return Shield(scene.geometry, lidar.angles, lidar.config.max_range, scene.control_dt, v_max, w_max, config)

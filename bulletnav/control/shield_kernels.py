@@ -29,12 +29,15 @@ def sweep_profile(v, w, v_now, w_now, tail, dt, decel, half_base, out):  # pragm
     for c in range(n_cmd):
         vc, wc = v[c], w[c]
         drive = vc > 0
+        back = vc < 0  # backing up (an env with TaskConfig.min_speed < 0): the same sweep, mirrored
         if drive:
             v1 = v_now if v_now >= vc else vc
+        elif back:
+            v1 = -v_now if v_now <= vc else -vc  # the speed backwards: the larger of the two
         else:
             v1 = v_now if v_now >= 0.0 else 0.0
         stop = v1 / decel
-        spin = 0.0 if drive else abs(wc) * half_base / decel
+        spin = 0.0 if drive or back else abs(wc) * half_base / decel
         longest = stop if stop >= spin else spin
         after[0] = 0.0
         after[1] = 0.0
@@ -48,7 +51,9 @@ def sweep_profile(v, w, v_now, w_now, tail, dt, decel, half_base, out):  # pragm
             speed = v1 - decel * braking
             tk = t[c, k] if t[c, k] <= dt else dt
             travelled[k] = v1 * tk + braking * (v1 - 0.5 * decel * braking)
-            if drive:
+            if back:
+                travelled[k] = -travelled[k]
+            if drive or back:
                 rate[k] = wc * speed / (v1 if v1 >= 1e-9 else 1e-9)
             else:
                 left = 1.0 - after[k] / (spin if spin >= 1e-9 else 1e-9)
@@ -66,6 +71,61 @@ def sweep_profile(v, w, v_now, w_now, tail, dt, decel, half_base, out):  # pragm
     return t, mid, ds
 
 
+
+
+@njit(cache=True, nogil=True)
+def wheel_sweep(v, w, v_now, w_now, dt, accel, decel, half_base, out, times):  # pragma: no cover  (compiled)
+    """Poses ``out`` (C, K, 3) of the stopping sweeps of commands (``v``, ``w``: (C,)) as the
+    wheels can follow them: each wheel's rim speed moves from where it is now (``v_now``,
+    ``w_now``) toward the command's at most ``accel`` m/s^2 for one control period ``dt``, then
+    brakes toward 0 at ``decel`` m/s^2; the K poses are evenly spaced in time over the sweep
+    (their times written into ``times``, (C, K)), integrated in steps of at most 5 ms along
+    each step's mean heading."""
+    n_cmd, n = out.shape[0], out.shape[1]
+    l0 = v_now - w_now * half_base
+    r0 = v_now + w_now * half_base
+    for c in range(n_cmd):
+        lt = v[c] - w[c] * half_base
+        rt = v[c] + w[c] * half_base
+        # the rims at the end of the period
+        l1 = lt if abs(lt - l0) <= accel * dt else l0 + math.copysign(accel * dt, lt - l0)
+        r1 = rt if abs(rt - r0) <= accel * dt else r0 + math.copysign(accel * dt, rt - r0)
+        horizon = dt + max(abs(l1), abs(r1)) / decel
+        steps = int(math.ceil(horizon / 0.005))
+        steps = ((steps + n - 2) // (n - 1)) * (n - 1)  # a whole number of steps between samples
+        h = horizon / steps
+        x = 0.0
+        y = 0.0
+        yaw = 0.0
+        out[c, 0, 0] = 0.0
+        out[c, 0, 1] = 0.0
+        out[c, 0, 2] = 0.0
+        per = steps // (n - 1)
+        for k in range(n):
+            times[c, k] = horizon * k / (n - 1)
+        for i in range(steps):
+            tm = (i + 0.5) * h  # the step's middle
+            if tm <= dt:
+                dl = lt - l0
+                dr = rt - r0
+                lm = lt if abs(dl) <= accel * tm else l0 + math.copysign(accel * tm, dl)
+                rm = rt if abs(dr) <= accel * tm else r0 + math.copysign(accel * tm, dr)
+            else:
+                b = decel * (tm - dt)
+                lm = 0.0 if abs(l1) <= b else l1 - math.copysign(b, l1)
+                rm = 0.0 if abs(r1) <= b else r1 - math.copysign(b, r1)
+            vm = 0.5 * (lm + rm)
+            wm = (rm - lm) / (2.0 * half_base)
+            mid = yaw + 0.5 * wm * h
+            x += vm * h * math.cos(mid)
+            y += vm * h * math.sin(mid)
+            yaw += wm * h
+            if (i + 1) % per == 0:
+                k = (i + 1) // per
+                out[c, k, 0] = x
+                out[c, k, 1] = y
+                out[c, k, 2] = yaw
+    return out
 
 
 @njit(cache=True, nogil=True)
@@ -279,8 +339,9 @@ def pose_gaps(px, py, x0, y0, cos, sin, outline):  # pragma: no cover  (compiled
 
 def start_speed(v: np.ndarray, v_now: float) -> np.ndarray:
     """The speed (m/s) a sweep runs at over the control period: the larger of the current and
-    the commanded forward speed when driving, the current one (coasting) otherwise."""
-    return np.where(v > 0, np.maximum(v_now, v), max(v_now, 0.0))
+    the commanded forward speed when driving, of the two backward speeds when backing up, the
+    current one (coasting) otherwise."""
+    return np.where(v > 0, np.maximum(v_now, v), np.where(v < 0, np.maximum(-v_now, -v), max(v_now, 0.0)))
 
 
 def travel(poses: np.ndarray) -> float:

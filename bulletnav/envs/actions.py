@@ -27,8 +27,9 @@ class ActionMap:
 
     @classmethod
     def of(cls, task: TaskConfig, normalize: bool) -> ActionMap:
-        """The map of a robot driven at most ``task.max_speed`` forward and ``task.max_turn_rate`` either way."""
-        return cls((0.0, task.max_speed, -task.max_turn_rate, task.max_turn_rate), normalize)
+        """The map of a robot driven at most ``task.max_speed`` forward (and back at down to
+        ``task.min_speed``, 0 by default) and ``task.max_turn_rate`` either way."""
+        return cls((task.min_speed, task.max_speed, -task.max_turn_rate, task.max_turn_rate), normalize)
 
     def space(self) -> spaces.Box:
         """The action space: [-1, 1]^2, or the physical command box (float32)."""

@@ -380,12 +380,18 @@ class SceneReader:
         """The robot's outline, disc radius, wheels and sensor mounts (from its URDF)."""
         return self._scene.geometry
 
+    @property
+    def wheel_accel(self) -> float | None:
+        """The robot's measured rim acceleration (m/s^2; ``RobotConfig.wheel_accel``), None where not measured."""
+        return self._scene.config.robot.wheel_accel
+
     # ------------------------------------------------------------------ actions
     @property
     def command_limits(self) -> tuple[tuple[float, float], tuple[float, float]]:
-        """Physical command ranges: (v min, v max) m/s and (w min, w max) rad/s."""
+        """Physical command ranges: (v min, v max) m/s and (w min, w max) rad/s; v min is
+        ``TaskConfig.min_speed`` (0: forward only, negative: the robot may back up)."""
         t = self._scene.config.task
-        return (0.0, t.max_speed), (-t.max_turn_rate, t.max_turn_rate)
+        return (t.min_speed, t.max_speed), (-t.max_turn_rate, t.max_turn_rate)
 
     @property
     def normalized_actions(self) -> bool:

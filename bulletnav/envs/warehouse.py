@@ -43,6 +43,7 @@ _KWARGS = {
     "control_hz": (("physics",), "control_hz"),
     "solver_iterations": (("physics",), "solver_iterations"),
     "goal_radius": (("task",), "goal_radius"),
+    "min_speed": (("task",), "min_speed"),
     "pose_source": (("task",), "pose_source"),
     "collision_terminates": (("task",), "collision_terminates"),
     "layout_style": (("world",), "style"),
@@ -218,10 +219,12 @@ class WarehouseEnv(gym.Env):
 
     | index | action | unit | range |
     |---|---|---|---|
-    | 0 | forward speed v (forward only) | m/s | [0, 0.5] |
+    | 0 | forward speed v (forward only by default) | m/s | [min_speed, 0.5]; min_speed 0 by default |
     | 1 | yaw rate w (counter-clockwise +) | rad/s | [-1.5, 1.5] |
 
-    Out-of-range actions are clipped; a NaN or infinite action raises ``ValueError``. With
+    ``min_speed`` (m/s, default 0) below 0 lets the robot back up at down to that speed: the
+    action space's lower bound of v becomes it (nothing else changes; the observation still
+    divides v by the top speed). Out-of-range actions are clipped; a NaN or infinite action raises ``ValueError``. With
     ``normalize_actions=True`` the space is ``Box(-1, 1, (2,))``, mapped linearly onto the
     ranges above (what SB3 recommends for Gaussian policies).
 
@@ -302,7 +305,8 @@ class WarehouseEnv(gym.Env):
     closed form, static worlds only), ``imu_accel_noise`` (0.05 m/s^2),
     ``imu_gyro_noise`` (0.01 rad/s), ``odometry_noise`` (0 rad), ``physics`` ("default": 240 Hz;
     "fast": the measured fast profile of ``bulletnav.config.PHYSICS_PROFILES``), ``physics_hz`` (240),
-    ``control_hz`` (24), ``solver_iterations``, ``goal_radius`` (0.5 m),
+    ``control_hz`` (24), ``solver_iterations``, ``goal_radius`` (0.5 m), ``min_speed`` (0 m/s: forward
+    only; e.g. -0.5 lets the robot back up at 0.5 m/s),
     ``pose_source`` ("truth"), ``collision_terminates`` (False), ``normalize_actions``
     (False), ``layouts_every`` (1: a new procedural warehouse every reset),
     ``layout_style`` ("scattered"; any registered world generator), ``lidar_rate_hz`` (None:

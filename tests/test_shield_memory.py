@@ -1,0 +1,171 @@
+"""The shield on the Jackal: its memory of the lidar's blind sector, backing up, the sweep as
+the wheels can follow it, and random commands behind it in BARN worlds."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import bulletnav  # noqa: F401
+from bulletnav.config import EnvConfig, robot_preset
+from bulletnav.control.random_commands import RandomCommands
+from bulletnav.control.shield import Shield, ShieldConfig, ShieldWrapper
+from bulletnav.control.shield_kernels import wheel_sweep
+from bulletnav.control.shield_memory import ScanMemory, blind_sector
+from bulletnav.evaluation import run_episodes
+from bulletnav.geometry import robot_geometry
+from bulletnav.sensors.lidar import ray_angles
+
+JACKAL = robot_geometry(robot_preset(EnvConfig(), "jackal").robot)
+ANGLES = ray_angles(72, 270.0)
+OX = JACKAL.lidar_offset
+DT = 1 / 24
+
+
+def _jackal_shield(**kw) -> Shield:
+    return Shield(JACKAL, ANGLES, 30.0, DT, 2.0, 4.0, ShieldConfig(**kw))
+
+
+def _cylinder_ranges(cx: float, cy: float, radius: float, angles: np.ndarray = ANGLES, far: float = 30.0) -> np.ndarray:
+    """Ranges from the lidar (body frame) to an upright cylinder at (cx, cy), cast by hand."""
+    out = np.full(len(angles), far)
+    for k, a in enumerate(angles):
+        d = np.array([math.cos(a), math.sin(a)])
+        o = np.array([OX, 0.0]) - (cx, cy)
+        b = float(o @ d)
+        c = float(o @ o) - radius**2
+        disc = b * b - c
+        if disc >= 0 and -b - math.sqrt(disc) > 0:
+            out[k] = -b - math.sqrt(disc)
+    return out
+
+
+def test_the_blind_sector_is_the_270_degree_lidars_back_and_a_full_circle_has_none():
+    first, last = blind_sector(ANGLES)
+    assert math.degrees(last - first) == pytest.approx(270.0)
+    assert math.remainder(first, 2 * math.pi) == pytest.approx(math.radians(-135.0))
+    assert blind_sector(ray_angles(36, 360.0)) is None
+    assert not ScanMemory(JACKAL, ray_angles(36, 360.0), 1.2).active
+
+
+def test_a_point_that_leaves_the_field_of_view_is_remembered_where_odometry_puts_it_and_dropped_when_seen_again():
+    """A point 0.5 m to the robot's left (bearing 90 degrees, in view). The robot turns 70 degrees
+    clockwise on the spot: by the rotation the point now lies at bearing 160 degrees from the body
+    centre, behind the lidar's 135, so it is remembered there; turned back, the lidar sees it again
+    and the memory drops it."""
+    memory = ScanMemory(JACKAL, ANGLES, 1.2)
+    point = np.array([[0.0, 0.5]])
+    assert len(memory.update((0.0, 0.0, 0.0), point)) == 0
+    turned = -math.radians(70.0)
+    hidden = memory.update((0.0, 0.0, turned), np.zeros((0, 2)))
+    expect = (0.5 * math.cos(math.pi / 2 - turned), 0.5 * math.sin(math.pi / 2 - turned))
+    assert hidden.shape == (1, 2) and hidden[0] == pytest.approx(expect, abs=1e-12)
+    assert math.degrees(math.atan2(hidden[0, 1], hidden[0, 0] - OX)) > 135.0
+    assert len(memory.update((0.0, 0.0, turned), np.zeros((0, 2)))) == 1  # still behind: still remembered
+    assert len(memory.update((0.0, 0.0, 0.0), np.zeros((0, 2)))) == 0  # in view again: the scan is the truth there
+    assert len(memory) == 0
+
+
+def test_remembered_points_beyond_the_radius_or_on_the_robot_are_forgotten():
+    memory = ScanMemory(JACKAL, ANGLES, 1.0)
+    memory.update((0.0, 0.0, 0.0), np.array([[0.0, 0.9], [0.0, -0.4]]))
+    # 1 m forward the first point is 1.35 m away (forgotten); backing 0.4 m puts the second one
+    # behind the lidar at 0.57 m (kept)
+    assert len(memory.update((1.0, 0.0, 0.0), np.zeros((0, 2)))) == 0
+    memory.reset()
+    memory.update((0.0, 0.0, 0.0), np.array([[0.0, -0.4]]))
+    hidden = memory.update((0.4, 0.0, 0.0), np.zeros((0, 2)))
+    assert hidden == pytest.approx(np.array([[-0.4, -0.4]]))
+    # odometry that drifts the point under the robot: it cannot be an obstacle there
+    assert len(memory.update((0.1, -0.4, 0.0), np.zeros((0, 2)))) == 0
+
+
+def test_a_cylinder_in_the_blind_sector_stops_a_turn_in_place_that_the_current_scan_alone_lets_through():
+    """A cylinder of BARN's (r = 0.075 m) behind the Jackal's rear-left corner, in the blind
+    sector: the scan is empty, so a turn in place passes. Remembered (the points of its surface
+    facing the robot), the corner's sweep (it reaches 0.333 m from the centre) meets it and the
+    shield refuses the turn; at 0.5 m it is out of the corner's reach and the turn passes."""
+    shield = _jackal_shield()
+    empty = np.full(len(ANGLES), 30.0)
+    angle = math.radians(150.0)
+
+    def surface(dist: float) -> np.ndarray:
+        c = np.array([dist * math.cos(angle), dist * math.sin(angle)])
+        t = np.linspace(-math.pi / 2, math.pi / 2, 19) + angle + math.pi  # the half facing the robot
+        return c + 0.075 * np.stack([np.cos(t), np.sin(t)], axis=1)
+
+    assert not shield.filter(0.0, 4.0, 0.0, empty, w_now=0.0).intervened
+    near = shield.filter(0.0, 4.0, 0.0, empty, w_now=0.0, memory=surface(0.42))
+    assert near.intervened and near.w != 4.0
+    assert not shield.filter(0.0, 4.0, 0.0, empty, w_now=0.0, memory=surface(0.75)).intervened
+
+
+def test_backing_up_sweeps_the_forward_sweep_mirrored_and_stays_within_the_room_behind():
+    """From rest, backing at v with yaw rate w goes where driving forward at v with w goes,
+    mirrored through the centre (-x, -y, the same yaw): the same arc run backwards. A command
+    that backs up passes only within ``back_room`` of the way the robot came, and never into
+    a wall behind it."""
+    shield = _jackal_shield()
+    fwd, _ = shield.sweep(0.4, 1.0, 0.0, 0.0)
+    back, _ = shield.sweep(-0.4, 1.0, 0.0, 0.0)
+    assert back[..., 0] == pytest.approx(-fwd[..., 0]) and back[..., 1] == pytest.approx(-fwd[..., 1])
+    assert back[..., 2] == pytest.approx(fwd[..., 2])
+    # 0.4 m/s for a period, then braking at 1.5 m/s^2: 0.4 / 24 + 0.4^2 / 3 = 0.070 m back
+    assert -back[0, -1, 0] == pytest.approx(0.4 / 24 + 0.4**2 / 3.0, abs=0.01)
+    empty = np.full(len(ANGLES), 30.0)
+    assert not shield.filter(-0.4, 0.0, 0.0, empty, w_now=0.0, back_room=0.5).intervened
+    held = shield.filter(-0.4, 0.0, 0.0, empty, w_now=0.0, back_room=0.02)
+    assert held.intervened and held.v > -0.4
+    rear = min(r.cx - r.half_x for r in JACKAL.rectangles)
+
+    def wall(gap: float) -> np.ndarray:  # a wall across the way back, ``gap`` m behind the rear face
+        return np.array([[rear - gap, y] for y in np.linspace(-0.5, 0.5, 51)])
+
+    # the sweep's 0.070 m plus its margin (0.03 m at rest to 0.05 m at 2 m/s: 0.034 m at 0.4 m/s)
+    walled = shield.filter(-0.4, 0.0, 0.0, empty, w_now=0.0, memory=wall(0.09), back_room=1.0)
+    assert walled.intervened and walled.v > -0.4
+    assert not shield.filter(-0.4, 0.0, 0.0, empty, w_now=0.0, memory=wall(0.12), back_room=1.0).intervened
+
+
+def test_the_wheel_sweep_brakes_straight_by_the_closed_form_and_turns_late_when_the_wheels_are_busy_speeding_up():
+    """Straight, from 1 m/s to 1 m/s: one period at 1 m/s, then braking at 1.5 m/s^2 to a stop
+    1/24 + 1/3 m on. From 1 to 2 m/s with a 3 rad/s turn, each rim speeds up at 3.5 m/s^2: the
+    inner one reaches its 1.44 m/s after 0.125 s, and only then does the turn begin (as the
+    physics showed: no yaw for three control periods, ``JACKAL_WHEEL_ACCEL``)."""
+    hb = JACKAL.wheelbase / 2
+    out, t = np.zeros((1, 12, 3)), np.zeros((1, 12))
+    wheel_sweep(np.array([1.0]), np.array([0.0]), 1.0, 0.0, DT, 3.5, 1.5, hb, out, t)
+    assert out[0, -1, 0] == pytest.approx(DT + 1.0 / 3.0, rel=1e-3) and abs(out[0, -1, 1]) < 1e-12
+    assert t[0, -1] == pytest.approx(DT + 1.0 / 1.5)
+    out, t = np.zeros((1, 12, 3)), np.zeros((1, 12))
+    wheel_sweep(np.array([2.0]), np.array([3.0]), 1.0, 0.0, DT, 3.5, 1.5, hb, out, t)
+    # within the one period the rims both speed up by 3.5 / 24 m/s: no yaw at all
+    first = int(np.searchsorted(t[0], DT)) - 1
+    assert abs(out[0, first, 2]) < 1e-12
+
+
+def test_the_jackal_gets_the_wheel_sweep_and_the_article_robot_keeps_its_shield():
+    jackal = ShieldWrapper(gym.make("bulletnav/BARN-v0", world_idx=1))
+    assert jackal.shield.config.wheel_accel == 3.5
+    article = ShieldWrapper(gym.make("bulletnav/Warehouse-v0"))
+    assert article.shield.config.wheel_accel is None
+    jackal.close()
+    article.close()
+
+
+@pytest.mark.slow
+def test_random_commands_behind_the_shield_never_touch_a_cylinder_in_barn_worlds():
+    """Random commands (a new uniform one every 8 steps over the Jackal's whole range) in three
+    non-test BARN worlds: without the shield they collide in every episode; behind it, never."""
+    for world in (1, 77, 151):
+        raw = gym.make("bulletnav/BARN-v0", world_idx=world)
+        bare = run_episodes(raw, RandomCommands(raw.unwrapped.scene), 1, 11)
+        assert bare[0].collision
+        env = ShieldWrapper(gym.make("bulletnav/BARN-v0", world_idx=world))
+        results = run_episodes(env, RandomCommands(env.unwrapped.scene), 2, 11)
+        assert not any(r.collision for r in results), world
+        env.close()
+        raw.close()
