@@ -108,6 +108,14 @@ def make_cell(world: WorldSpec, controller: ControllerSpec, root: Path = PROJECT
 
         def policy_factory(env):
             return Navigator(env.unwrapped.scene, NavigatorConfig(planner=controller.planner))
+    elif controller.type == "dwa":
+        from bulletnav.control.dwa import MoveBaseDWA, dwa_env_kwargs, load_dwa_params
+
+        params = load_dwa_params(controller.params or None)
+        kwargs = dwa_env_kwargs(params, {**world.kwargs, **controller.env})
+
+        def policy_factory(env):
+            return MoveBaseDWA(env.unwrapped.scene, params)
     elif controller.type == "model":
         import torch
 
@@ -131,7 +139,7 @@ def make_cell(world: WorldSpec, controller: ControllerSpec, root: Path = PROJECT
 
         def policy_factory(env):
             return cls(env.unwrapped.scene, **controller.kwargs)
-    env = gym.make(world.env, **{**kwargs, **world.kwargs})
+    env = gym.make(world.env, **{**kwargs, **world.kwargs, **controller.env})
     if controller.shield:
         from bulletnav.control.shield import ShieldWrapper
 
@@ -438,7 +446,9 @@ def build_results(suite: Suite, rows: list[dict[str, Any]], root: Path = PROJECT
                   "seed": suite.seed,
                   "worlds": [_world_entry(suite, w) for w in suite.worlds],
                   "controllers": [{"name": c.name, "type": c.type, "planner": c.planner if c.type == "navigator" else None,
-                                   "model": c.model or None, "class": c.cls or None, "shield": c.shield}
+                                   "model": c.model or None, "class": c.cls or None, "shield": c.shield,
+                                   **({"params": c.params or "barn"} if c.type == "dwa" else {}),
+                                   **({"env": c.env} if c.env else {})}
                                   for c in suite.controllers]},
         "metrics": METRICS,
         "cells": cells,

@@ -20,12 +20,20 @@ A suite is a YAML file (shipped: ``quick`` and ``standard`` in ``bulletnav/bench
       - {name: PPO, type: model, model: shipped}             # shipped: the world's shipped model; else a path
       - {name: PPO + shield, type: model, model: shipped, shield: true}
       - {name: mine, type: policy, class: "mypackage.module:MyPolicy", kwargs: {gain: 2.0}}
+      - {name: DWA, type: dwa}                               # ROS move_base + navfn + DWA, BARN's parameters
+      - {name: DWA 2 m/s, type: dwa, params: barn-2ms, env: {min_speed: -0.5, lidar_rays: 720}}
 
 Every controller runs on the same seeded episodes of a world. A ``policy`` class implements
 :class:`bulletnav.policy.Policy` (``reset(info)``, ``act(obs, info)``) and is built as
 ``Class(scene, **kwargs)`` with the env's read-only scene view, from the modules of
 bulletnav, stable_baselines3 or sb3_contrib only (:data:`IMPORTABLE`; any other module needs
-``--trust-code``, for it runs that module's code); any controller takes ``shield: true``. The
+``--trust-code``, for it runs that module's code); any controller takes ``shield: true``. A
+``dwa`` controller is :class:`bulletnav.control.dwa.MoveBaseDWA` with BARN's move_base
+parameters, or ``params:`` a shipped set (``barn``, ``barn-2ms``) or an override YAML (relative
+to the suite file); its env opens with ``min_speed`` = the parameters' ``escape_vel`` (so it can
+back up), as ``bulletnav navigate --planner dwa`` does, unless its ``env:`` sets ``min_speed``.
+A ``navigator``, ``dwa`` or ``policy`` controller may add env keywords of its own, ``env:``
+(:data:`CONTROLLER_ENV_KWARGS`: ``min_speed``, ``lidar_rays``), laid over the world's. The
 suite's ``name`` names its output folder (``runs/benchmark/<name>``): a slug
 (:data:`bulletnav.limits.SLUG`). Its sizes are limits of :mod:`bulletnav.limits`
 (``suite_*``). World kwargs are limited to those the CLI can express, so that every episode
@@ -71,7 +79,13 @@ WORLD_KWARGS = {"num_obstacles": "--obstacles", "world": "--world", "perturb": "
                 "goal_order": "--order", "world_idx": "--world-idx"}
 """World kwargs a suite may set, with the CLI flag that replays them."""
 
+CONTROLLER_ENV_KWARGS = {"min_speed": "--min-speed", "lidar_rays": "--lidar-rays"}
+"""Env keywords a controller's ``env:`` may set (over its world's), with the CLI flag that replays them."""
+
 PLANNERS = ("none", "astar", "rrt")
+
+CONTROLLER_TYPES = ("navigator", "dwa", "model", "policy")
+"""The kinds of controller a suite may run."""
 
 BARN_ENV = "bulletnav/BARN-v0"
 """The one id a ``barn_worlds`` entry (and the ``world_idx`` kwarg) may name."""
@@ -114,7 +128,7 @@ class ControllerSpec:
 
     name: str
     type: str
-    """``navigator``, ``model`` or ``policy``."""
+    """``navigator``, ``dwa``, ``model`` or ``policy``."""
     planner: str = "astar"
     """Navigators: ``none`` (PID alone), ``astar`` or ``rrt``."""
     model: str = ""
@@ -125,6 +139,10 @@ class ControllerSpec:
     """Policies: keyword arguments of the class."""
     shield: bool = False
     """Behind the safety shield."""
+    params: str = ""
+    """DWA: move_base's parameters: ``""`` (BARN's), a shipped set (``barn``, ``barn-2ms``) or an override file (a path)."""
+    env: dict[str, Any] = field(default_factory=dict)
+    """Env keywords of this controller's own, laid over the world's (:data:`CONTROLLER_ENV_KWARGS`)."""
 
     def model_path(self, env_id: str, root: Path) -> Path:
         """The model file this controller runs on ``env_id`` (``shipped`` resolved, relative
@@ -343,15 +361,22 @@ def _barn_index(value: Any, where: str, field_: str) -> int:
 
 def _parse_controller(c: Any, where: str, tag: str, trust_code: bool) -> ControllerSpec:
     """One ``controllers:`` entry."""
-    c = _mapping(c, where, tag, {"name", "type", "planner", "model", "class", "kwargs", "shield"})
+    c = _mapping(c, where, tag, {"name", "type", "planner", "model", "class", "kwargs", "shield", "params", "env"})
     kind = c.get("type")
-    if kind not in ("navigator", "model", "policy"):
-        raise SuiteError(f"{where}: field '{tag}.type' must be 'navigator', 'model' or 'policy', got {show(kind)}")
+    if kind not in CONTROLLER_TYPES:
+        raise SuiteError(f"{where}: field '{tag}.type' must be one of {list(CONTROLLER_TYPES)}, got {show(kind)}")
     shield = c.get("shield", False)
     if not isinstance(shield, bool):
         raise SuiteError(f"{where}: field '{tag}.shield' must be true or false, got {show(shield)}")
     spec: dict[str, Any] = {"type": kind, "shield": shield}
-    if kind == "navigator":
+    if "params" in c and kind != "dwa":
+        raise SuiteError(f"{where}: field '{tag}.params' is for dwa controllers only, not {show(kind)}")
+    if "env" in c:
+        spec["env"] = _controller_env(c["env"], where, tag, kind)
+    if kind == "dwa":
+        spec["params"] = _dwa_params(c.get("params", ""), where, f"{tag}.params")
+        default = "DWA" if spec["params"] in ("", "barn") else f"DWA ({Path(spec['params']).stem})"
+    elif kind == "navigator":
         planner = c.get("planner", "astar")
         if planner not in PLANNERS:
             raise SuiteError(f"{where}: field '{tag}.planner' must be one of {list(PLANNERS)}, got {show(planner)}")
@@ -375,6 +400,40 @@ def _parse_controller(c: Any, where: str, tag: str, trust_code: bool) -> Control
     return ControllerSpec(name=name_, **spec)
 
 
+def _controller_env(value: Any, where: str, tag: str, kind: str) -> dict[str, Any]:
+    """A controller's ``env:``: keywords of :data:`CONTROLLER_ENV_KWARGS` whose values the env takes."""
+    from bulletnav.envs.warehouse import make_config
+
+    if kind == "model":
+        raise SuiteError(f"{where}: field '{tag}.env' is for navigator, dwa and policy controllers: a model runs on "
+                         "the env it was trained for")
+    env = dict(_mapping(value, where, f"{tag}.env", set(CONTROLLER_ENV_KWARGS)))
+    for key, v in env.items():
+        try:
+            make_config(**{key: v})
+        except (TypeError, ValueError) as exc:
+            raise SuiteError(f"{where}: field '{tag}.env.{key}' = {show(v)}: {exc}") from None
+    return env
+
+
+def _dwa_params(value: Any, where: str, field_: str) -> str:
+    """A ``dwa`` controller's ``params``: a shipped set, or a file relative to the suite, read and
+    checked now (a typo fails before any episode runs)."""
+    from bulletnav.control.dwa_params import SHIPPED, load_dwa_params
+
+    if value == "":
+        return ""
+    name = _str(value, where, field_)
+    if name not in SHIPPED:
+        path = Path(name)
+        name = str(path if path.is_absolute() else Path(where).parent / path)
+    try:
+        load_dwa_params(name)
+    except ConfigError as exc:
+        raise SuiteError(f"{where}: field '{field_}' = {show(value)}: {exc}") from None
+    return name
+
+
 def untrusted(target: str) -> str | None:
     """Why the policy class ``module:Class`` may not be imported without ``--trust-code``
     (its module lies outside :data:`IMPORTABLE`), or None when it may."""
@@ -393,11 +452,16 @@ def replay_command(suite: Suite, world: WorldSpec, controller: ControllerSpec, s
     flags = ["--env", world.env]
     for key, value in world.kwargs.items():
         flags += [WORLD_KWARGS[key], str(value)]
+    for key, value in controller.env.items():
+        flags += [CONTROLLER_ENV_KWARGS[key], str(value)]
     flags += ["--seed", str(seed), "--episodes", "1"]
     if controller.shield:
         flags.append("--shield")
     if controller.type == "navigator":
         return shlex.join(["bulletnav", "navigate", "--planner", controller.planner, *flags, "--video", "episode.mp4"])
+    if controller.type == "dwa":
+        params = ["--dwa-params", controller.params] if controller.params else []
+        return shlex.join(["bulletnav", "navigate", "--planner", "dwa", *params, *flags, "--video", "episode.mp4"])
     if controller.type == "model":
         path = controller.model_path(world.env, root)
         try:

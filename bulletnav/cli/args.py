@@ -78,6 +78,8 @@ FRACTION = float_type(lambda v: 0 < v <= 1, "a rate above 0 and at most 1", "FRA
 """A rate in (0, 1] (``--stop-at-success``)."""
 positive_seconds = float_type(lambda v: 0 < v < _INF, "seconds > 0", "positive_seconds")
 """Seconds > 0, finite (``--duration``, ``--seconds``)."""
+MIN_SPEED = float_type(lambda v: -_INF < v <= 0, "a speed <= 0 m/s", "MIN_SPEED")
+"""``--min-speed``: the lowest commanded speed, m/s <= 0 (negative: the robot may back up)."""
 speed_factor = float_type(lambda v: 0 <= v < _INF, "a speed >= 0 (1: real time, 0: as fast as it goes)", "speed_factor")
 """``--speed``: simulated seconds per wall-clock second, >= 0 (0: unpaced)."""
 

@@ -9,6 +9,7 @@ import numpy as np
 from bulletnav.cli.args import (
     COUNT,
     DEFAULT_ENV_ID,
+    MIN_SPEED,
     add_command,
     add_episode_outputs,
     add_live_args,
@@ -20,13 +21,23 @@ from bulletnav.cli.args import (
 from bulletnav.cli.envs import make_env, shielded
 from bulletnav.cli.episodes import add_world_idx_arg, episode_world_label, run_with_visuals, world_idx_kwargs
 from bulletnav.cli.output import fmt, outcome, print_json, refuse_existing_files, safety_line, shield_line
+from bulletnav.errors import BulletnavError
 
 
 def register(sub) -> None:
     """Add ``navigate`` to ``sub`` (``build_parser``'s subparsers)."""
-    nav = add_command(sub, "navigate", "classical navigation (PID, A*, RRT) scored on env episodes")
-    nav.add_argument("--planner", choices=["none", "astar", "rrt"], default="astar",
-                     help="planner on the lidar map: none (PID at the goal), astar or rrt (default astar)")
+    nav = add_command(sub, "navigate", "classical navigation (PID, A*, RRT, ROS move_base DWA) scored on env episodes")
+    nav.add_argument("--planner", choices=["none", "astar", "rrt", "dwa"], default="astar",
+                     help="planner on the lidar map: none (PID at the goal), astar or rrt (default astar); dwa: ROS "
+                          "move_base with navfn and the DWA local planner, BARN's parameters (docs/classical-navigation.md)")
+    nav.add_argument("--dwa-params", metavar="FILE", default=None,
+                     help="with --planner dwa: move_base parameters laid over BARN's, a YAML of the same namespaces, or a "
+                          "shipped set: barn (BARN's, the default) or barn-2ms (the Jackal's full 2.0 m/s)")
+    nav.add_argument("--min-speed", type=MIN_SPEED, default=None, metavar="M",
+                     help="lowest speed the robot may command, m/s <= 0 (negative: it may back up; default 0, and with "
+                          "--planner dwa the parameters' escape_vel, -0.5 m/s for BARN's, so its escapes can back up)")
+    nav.add_argument("--lidar-rays", type=COUNT, default=None, metavar="N",
+                     help="lidar rays per scan (default: the env's; 720 is the BARN Jackal's full UST-10 scan)")
     nav.add_argument("--episodes", type=COUNT, default=10, help="episodes to run (default 10)")
     add_world_args(nav)
     add_world_idx_arg(nav)
@@ -44,31 +55,62 @@ def register(sub) -> None:
 
 def cmd_navigate(args: argparse.Namespace) -> int:
     """Classical navigation (PID, optionally with A* or RRT) scored on env episodes."""
-    from bulletnav.control.navigator import Navigator, NavigatorConfig
     from bulletnav.evaluation import summarize
 
     refuse_existing_files(args, "video", "plot", "record")
-    env = shielded(args, make_env(args, **world_idx_kwargs(args)))
+    if args.dwa_params is not None and args.planner != "dwa":
+        raise BulletnavError(f"--dwa-params {args.dwa_params}: move_base's parameters are for --planner dwa "
+                             f"(not {args.planner})")
+    extra: dict = {}
+    if args.lidar_rays is not None:
+        extra["lidar_rays"] = args.lidar_rays
+    if args.min_speed is not None:
+        extra["min_speed"] = args.min_speed
+    nav, title, stops = _controller(args, extra)
+    env = shielded(args, make_env(args, **world_idx_kwargs(args), **extra))
     label = episode_world_label(args, env)
-    nav = Navigator(env.unwrapped.scene, NavigatorConfig(planner=args.planner, pose_source=args.pose))
+    nav = nav(env.unwrapped.scene)
 
     def line(r) -> None:
+        if args.planner == "dwa":
+            stops.append(nav.stop_reason)
         if not args.json:
             plans = f"plan {fmt(float(np.median(r.plan_ms)), '.3f')} ms x{len(r.plan_ms)}" if r.plan_ms else "no planner"
+            stop = f"  {nav.stop_reason}" if args.planner == "dwa" and nav.stop_reason else ""
             print(f"episode {r.episode:3d}/{args.episodes} seed {r.seed}: {outcome(r):9s} steps {r.steps:4d} "
                   f"sim {r.sim_time:5.1f} s  driven {r.path_length:5.2f} m  shortest to goal centre {r.shortest_path:5.2f} m  "
-                  f"SPL {r.spl:.2f}  {plans}  replans {r.replans}")
+                  f"SPL {r.spl:.2f}  {plans}  replans {r.replans}{stop}")
 
-    results, written, layout_size = run_with_visuals(args, env, nav, line, f"PID + {args.planner} (seed {args.seed})")
+    results, written, layout_size = run_with_visuals(args, env, nav, line, f"{title} (seed {args.seed})")
     summary = summarize(results)
     summary.update(planner=args.planner, seed=args.seed, pose_source=args.pose, env_id=args.env_id,
                    world=label, world_size=layout_size, perturb=args.perturb, shield=args.shield,
                    physics=args.physics or "default")
+    if args.planner == "dwa":
+        summary.update(dwa_params=args.dwa_params or "barn", min_speed=extra.get("min_speed", 0.0), stop_reasons=stops)
     if args.json:
         print_json(summary)
         return 0
     _print_report(args, summary, results, written)
     return 0
+
+
+def _controller(args: argparse.Namespace, extra: dict):
+    """(a factory of the controller from the scene view, the report's title, the DWA's stop
+    reasons per episode); for ``dwa`` it also adds ``min_speed`` = ``escape_vel`` to ``extra``
+    unless ``--min-speed`` was given."""
+    if args.planner == "dwa":
+        from bulletnav.control.dwa import MoveBaseDWA, dwa_env_kwargs, load_dwa_params
+
+        params = load_dwa_params(args.dwa_params)
+        extra.update(dwa_env_kwargs(params, extra))
+        return (lambda scene: MoveBaseDWA(scene, params, pose_source=args.pose)), "move_base DWA", []
+    from bulletnav.control.navigator import Navigator, NavigatorConfig
+
+    def navigator(scene):
+        return Navigator(scene, NavigatorConfig(planner=args.planner, pose_source=args.pose))
+
+    return navigator, f"PID + {args.planner}", []
 
 
 def _print_report(args: argparse.Namespace, summary: dict, results, written: list[str]) -> None:
