@@ -105,6 +105,8 @@ KINDS: dict[str, str] = {
     "test_barn_data.py::test_bad_world_index_is_named": "contract",
     "test_barn_data.py::test_converter_refuses_what_it_cannot_convert": "contract",
     # ---- test_barn_benchmark.py
+    "test_barn_benchmark.py::test_published_anchors_lics_ki_rows_scored_as_report_test_py_and_inventec_as_reported": "formula",
+    "test_barn_benchmark.py::test_agreement_of_a_dwa_here_with_barns_rows_by_hand": "formula",
     "test_barn_benchmark.py::test_barn_worlds_expand_to_one_world_per_index_with_its_runs": "hand",
     "test_barn_benchmark.py::test_bad_barn_world_selections_name_file_field_and_value": "contract",
     # the DWA row's line against the one BARN's own report_test.py printed on the same rows (run by hand)
@@ -770,14 +772,11 @@ KINDS: dict[str, str] = {
     "test_sensors.py::test_odometry_tracks_ground_truth": "formula",  # against PyBullet's true pose
     # ---- test_shield_memory.py
     "test_shield_memory.py::test_the_blind_sector_is_the_270_degree_lidars_back_and_a_full_circle_has_none": "hand",
-    "test_shield_memory.py::test_a_point_that_leaves_the_field_of_view_is_remembered_where_odometry_puts_it_and_dropped_when_seen_again":
-        "formula",
+    "test_shield_memory.py::test_a_point_leaving_the_view_is_remembered_where_odometry_puts_it_and_dropped_when_seen": "formula",
     "test_shield_memory.py::test_remembered_points_beyond_the_radius_or_on_the_robot_are_forgotten": "hand",
-    "test_shield_memory.py::test_a_cylinder_in_the_blind_sector_stops_a_turn_in_place_that_the_current_scan_alone_lets_through":
-        "hand",
+    "test_shield_memory.py::test_a_remembered_cylinder_in_the_blind_sector_stops_a_turn_the_scan_alone_lets_through": "hand",
     "test_shield_memory.py::test_backing_up_sweeps_the_forward_sweep_mirrored_and_stays_within_the_room_behind": "formula",
-    "test_shield_memory.py::test_the_wheel_sweep_brakes_straight_by_the_closed_form_and_turns_late_when_the_wheels_are_busy_speeding_up":
-        "formula",
+    "test_shield_memory.py::test_the_wheel_sweep_brakes_by_the_closed_form_and_turns_late_while_the_wheels_speed_up": "formula",
     "test_shield_memory.py::test_the_jackal_gets_the_wheel_sweep_and_the_article_robot_keeps_its_shield": "contract",
     "test_shield_memory.py::test_random_commands_behind_the_shield_never_touch_a_cylinder_in_barn_worlds": "contract",
     # ---- test_shield.py

@@ -4,6 +4,7 @@ BARN's DWA rows, the per-world plot, and barn_score as BARN's score."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +12,16 @@ import pytest
 
 from bulletnav.barn import data, metric
 from bulletnav.barn.metric import OutRow
-from bulletnav.benchmark.barn import DWA_NAME, DWA_NOTE, barn_sections, out_rows, overall, per_world, plot_metric
+from bulletnav.benchmark.barn import (
+    DWA_NAME,
+    DWA_NOTE,
+    barn_sections,
+    out_rows,
+    overall,
+    per_world,
+    plot_metric,
+    plot_success_pair,
+)
 from bulletnav.benchmark.suite import SuiteError, load_suite, parse_suite, replay_command
 
 
@@ -89,10 +99,80 @@ def test_dwa_row_is_report_test_pys_summary_of_barns_rows():
         assert figures[f]["lo"] < figures[f]["mean"] < figures[f]["hi"]
     worlds = [{"name": f"barn-{i:03d}", "group": "barn", "barn_world": i, "episodes": 10} for i in metric.TEST_WORLDS]
     (section,) = barn_sections(worlds, ["PID + A*"], [])
-    dwa = section["controllers"][-1]
-    assert (dwa["name"], dwa["note"], dwa["overall"]["line"]) == (DWA_NAME, DWA_NOTE, line)
+    dwa = section["controllers"][1]
+    assert (dwa["name"], dwa["source"], dwa["overall"]["line"]) == (DWA_NAME, "published", line)
+    assert "Gazebo" in dwa["note"] and "not run here" in dwa["note"] and DWA_NOTE
     assert section["controllers"][0]["overall"]["line"] is None  # no rows yet: nothing made up
     assert dwa["per_world"][0]["world"] == 0 and dwa["per_world"][0]["runs"] == 10
+
+
+def _report_test_line(text: str) -> str:
+    """BARN's report_test.py (commit bf5a226), transcribed: t_opt from (-2, 3) along the world's
+    path to (-2, 13) over 2 m/s, each run's metric success x t_opt / clip(t, 2 t_opt, 8 t_opt),
+    then means over worlds of per-world means (the time over successful runs)."""
+    def gazebo(x, y):
+        return x * 0.15 + (-0.075 - 30 * 0.15), y * 0.15 + (0.075 + 5)
+
+    runs: dict[int, list[tuple[bool, bool, bool, float, float]]] = {}
+    for line in text.splitlines():
+        w, ok, hit, out, t = line.split()[:5]
+        cells = data.load_world(int(w)).path_cells
+        pts = [(-2.0, 3.0), *(gazebo(float(a), float(b)) for a, b in cells), (-2.0, 13.0)]
+        t_opt = sum(math.dist(p, q) for p, q in zip(pts, pts[1:])) / 2
+        m = int(ok) * t_opt / min(max(float(t), 2 * t_opt), 8 * t_opt)
+        runs.setdefault(int(w), []).append((ok == "1", hit == "1", out == "1", float(t), m))
+    times = [np.mean([r[3] for r in rs if r[0]]) for rs in runs.values() if any(r[0] for r in rs)]
+
+    def avg(k):
+        return np.mean([np.mean([r[k] for r in rs]) for rs in runs.values()])
+
+    return (f"Avg Time: {np.mean(times):.4f}, Avg Metric: {avg(4):.4f}, Avg Success: {avg(0):.4f}, "
+            f"Avg Collision: {avg(1):.4f}, Avg Timeout: {avg(2):.4f}")
+
+
+def test_published_anchors_lics_ki_rows_scored_as_report_test_py_and_inventec_as_reported():
+    """LiCS-KI's 500 published rows, scored by report_test.py's formula transcribed here, give the
+    issue's 98.0 % / 1.8 % / 0.4889 / 7.7 s; the section's LiCS-KI entry says the same line. Inventec
+    published only its summary (4 t_opt clip): the entry carries it as published, without intervals."""
+    lics = next(p for p in data.PUBLISHED if p.name.startswith("LiCS-KI"))
+    line = _report_test_line(lics.rows_file.read_text())
+    assert line == "Avg Time: 7.7362, Avg Metric: 0.4889, Avg Success: 0.9800, Avg Collision: 0.0180, Avg Timeout: 0.0020"
+    worlds = [{"name": f"barn-{i:03d}", "group": "barn", "barn_world": i, "episodes": 10} for i in metric.TEST_WORLDS]
+    (section,) = barn_sections(worlds, ["PID + A*"], [])
+    names = [e["name"] for e in section["controllers"]]
+    assert names == ["PID + A*", DWA_NAME, "LiCS-KI 2024 (published rows)", "Inventec 2023 (as reported)"]
+    entry = section["controllers"][2]
+    assert entry["overall"]["line"] == line and entry["all_line"] == line and entry["clip"] == 2.0
+    inventec = section["controllers"][3]
+    assert inventec["clip"] == 4.0 and inventec["per_world"] == []
+    assert (inventec["overall"]["success"]["mean"], inventec["overall"]["metric"]["mean"]) == (0.99, 0.2445)
+    assert inventec["overall"]["success"]["lo"] is None
+    # on a part of the test worlds only the rows' entries come (a summary of all 50 cannot be split)
+    (part,) = barn_sections(worlds[:5], ["PID + A*"], [])
+    assert [e["name"] for e in part["controllers"]] == names[:3]
+
+
+def test_agreement_of_a_dwa_here_with_barns_rows_by_hand():
+    """A 'DWA' whose rows are BARN's own, but with two worlds' runs all failed: success 4 points
+    lower (2 worlds x 100 % / 50), the same times elsewhere, and within 0.3 in 48 of 50 worlds
+    unless those two worlds were already under 0.3 in BARN's rows."""
+    rows = data.dwa_rows()
+    changed = {0, 6}
+    mine = [{"controller": "DWA", "world": f"barn-{r.world:03d}", "world_idx": r.world,
+             "success": r.success and r.world not in changed, "collision": r.collided,
+             "timeout": r.timeout or (r.world in changed and not r.collided), "barn_time_s": r.time_s} for r in rows]
+    worlds = [{"name": f"barn-{i:03d}", "group": "barn", "barn_world": i, "episodes": 10} for i in metric.TEST_WORLDS]
+    (section,) = barn_sections(worlds, [{"name": "DWA", "type": "dwa"}], mine)
+    a = section["controllers"][0]["agreement"]
+    by_world = {w: [r for r in rows if r.world == w] for w in changed}
+    lost = sum(np.mean([r.success for r in by_world[w]]) for w in changed) / 50
+    assert a["success_points"] == pytest.approx(-100 * lost)
+    apart = sorted(w for w in changed if np.mean([r.success for r in by_world[w]]) > 0.3)
+    assert a["worlds_apart"] == apart and a["worlds_within"] == 50 - len(apart) and a["worlds_needed"] == 35
+    assert a["agrees"] == (abs(a["success_points"]) <= 10 and abs(a["time_ratio"] - 1) <= 0.3)
+    # a navigator gets no agreement figures: it is not the same planner
+    (section,) = barn_sections(worlds, [{"name": "DWA", "type": "navigator"}], mine)
+    assert "agreement" not in section["controllers"][0]
 
 
 def test_per_world_and_overall_figures_by_hand():
@@ -131,6 +211,9 @@ def test_the_plot_is_written(tmp_path):
     (section,) = barn_sections(worlds, ["mine"], bench)
     assert [p["world"] for p in section["controllers"][1]["per_world"]] == [0, 6]  # DWA's rows of the same worlds
     path = plot_metric(section, tmp_path / "plot.png")
+    with Image.open(path) as image:
+        assert image.format == "PNG" and image.width > 600 and image.height > 300
+    path = plot_success_pair(section, "mine", DWA_NAME, tmp_path / "pair.png")
     with Image.open(path) as image:
         assert image.format == "PNG" and image.width > 600 and image.height > 300
 

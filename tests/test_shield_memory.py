@@ -51,7 +51,7 @@ def test_the_blind_sector_is_the_270_degree_lidars_back_and_a_full_circle_has_no
     assert not ScanMemory(JACKAL, ray_angles(36, 360.0), 1.2).active
 
 
-def test_a_point_that_leaves_the_field_of_view_is_remembered_where_odometry_puts_it_and_dropped_when_seen_again():
+def test_a_point_leaving_the_view_is_remembered_where_odometry_puts_it_and_dropped_when_seen():
     """A point 0.5 m to the robot's left (bearing 90 degrees, in view). The robot turns 70 degrees
     clockwise on the spot: by the rotation the point now lies at bearing 160 degrees from the body
     centre, behind the lidar's 135, so it is remembered there; turned back, the lidar sees it again
@@ -83,7 +83,7 @@ def test_remembered_points_beyond_the_radius_or_on_the_robot_are_forgotten():
     assert len(memory.update((0.1, -0.4, 0.0), np.zeros((0, 2)))) == 0
 
 
-def test_a_cylinder_in_the_blind_sector_stops_a_turn_in_place_that_the_current_scan_alone_lets_through():
+def test_a_remembered_cylinder_in_the_blind_sector_stops_a_turn_the_scan_alone_lets_through():
     """A cylinder of BARN's (r = 0.075 m) behind the Jackal's rear-left corner, in the blind
     sector: the scan is empty, so a turn in place passes. Remembered (the points of its surface
     facing the robot), the corner's sweep (it reaches 0.333 m from the centre) meets it and the
@@ -130,7 +130,7 @@ def test_backing_up_sweeps_the_forward_sweep_mirrored_and_stays_within_the_room_
     assert not shield.filter(-0.4, 0.0, 0.0, empty, w_now=0.0, memory=wall(0.12), back_room=1.0).intervened
 
 
-def test_the_wheel_sweep_brakes_straight_by_the_closed_form_and_turns_late_when_the_wheels_are_busy_speeding_up():
+def test_the_wheel_sweep_brakes_by_the_closed_form_and_turns_late_while_the_wheels_speed_up():
     """Straight, from 1 m/s to 1 m/s: one period at 1 m/s, then braking at 1.5 m/s^2 to a stop
     1/24 + 1/3 m on. From 1 to 2 m/s with a 3 rad/s turn, each rim speeds up at 3.5 m/s^2: the
     inner one reaches its 1.44 m/s after 0.125 s, and only then does the turn begin (as the

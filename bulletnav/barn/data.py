@@ -10,7 +10,10 @@
 - ``source``: the BARN repository and commit the data was converted from.
 
 ``dwa_out.txt`` is BARN's ``res/dwa_out.txt`` verbatim: move_base DWA's 500 runs (10 on each of
-the 50 test worlds) measured by BARN in Gazebo.
+the 50 test worlds) measured by BARN in Gazebo. ``lics_ki_out.txt`` is LiCS-KI's ``out.txt``
+verbatim (github.com/damanikjosh/the-barn-challenge, commit f7bd87c): the 500 runs its authors
+published on the same 50 test worlds, in the same format. :data:`PUBLISHED` lists every published
+result bulletnav sets beside its own (:func:`published_rows`).
 """
 
 from __future__ import annotations
@@ -31,6 +34,8 @@ DATA_FILE = ASSETS / "barn.npz"
 """The converted worlds and reference paths."""
 DWA_FILE = ASSETS / "dwa_out.txt"
 """BARN's published DWA rows."""
+LICS_FILE = ASSETS / "lics_ki_out.txt"
+"""LiCS-KI's published rows (ICRA 2024 BARN Challenge winner)."""
 N_WORLDS = 300
 """BARN's static worlds: indices 0-299."""
 TEST_WORLDS: tuple[int, ...] = metric.TEST_WORLDS
@@ -115,3 +120,47 @@ def source() -> str:
 def dwa_rows() -> list[OutRow]:
     """BARN's published move_base DWA rows (``res/dwa_out.txt``)."""
     return parse_out(DWA_FILE.read_text(), str(DWA_FILE))
+
+
+@dataclass(frozen=True)
+class Published:
+    """A published BARN result on the 50 test worlds, shown beside bulletnav's as a row of its own."""
+
+    name: str
+    """The row's name in tables."""
+    source: str
+    """Where it comes from (repository, commit, file)."""
+    note: str
+    """What it is and what differs from a bulletnav run (simulator, speed cap, clip)."""
+    rows_file: Path | None = None
+    """Its runs, in BARN's out-file format (scored here with report_test.py's formula); None
+    where only a summary was published."""
+    reported: dict[str, float] | None = None
+    """The summary as published, for a result without rows: ``success``, ``collision``,
+    ``timeout`` (fractions), ``time_s`` (s) and ``metric`` under the ``clip`` it states."""
+    clip: float = 2.0
+    """The lower clip of the published metric, in t_opt (report_test.py's today: 2)."""
+
+
+PUBLISHED: tuple[Published, ...] = (
+    Published("DWA (BARN's rows)", "github.com/Daffan/the-barn-challenge bf5a226, res/dwa_out.txt",
+              "move_base DWA measured by BARN in Gazebo, max_vel_x 0.5 m/s; not run here", DWA_FILE),
+    Published("LiCS-KI 2024 (published rows)", "github.com/damanikjosh/the-barn-challenge f7bd87c, out.txt",
+              "ICRA 2024 BARN Challenge winner (a transformer imitating an optimisation-based expert), "
+              "measured by its authors in Gazebo; scored here with report_test.py's formula; not run here", LICS_FILE),
+    Published("Inventec 2023 (as reported)",
+              "github.com/inventec-ai-center/inventec-team-barn-challenge-2023 edeebaa, simulation branch README.md",
+              "learned local planner with a recovery state machine, measured by its authors in Gazebo; only the "
+              "summary line is published, scored with the 2023 clip of 4 t_opt (metric at most 0.25), so its "
+              "metric is not comparable with the 2 t_opt rows; not run here",
+              reported={"success": 0.99, "collision": 0.006, "timeout": 0.004, "time_s": 14.0344, "metric": 0.2445},
+              clip=4.0),
+)
+"""The published anchors every BARN table shows beside bulletnav's rows."""
+
+
+def published_rows(entry: Published) -> list[OutRow]:
+    """The runs of a published result (empty for one published as a summary only)."""
+    if entry.rows_file is None:
+        return []
+    return parse_out(entry.rows_file.read_text(), str(entry.rows_file))

@@ -34,9 +34,13 @@ from bulletnav.barn.metric import REPORT_START, OutRow, barn_metric, by_world, o
 from bulletnav.benchmark.metrics import BOOTSTRAP_RESAMPLES, BOOTSTRAP_SEED, bootstrap_interval
 
 DWA_NAME = "DWA (BARN's rows)"
-"""The name of the DWA row."""
+"""The name of the DWA row (:data:`bulletnav.barn.data.PUBLISHED`'s first)."""
 DWA_NOTE = "measured by BARN in Gazebo (move_base DWA), not run here"
 """What the DWA row is, printed wherever it is shown."""
+AGREEMENT = {"success_points": 10.0, "time_ratio": 0.3, "world_success": 0.3, "worlds": 35}
+"""How close a bulletnav controller must come to a published one to agree with it: overall
+success within 10 points, mean time of successes within 30 %, per-world success within 0.3 in at
+least 35 worlds (of BARN's 50 test worlds; scaled to the worlds both ran)."""
 FIGURES = ("success", "collision", "timeout", "time_s", "metric")
 """The figures per world and overall, in report_test.py's terms."""
 INTERVALS = ("95 % percentile bootstrap (2,000 resamples, fixed seed): per world over its runs; overall over "
@@ -128,17 +132,60 @@ def overall(rows: Iterable[OutRow], t_opt: dict[int, float] | None = None, resam
     return out
 
 
-def dwa_rows_for(worlds: Iterable[int]) -> list[OutRow]:
-    """BARN's published DWA rows of the given worlds (DWA was run on the 50 test worlds only)."""
-    from bulletnav.barn.data import dwa_rows
+def agreement(ours: dict[str, Any], theirs: dict[str, Any]) -> dict[str, Any] | None:
+    """How far entry ``ours`` (a section's controller) stands from ``theirs`` (a published one with
+    rows), by :data:`AGREEMENT`'s three figures: the success difference (points), the ratio of the
+    mean times of successes, and the worlds whose success rates are within 0.3 of each other (over
+    the worlds both ran). None when they share no world."""
+    mine = {p["world"]: p["success"]["mean"] for p in ours["per_world"]}
+    other = {p["world"]: p["success"]["mean"] for p in theirs["per_world"]}
+    both = sorted(set(mine) & set(other))
+    if not both:
+        return None
+    close = [w for w in both if abs(mine[w] - other[w]) <= AGREEMENT["world_success"] + 1e-9]
+    a, b = ours["overall"], theirs["overall"]
+    points = 100.0 * (a["success"]["mean"] - b["success"]["mean"])
+    ratio = (a["time_s"]["mean"] / b["time_s"]["mean"]) if a["time_s"]["mean"] and b["time_s"]["mean"] else None
+    need = math.ceil(AGREEMENT["worlds"] * len(both) / 50)
+    return {"with": theirs["name"], "success_points": points, "time_ratio": ratio, "worlds": len(both),
+            "worlds_within": len(close), "worlds_apart": [w for w in both if w not in close], "worlds_needed": need,
+            "agrees": (abs(points) <= AGREEMENT["success_points"] and ratio is not None
+                       and abs(ratio - 1.0) <= AGREEMENT["time_ratio"] and len(close) >= need)}
 
-    published = by_world(dwa_rows())
-    return [r for i in sorted(set(worlds) & set(published)) for r in published[i]]
+
+def published_entries(indices: list[int]) -> list[dict[str, Any]]:
+    """The published results (:data:`bulletnav.barn.data.PUBLISHED`) on ``indices``, as section
+    entries: per world and overall from their rows, or the published summary line alone (only
+    where the group is BARN's 50 test worlds, which it was measured on)."""
+    from bulletnav.barn.data import PUBLISHED, TEST_WORLDS, published_rows
+
+    out = []
+    for pub in PUBLISHED:
+        entry: dict[str, Any] = {"name": pub.name, "source": "published", "origin": pub.source, "note": pub.note,
+                                 "clip": pub.clip}
+        if pub.rows_file is not None:
+            published = by_world(published_rows(pub))
+            rows = [r for i in sorted(set(indices) & set(published)) for r in published[i]]
+            entry.update(per_world=per_world(rows), overall=overall(rows),
+                         all_line=summarise(published_rows(pub), report_t_opt()).line())
+        elif sorted(indices) == sorted(TEST_WORLDS) and pub.reported is not None:
+            rep = pub.reported
+            entry.update(per_world=[], overall={
+                "worlds": len(TEST_WORLDS), "runs": None, "line": None,
+                **{f: {"mean": rep[f], "lo": None, "hi": None, "n": len(TEST_WORLDS)} for f in FIGURES}})
+        else:
+            continue
+        out.append(entry)
+    return out
 
 
-def barn_sections(worlds: list[dict[str, Any]], controllers: list[str], rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+def barn_sections(worlds: list[dict[str, Any]], controllers: list[str] | list[dict[str, Any]],
+                  rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """One section per BARN group of a results record (``worlds``: the suite's world entries;
-    ``rows``: its episode rows): every controller's per-world and overall figures, then DWA's."""
+    ``controllers``: its controllers' names, or their entries with ``name`` and ``type``;
+    ``rows``: its episode rows): every controller's per-world and overall figures, then the
+    published results'. A ``dwa`` controller's entry also holds its :func:`agreement` with BARN's
+    DWA rows (the same planner, measured by BARN in Gazebo)."""
     from bulletnav.barn.data import dwa_rows
 
     groups: dict[str, list[int]] = {}
@@ -150,19 +197,24 @@ def barn_sections(worlds: list[dict[str, Any]], controllers: list[str], rows: li
     sections = []
     for group, indices in groups.items():
         entries = []
+        published = published_entries(indices)
+        dwa = next(e for e in published if e["name"] == DWA_NAME)
         for c in controllers:
-            mine = out_rows(r for r in rows if r["controller"] == c and names.get(r["world"]) == group)
-            entries.append({"name": c, "source": "bulletnav", "per_world": per_world(mine), "overall": overall(mine)})
-        dwa = dwa_rows_for(indices)
-        entries.append({"name": DWA_NAME, "source": "BARN", "note": DWA_NOTE, "per_world": per_world(dwa),
-                        "overall": overall(dwa)})
+            name, kind = (c, None) if isinstance(c, str) else (c["name"], c.get("type"))
+            mine = out_rows(r for r in rows if r["controller"] == name and names.get(r["world"]) == group)
+            entry = {"name": name, "source": "bulletnav", "per_world": per_world(mine), "overall": overall(mine)}
+            if kind == "dwa" and mine:
+                entry["agreement"] = agreement(entry, dwa)
+            entries.append(entry)
+        entries += published
         all_dwa = dwa_rows()
         sections.append({
             "group": group, "worlds": indices, "runs": next((w["episodes"] for w in worlds if w.get("group") == group), 0),
             "intervals": INTERVALS,
             "metric": "success x t_opt / clip(t, 2 t_opt, 8 t_opt), t = BARN's clock, t_opt from report_test.py's "
                       "start (-2, 3) (bulletnav.barn.metric, BARN's run.py and report_test.py)",
-            "dwa_worlds": sorted(by_world(dwa)),
+            "dwa_worlds": [p["world"] for p in dwa["per_world"]],
+            "agreement_rule": AGREEMENT,
             "dwa_all_line": summarise(all_dwa, report_t_opt()).line(),
             "controllers": entries,
         })
@@ -181,13 +233,13 @@ def plot_metric(section: dict[str, Any], path: Path) -> Path:
 
     colours = ["#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#F0E442"]
     markers = ["o", "s", "^", "v", "P", "X", "<", ">"]
-    entries = section["controllers"]
+    entries = [e for e in section["controllers"] if e["per_world"]]  # a result published as a summary has no dots
     n = len(entries)
     step = min(6.0, max(1.0, _spacing(section["worlds"])))
     width = 0.7 * step
     fig, ax = plt.subplots(figsize=(max(8.0, 0.22 * len(section["worlds"]) + 3), 4.6))
     for k, entry in enumerate(entries):
-        dwa = entry["source"] == "BARN"
+        dwa = entry["source"] == "published"
         shift = (k - (n - 1) / 2) * width / max(1, n - 1)
         xs = [p["world"] + shift for p in entry["per_world"] if p["metric"]["mean"] is not None]
         ys = [p["metric"]["mean"] for p in entry["per_world"] if p["metric"]["mean"] is not None]
@@ -196,10 +248,12 @@ def plot_metric(section: dict[str, Any], path: Path) -> Path:
         hi = [p["metric"]["hi"] - p["metric"]["mean"] if p["metric"]["hi"] is not None else 0.0
               for p in entry["per_world"] if p["metric"]["mean"] is not None]
         mean = entry["overall"]["metric"]["mean"]
-        label = f"{entry['name']}{' (' + DWA_NOTE + ')' if dwa else ''}: mean {mean:.3f}" if mean is not None else entry["name"]
+        label = f"{entry['name']}{' (published, not run here)' if dwa else ''}: mean {mean:.3f}" if mean is not None \
+            else entry["name"]
+        black = dwa and entry["name"] == DWA_NAME
         ax.errorbar(xs, ys, yerr=[lo, hi], fmt="D" if dwa else markers[k % len(markers)], ms=5 if dwa else 4,
-                    color="#000000" if dwa else colours[k % len(colours)], elinewidth=0.8, capsize=0,
-                    label=label, zorder=3 if dwa else 2)
+                    color="#000000" if black else "#8C8C8C" if dwa else colours[k % len(colours)], elinewidth=0.8,
+                    capsize=0, label=label, zorder=3 if dwa else 2)
     ax.set_xlabel("BARN world index")
     ax.set_ylabel("BARN metric (mean of the world's runs)")
     ax.set_ylim(-0.02, 0.52)
@@ -219,3 +273,39 @@ def _spacing(worlds: list[int]) -> float:
     """The smallest gap between consecutive world indices (the room each world's dots share)."""
     ordered = sorted(worlds)
     return float(min((b - a for a, b in zip(ordered, ordered[1:], strict=False)), default=6))
+
+
+def plot_success_pair(section: dict[str, Any], ours: str, theirs: str, path: Path) -> Path:
+    """A PNG of two entries' per-world success rates (``ours``, a bulletnav controller, and
+    ``theirs``, a published one) against the world index, the worlds where they differ by more
+    than :data:`AGREEMENT`'s 0.3 marked, written atomically to ``path``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from bulletnav.files import save_figure
+
+    by_name = {e["name"]: e for e in section["controllers"]}
+    a = {p["world"]: p["success"]["mean"] for p in by_name[ours]["per_world"]}
+    b = {p["world"]: p["success"]["mean"] for p in by_name[theirs]["per_world"]}
+    worlds = sorted(set(a) & set(b))
+    fig, ax = plt.subplots(figsize=(max(8.0, 0.22 * len(worlds) + 3), 4.2))
+    apart = [w for w in worlds if abs(a[w] - b[w]) > AGREEMENT["world_success"] + 1e-9]
+    for w in apart:
+        ax.axvspan(w - 2.5, w + 2.5, color="#F4D6C8", lw=0, zorder=0)
+    ax.vlines(worlds, [min(a[w], b[w]) for w in worlds], [max(a[w], b[w]) for w in worlds], color="#B4B4B4", lw=0.8)
+    ax.plot(worlds, [a[w] for w in worlds], "o", color="#0072B2", ms=5, label=f"{ours} (bulletnav)")
+    ax.plot(worlds, [b[w] for w in worlds], "D", color="#000000", ms=4, label=f"{theirs} (published, not run here)")
+    ax.set_xlabel("BARN world index")
+    ax.set_ylabel("success rate (runs of the world)")
+    ax.set_ylim(-0.05, 1.05)
+    ax.set_title(f"Success per world: {ours} vs {theirs}; within 0.3 in {len(worlds) - len(apart)} of {len(worlds)} "
+                 "worlds (shaded: apart)", fontsize=10)
+    ax.grid(axis="y", color="#E0E0E0", lw=0.6)
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, frameon=False)
+    try:
+        save_figure(fig, path, format="png", dpi=110, bbox_inches="tight")
+    finally:
+        plt.close(fig)
+    return path

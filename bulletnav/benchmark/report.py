@@ -645,8 +645,6 @@ BARN_DIFFERS = ("The same worlds, start, goal, rules (success, any contact a col
 def _barn_overall(section: dict[str, Any], short: bool = False) -> list[str]:
     """A BARN group's overall table: a row per controller and DWA's, report_test.py's five figures
     with their intervals."""
-    from bulletnav.benchmark.barn import DWA_NOTE
-
     esc = html.escape
     out = [f"<h2>BARN: {esc(section['group'])} ({len(section['worlds'])} worlds x {section['runs']} runs), as BARN's "
            "report_test.py summarises</h2><div class=scroll><table class=metrics data-barn-overall><thead><tr>"
@@ -655,8 +653,9 @@ def _barn_overall(section: dict[str, Any], short: bool = False) -> list[str]:
            "<th scope=col>BARN metric</th></tr></thead><tbody>"]
     for entry in section["controllers"]:
         o = entry["overall"]
-        dwa = entry["source"] == "BARN"
-        name = f"{esc(entry['name'])}<br><span class=ci>{esc(DWA_NOTE)}</span>" if dwa else esc(entry["name"])
+        dwa = entry["source"] == "published"
+        name = f"{esc(entry['name'])}<br><span class=ci>published, {esc(entry['note'])}</span>" if dwa \
+            else esc(entry["name"])
         out.append(f"<tr{' data-dwa' if dwa else ''}><th scope=row>{name}</th><td class=num>{o['worlds']}</td>"
                    + "".join(f"<td class=num>{_fmt(o[f], f)}</td>" for f in ("success", "collision", "timeout",
                                                                            "time_s", "metric")) + "</tr>")
@@ -664,11 +663,34 @@ def _barn_overall(section: dict[str, Any], short: bool = False) -> list[str]:
                f"report_test.py computes it (BARN time: over the worlds with a success). Intervals: "
                f"{esc(section['intervals'])}. Metric: {esc(section['metric'])}. DWA over all 50 test worlds "
                f"(its 500 rows): <code>{esc(section['dwa_all_line'])}</code>.</p>")
+    out += _barn_agreement(section)
     if not short:
         lines = "".join(f"<li>{esc(e['name'])}: <code>{esc(e['overall']['line'] or 'no runs')}</code></li>"
                         for e in section["controllers"])
         out.append(f"<details><summary>report_test.py's lines</summary><ul>{lines}</ul></details>")
     return out
+
+
+def _barn_agreement(section: dict[str, Any]) -> list[str]:
+    """The agreement of each DWA run here with BARN's DWA rows (:func:`bulletnav.benchmark.barn.agreement`)."""
+    esc = html.escape
+    rows = []
+    for entry in section["controllers"]:
+        a = entry.get("agreement")
+        if not a:
+            continue
+        ratio = "&ndash;" if a["time_ratio"] is None else f"{a['time_ratio']:.2f}"
+        rows.append(f"<tr><th scope=row>{esc(entry['name'])}</th><td class=num>{a['success_points']:+.1f}</td>"
+                    f"<td class=num>{ratio}</td><td class=num>{a['worlds_within']} of {a['worlds']} "
+                    f"(need {a['worlds_needed']})</td><td>{'yes' if a['agrees'] else 'no'}</td></tr>")
+    if not rows:
+        return []
+    return ["<h3>DWA here against DWA in Gazebo (BARN's rows)</h3><div class=scroll><table class=metrics data-agreement>"
+            "<thead><tr><th scope=col>controller</th><th scope=col>success, points</th>"
+            "<th scope=col>mean time of successes, ratio</th><th scope=col>worlds with success within 0.3</th>"
+            "<th scope=col>agrees</th></tr></thead><tbody>", *rows,
+            "</tbody></table></div><p class=note>Agreement: success within 10 points, time within 30 %, per-world "
+            "success within 0.3 in 35 of 50 worlds (scaled to the worlds both ran).</p>"]
 
 
 def _barn_panel(i: int, section: dict[str, Any], rows: list[dict[str, Any]], plot: Path | None) -> list[str]:
@@ -690,7 +712,7 @@ def _barn_panel(i: int, section: dict[str, Any], rows: list[dict[str, Any]], plo
                        + "".join(f"<td class=num>{_fmt(p[f], f)}</td>" for f in ("success", "collision", "timeout",
                                                                                "time_s", "metric")) + "</tr>"
                        for p in entry["per_world"])
-        note = f" ({esc(DWA_NOTE)})" if entry["source"] == "BARN" else ""
+        note = f" (published, {esc(entry['note'])})" if entry["source"] == "published" else ""
         out.append(f"<details><summary>{esc(entry['name'])}{note}</summary><div class=scroll><table class=metrics>"
                    "<thead><tr><th scope=col>world</th><th scope=col>runs</th><th scope=col>success</th>"
                    "<th scope=col>collisions</th><th scope=col>time-outs</th><th scope=col>BARN time (s)</th>"

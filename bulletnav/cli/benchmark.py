@@ -165,12 +165,12 @@ def _print_table(args: argparse.Namespace, suite, results: dict, out, report, ea
 
 def _print_barn(section: dict) -> None:
     """A BARN group's overall table (report_test.py's figures with their intervals) and lines."""
-    from bulletnav.benchmark.barn import DWA_NOTE
-
     def fig(cell: dict, pct: bool) -> str:
         if cell["mean"] is None:
             return "-"
         scale, digits, unit = (100, 1, " %") if pct else (1, 3, "")
+        if cell["lo"] is None:  # a published summary: no interval
+            return f"{cell['mean'] * scale:.{digits}f}{unit}"
         return (f"{cell['mean'] * scale:.{digits}f}{unit} [{cell['lo'] * scale:.{digits}f}, "
                 f"{cell['hi'] * scale:.{digits}f}]")
 
@@ -180,9 +180,15 @@ def _print_barn(section: dict) -> None:
     print("|---|---|---|---|---|---|---|")
     for e in section["controllers"]:
         o = e["overall"]
-        name = f"{e['name']} ({DWA_NOTE})" if e["source"] == "BARN" else e["name"]
+        name = f"{e['name']} (published: {e['note']})" if e["source"] == "published" else e["name"]
         print(f"| {name} | {o['worlds']} | {fig(o['success'], True)} | {fig(o['collision'], True)} | "
               f"{fig(o['timeout'], True)} | {fig(o['time_s'], False)} | {fig(o['metric'], False)} |")
     for e in section["controllers"]:
         print(f"{e['name']}: {e['overall']['line'] or 'no runs'}")
+        a = e.get("agreement")
+        if a:
+            ratio = "-" if a["time_ratio"] is None else f"{a['time_ratio']:.2f}"
+            print(f"  against {a['with']}: success {a['success_points']:+.1f} points, time ratio {ratio}, success within "
+                  f"0.3 in {a['worlds_within']} of {a['worlds']} worlds (need {a['worlds_needed']}): "
+                  f"{'agrees' if a['agrees'] else 'does not agree'}")
     print(f"DWA over all 50 test worlds: {section['dwa_all_line']}")
