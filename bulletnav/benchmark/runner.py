@@ -457,7 +457,7 @@ def build_results(suite: Suite, rows: list[dict[str, Any]], root: Path = PROJECT
     if any(w.group for w in suite.worlds):  # BARN's summary of its worlds, beside BARN's DWA rows
         from bulletnav.benchmark.barn import barn_sections
 
-        results["barn"] = barn_sections(results["suite"]["worlds"], [c.name for c in suite.controllers], ordered)
+        results["barn"] = barn_sections(results["suite"]["worlds"], results["suite"]["controllers"], ordered)
     return results
 
 
