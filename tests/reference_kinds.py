@@ -258,6 +258,7 @@ KINDS: dict[str, str] = {
     "test_dwa.py::test_goal_tolerance_stop_then_rotate_by_hand": "hand",  # stopWithAccLimits and rotateToGoal worked by hand
     # move_base.cpp's default recovery list and abort message; two full turns
     "test_dwa.py::test_move_base_runs_its_default_recoveries_then_aborts_and_stands_still": "hand",
+    "test_dwa.py::test_a_new_goal_preempts_and_a_mission_sends_one_goal_at_a_time": "hand",  # nearest / first goal by hand
     "test_dwa.py::test_barns_files_give_the_documented_values": "hand",  # BARN's files (commit bf5a226) and ROS's defaults
     "test_dwa.py::test_a_users_yaml_overrides_and_bad_keys_name_file_key_and_nearest": "contract",
     "test_dwa.py::test_suites_parse_dwa_controllers_with_params_and_env": "contract",

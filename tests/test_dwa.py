@@ -16,7 +16,7 @@ import yaml
 
 import bulletnav  # noqa: F401  (registers the envs)
 from bulletnav.benchmark.suite import SuiteError, load_suite, replay_command
-from bulletnav.control.dwa import MoveBaseDWA, dwa_env_kwargs, load_dwa_params
+from bulletnav.control.dwa import CONTROLLING, MoveBaseDWA, dwa_env_kwargs, load_dwa_params
 from bulletnav.control.dwa_params import with_overrides
 from bulletnav.control.trajectory_planner import TrajectoryPlanner, TrajectoryPlannerROS, footprint_cost
 from bulletnav.errors import ConfigError
@@ -203,6 +203,28 @@ def test_move_base_runs_its_default_recoveries_then_aborts_and_stands_still():
     for _ in range(24):  # aborted: it stands still (BARN's robot waits for the 100 s time-out)
         obs, *_, info = env.step(dwa.act(obs, info))
         assert dwa.cmd == (0.0, 0.0)
+    env.close()
+
+
+def test_a_new_goal_preempts_and_a_mission_sends_one_goal_at_a_time():
+    env = gym.make("bulletnav/Warehouse-v0", min_speed=-0.5)
+    dwa = MoveBaseDWA(env.unwrapped.scene)
+    obs, info = env.reset(seed=2)
+    dwa.reset(info)
+    obs, *_, info = env.step(dwa.act(obs, info))
+    assert dwa.state == CONTROLLING and dwa.path is not None
+    moved = dict(info, goal=(info["goal"][0] + 0.5, info["goal"][1]))  # executeCb's preemption by a new goal
+    dwa.act(obs, moved)
+    assert dwa.goal[:2] == moved["goal"] and any(what.startswith("new goal") for _, what in dwa.events)
+    assert dwa.recovery_index == 0 and dwa.run_planner
+    x, y = float(info["pose"][0]), float(info["pose"][1])
+    goals = ((x + 3.0, y), (x + 1.0, y), (x - 2.0, y))
+    mission = dict(info, goals=goals, reached=(False, False, False), goal_order="free", goal=goals[0])
+    assert dwa._goal_of(mission, (x, y, 0.0)) == goals[1]  # free order: the nearest goal left
+    assert dwa._goal_of(dict(mission, goal_order="fixed"), (x, y, 0.0)) == goals[0]  # fixed: the first left
+    dwa.goal = (*goals[1], 0.0)
+    assert dwa._goal_of(dict(mission, goal_order="fixed"), (x, y, 0.0)) == goals[1]  # held until reached
+    assert dwa._goal_of(dict(mission, reached=(False, True, False)), (x, y, 0.0)) == goals[2]
     env.close()
 
 

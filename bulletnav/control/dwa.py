@@ -160,7 +160,8 @@ class MoveBaseDWA:
         escape = v_lo < 0.0
         self._check_limits(v_lo, v_hi, w_hi)
         pose = self._pose(info)
-        self.goal = (float(info["goal"][0]), float(info["goal"][1]), 0.0)
+        self.goal = (math.nan, math.nan, 0.0)
+        self.goal = (*self._goal_of(info, pose), 0.0)
         self.local = self._costmap(p.local_costmap, pose, rolling=True)
         self.global_ = self._costmap(p.global_costmap, pose, rolling=False)
         planner = TrajectoryPlanner(p.trajectory_planner, self.local.master, self.local.footprint, p.sim_period, escape)
@@ -275,6 +276,9 @@ class MoveBaseDWA:
         self.now = self._steps * self.dt
         self._steps += 1
         pose = self._pose(info)
+        goal = self._goal_of(info, pose)
+        if goal != self.goal[:2]:
+            self._new_goal((goal[0], goal[1], 0.0))
         odom = self.scene.sensors.odometry.read()
         vel = (float(odom[3]), float(odom[4]))
         origin, hits = self._scan(obs, pose)
@@ -294,6 +298,34 @@ class MoveBaseDWA:
             self.cmd = (0.0, 0.0)
         self.act_times.append(time.perf_counter() - t0)
         return self.scene.action_for(*self.cmd)
+
+    def _goal_of(self, info: dict[str, Any], pose: tuple[float, float, float]) -> tuple[float, float]:
+        """The goal to send: ``info["goal"]``; in a mission (``info["goals"]`` and ``"reached"``)
+        the current goal while it is not reached, else the first one left (``goal_order`` fixed)
+        or the nearest one left (free), so that move_base gets one goal at a time, as a mission
+        executive would send them."""
+        goals, reached = info.get("goals"), info.get("reached")
+        if goals is None or reached is None or len(goals) < 2:
+            return float(info["goal"][0]), float(info["goal"][1])
+        left = [(float(g[0]), float(g[1])) for g, done in zip(goals, reached) if not done]
+        if not left or self.goal[:2] in left:
+            return self.goal[:2] if left else (float(info["goal"][0]), float(info["goal"][1]))
+        if info.get("goal_order") == "fixed":
+            return left[0]
+        return min(left, key=lambda g: math.hypot(g[0] - pose[0], g[1] - pose[1]))
+
+    def _new_goal(self, goal: tuple[float, float, float]) -> None:
+        """A new goal preempts the current one (``executeCb``'s ``acceptNewGoal``; missions hand
+        out their next goal this way): PLANNING from the first recovery, the patience clocks
+        restarted."""
+        self.goal = goal
+        self.events.append((round(self.now, 3), f"new goal ({goal[0]:.2f}, {goal[1]:.2f})"))
+        self.recovery_index = 0
+        self._set_state(PLANNING, "new goal")
+        self.run_planner = True
+        self.last_valid_control = self.last_valid_plan = self.last_oscillation_reset = self.now
+        self.planning_retries = 0
+        self.stop_reason, self.done = None, False
 
     def _publish(self, v: float, w: float) -> None:
         self.cmd, self.cmd_time = (float(v), float(w)), self.now
