@@ -64,7 +64,7 @@ def test_suite_names_and_counts():
     assert [c.name for c in suite.controllers] == ["PID", "PPO + shield"]
     assert suite.total == (3 + 2) * 2
     assert load_suite("quick").name == "quick" and load_suite("standard").episodes == 200
-    with pytest.raises(SuiteError, match="quick, standard"):
+    with pytest.raises(SuiteError, match="quick, shield-random, standard"):
         load_suite("nosuch")
 
 

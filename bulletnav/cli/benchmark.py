@@ -17,7 +17,8 @@ def register(sub) -> None:
     bm = add_command(sub, "benchmark", "every controller of a suite on the same seeded episodes of every world: "
                                        "results.json + report.html")
     bm.add_argument("suite", nargs="?", default="quick", metavar="SUITE",
-                    help="a shipped suite (quick, standard, barn, barn-quick, barn-heldout) or a suite YAML file (default quick)")
+                    help="a shipped suite (quick, standard, barn, barn-quick, barn-heldout, shield-random) or a suite YAML file "
+                         "(default quick)")
     bm.add_argument("--out", metavar="DIR", help="output directory (default runs/benchmark/<suite name>)")
     bm.add_argument("--workers", type=COUNT, default=1, help="local worker processes (default 1); rows are the same for any count")
     bm.add_argument("--address", metavar="HOST:PORT", help="run the episodes as tasks on this Ray cluster")

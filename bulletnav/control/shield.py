@@ -245,17 +245,18 @@ class Shield:
         return scan_points(np.asarray(ranges, dtype=np.float64), self.cos, self.sin, self.geometry.lidar_offset,
                             self.max_range, self.config.join, within, fill, _SIN_CORNER)
 
-    def sweep(self, v: float | np.ndarray, w: float | np.ndarray, v_now: float, w_now: float | None = None
-              ) -> tuple[np.ndarray, np.ndarray]:
+    def sweep(self, v: float | np.ndarray, w: float | np.ndarray, v_now: float, w_now: float | None = None,
+              tighten: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Poses (C, K, 3) in the current body frame along the stopping sweeps of C commands
         (scalars give C = 1), and their times (C, K). With ``w_now`` the yaw rate moves from it
-        to the command's over the first control period (the motors need that long)."""
+        to the command's over the first control period (the motors need that long). With
+        ``tighten`` the yaw rate holds while the robot brakes (its arc tightens)."""
         cfg = self.config
         v = np.atleast_1d(np.asarray(v, dtype=np.float64))
         w = np.atleast_1d(np.asarray(w, dtype=np.float64))
         out = np.zeros((v.shape[0], cfg.samples, 3))
         t, mid, ds = sweep_profile(v, w, float(v_now), np.nan if w_now is None else float(w_now), self._tail[0],
-                                    self.dt, cfg.decel, self._half_base, out)
+                                    self.dt, cfg.decel, self._half_base, out, tighten)
         # position by the distance travelled in each interval along the interval's mean heading
         np.cumsum(ds * np.cos(mid), axis=1, out=out[:, 1:, 0])
         np.cumsum(ds * np.sin(mid), axis=1, out=out[:, 1:, 1])
@@ -340,6 +341,22 @@ class Shield:
         blocked = self._blocked(poses, points, margin)
         if movers:
             blocked |= self._blocked(poses, self._mover_points(movers, times, pose), margin)
+        if self.config.wheel_accel is not None:
+            # a robot whose wheels are measured (the Jackal) keeps turning as it brakes: measured
+            # braking from 1.5 m/s at 1.6 rad/s, its yaw rate held 1.6-1.9 rad/s to the stop, and
+            # a slow reverse turning at 3.4 rad/s turned on for 0.1 s after its stop; the sweep
+            # whose arc tightens so, then spins down, is checked too
+            vv = np.atleast_1d(np.asarray(v, dtype=np.float64))
+            turning = (vv != 0.0) & (np.broadcast_to(np.atleast_1d(np.asarray(w, dtype=np.float64)), vv.shape) != 0.0)
+            turning &= ~blocked
+            if turning.any():
+                idx = np.flatnonzero(turning)
+                ww = np.broadcast_to(np.atleast_1d(np.asarray(w, dtype=np.float64)), vv.shape)
+                spiral, spiral_t = self.sweep(vv[idx], ww[idx], v_now, w_now, tighten=True)
+                hit = self._blocked(spiral, points, margin[idx])
+                if movers:
+                    hit |= self._blocked(spiral, self._mover_points(movers, spiral_t, pose), margin[idx])
+                blocked[idx] |= hit
         if w_now is not None and self.config.wheel_accel is not None:
             # commands the wheels cannot reach in one period: also their sweep as the wheels can follow it
             vv = np.atleast_1d(np.asarray(v, dtype=np.float64))

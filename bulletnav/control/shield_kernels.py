@@ -12,13 +12,15 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def sweep_profile(v, w, v_now, w_now, tail, dt, decel, half_base, out):  # pragma: no cover  (compiled)
+def sweep_profile(v, w, v_now, w_now, tail, dt, decel, half_base, out, tighten=False):  # pragma: no cover  (compiled)
     """Times (C, K), mid-interval headings (C, K-1) and distances travelled per interval (C, K-1)
     of the stopping sweeps of commands (``v``, ``w``: (C,)), yaws written into ``out[:, :, 2]``
     (see :meth:`~bulletnav.control.shield.Shield.sweep`; ``w_now`` NaN: no yaw-rate transient). Each value is computed by
     the formula, and in the order, of the array expressions it replaced (numpy's ``maximum`` /
     ``minimum`` and sequential ``cumsum``), so the sweeps are the same bit for bit; the headings'
-    cosines and sines stay numpy's."""
+    cosines and sines stay numpy's. With ``tighten`` a moving command keeps its yaw rate while it
+    brakes (the arc tightens to a spiral) instead of keeping its curvature, and once stopped its
+    turn spins down at the rim deceleration, as a turn in place does."""
     n_cmd, n = out.shape[0], out.shape[1]
     t = np.zeros((n_cmd, n))
     mid = np.zeros((n_cmd, n - 1))
@@ -39,6 +41,9 @@ def sweep_profile(v, w, v_now, w_now, tail, dt, decel, half_base, out):  # pragm
         stop = v1 / decel
         spin = 0.0 if drive or back else abs(wc) * half_base / decel
         longest = stop if stop >= spin else spin
+        if tighten and (drive or back):  # the yaw rate holds to the stop, then spins down at the rim deceleration
+            spin = abs(wc) * half_base / decel
+            longest = stop + spin
         after[0] = 0.0
         after[1] = 0.0
         for k in range(2, n):
@@ -53,7 +58,10 @@ def sweep_profile(v, w, v_now, w_now, tail, dt, decel, half_base, out):  # pragm
             travelled[k] = v1 * tk + braking * (v1 - 0.5 * decel * braking)
             if back:
                 travelled[k] = -travelled[k]
-            if drive or back:
+            if (drive or back) and tighten:
+                left = 1.0 - (after[k] - stop) / (spin if spin >= 1e-9 else 1e-9)
+                rate[k] = wc if after[k] <= stop else wc * (left if left >= 0.0 else 0.0)
+            elif drive or back:
                 rate[k] = wc * speed / (v1 if v1 >= 1e-9 else 1e-9)
             else:
                 left = 1.0 - after[k] / (spin if spin >= 1e-9 else 1e-9)

@@ -7,8 +7,8 @@ sweeps its rear corners through it. :class:`ScanMemory` keeps the scan's points,
 by odometry, for as long as they lie in the blind sector:
 
 - every step it moves the remembered points (kept in the odometry frame) into the current body
-  frame; those the lidar now sees again (inside its field of view) are dropped, for the current
-  scan is the truth there, and so are those farther than ``radius`` from the body centre and those
+  frame; those the lidar now sees again (a ray spacing or more inside its field of view) are
+  dropped, for the current scan is the truth there, and so are those farther than ``radius`` from the body centre and those
   inside the robot's own outline (a point there cannot be an obstacle: the robot stands on it, so
   it is odometry's drift or something that moved away);
 - then it adds the current scan's points (the shield's filled surfaces) within ``radius``: the
@@ -57,7 +57,9 @@ class ScanMemory:
         self.radius = float(radius)
         self.fov = blind_sector(angles)
         spacing = float(np.median(np.abs(np.diff(np.asarray(angles, dtype=np.float64))))) if len(angles) > 1 else 0.0
-        self._edge = 0.5 * spacing  # a point within half a ray spacing of the outer rays still counts as seen
+        # a point counts as seen again only a ray spacing inside the outer rays: between the outer
+        # ray and the blind sector no ray looks, and a cylinder there is seen by none
+        self._edge = -spacing
         self._lidar = (geometry.lidar_mount[0], geometry.lidar_mount[1])
         self._outline = np.array([(r.cx, r.cy, r.half_x, r.half_y) for r in geometry.rectangles])
         self._world = np.zeros((0, 2))
