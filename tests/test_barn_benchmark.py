@@ -302,6 +302,7 @@ def test_a_worker_keeps_at_most_max_cells_envs_open(monkeypatch):
     assert closed == [(0, "PID + A*"), (0, "PID + RRT")]  # the two first made, least recently used
     cells.get(0, 2)  # open: used again, not made again
     cells.get(0, 0)  # closed: made again, closing the least recently used (0, 3)
-    assert made.count((0, "PPO")) == 1 and made.count((0, "PID + A*")) == 2 and closed[-1] == (0, "PID + A* + shield")
+    assert made.count((0, "DWA (BARN's parameters)")) == 1 and made.count((0, "PID + A*")) == 2
+    assert closed[-1] == (0, "DWA at 2 m/s")
     cells.close()
     assert len(closed) == 3 + 16
