@@ -130,6 +130,20 @@ def test_backing_up_sweeps_the_forward_sweep_mirrored_and_stays_within_the_room_
     assert not shield.filter(-0.4, 0.0, 0.0, empty, w_now=0.0, memory=wall(0.12), back_room=1.0).intervened
 
 
+def test_a_command_against_the_roll_waits_for_the_robot_to_stop():
+    """Backing up while still rolling forward faster than 5 cm/s (or driving on while rolling
+    back) is never clear, even in the open: sent while rolling, it brakes one wheel and reverses
+    the other, and the Jackal rolls on, turning, far beyond either sweep. From rest it passes."""
+    shield = _jackal_shield()
+    empty = np.full(len(ANGLES), 30.0)
+    assert shield.check(-0.3, 1.0, 0.0, np.zeros((0, 2)), w_now=0.0)[0]
+    assert shield.check(-0.3, 1.0, 0.04, np.zeros((0, 2)), w_now=0.0)[0]
+    assert not shield.check(-0.3, 1.0, 0.5, np.zeros((0, 2)), w_now=0.0)[0]
+    assert not shield.check(0.5, 0.0, -0.3, np.zeros((0, 2)), w_now=0.0)[0]
+    rolling = shield.filter(-0.3, 1.0, 0.5, empty, w_now=0.0, back_room=1.0)
+    assert rolling.intervened and rolling.v >= 0.0
+
+
 def test_the_wheel_sweep_brakes_by_the_closed_form_and_turns_late_while_the_wheels_speed_up():
     """Straight, from 1 m/s to 1 m/s: one period at 1 m/s, then braking at 1.5 m/s^2 to a stop
     1/24 + 1/3 m on. From 1 to 2 m/s with a 3 rad/s turn, each rim speeds up at 3.5 m/s^2: the

@@ -381,12 +381,9 @@ class Shield:
                 blocked[idx] |= hit
         back = np.atleast_1d(np.asarray(v, dtype=np.float64)) < 0.0
         if back.any():
-            # backing up goes no farther back than the room behind (the way the robot came);
-            # from a forward roll it first coasts to a stop, and that stop must be clear too
+            # backing up goes no farther back than the room behind (the way the robot came)
             blocked |= back & (-poses[:, :, 0].min(axis=1) > back_room)
-            if v_now > 0.0:
-                blocked |= back & ~self.check(0.0, 0.0, v_now, points, movers, pose, w_now=w_now)[0]
-        return ~blocked
+        return ~(blocked | _reversing(v, v_now))
 
     def _touch_free(self, v_now: float, points: np.ndarray, movers: list[Any], pose: tuple[float, float, float],
                     w_now: float | None) -> bool:
@@ -411,7 +408,16 @@ class Shield:
         blocked = self._blocked(poses, dense, margin)
         if movers:
             blocked |= self._blocked(poses, self._mover_points(movers, times, pose), margin)
-        blocked |= (v < 0.0) & (-poses[:, :, 0].min(axis=1) > back_room)
+        back = v < 0.0
+        blocked |= back & (-poses[:, :, 0].min(axis=1) > back_room) | _reversing(v, v_now)
+        if back.any():  # a slow back-up with a fast turn: the turn goes on after the stop (the spiral sweep)
+            idx = np.flatnonzero(back)
+            spiral, spiral_t = self.sweep(v[idx], w[idx], v_now, w_now, tighten=True)
+            wide = self._bare_radius + cfg.close_margin + travel(spiral)
+            hit = self._blocked(spiral, _joined(self.points(ranges, within=wide, fill=0.01), memory, wide), margin[idx])
+            if movers:
+                hit |= self._blocked(spiral, self._mover_points(movers, spiral_t, pose), margin[idx])
+            blocked[idx] |= hit
         return ~blocked
 
     def _creep_clear(self, v: np.ndarray, w: np.ndarray, v_now: float, ranges: np.ndarray, movers: list[Any],
@@ -519,6 +525,19 @@ class Shield:
             return ShieldDecision(True, 0.0, 0.0, float(change[stop]), self._touch_free(v_now, points, near, pose, w_now))
         best = int(turns[np.argmax(clear)])
         return ShieldDecision(True, float(cand[best, 0]), float(cand[best, 1]), float(change[best]), True)
+
+
+REVERSAL_SPEED = 0.05
+"""A command against the way the robot still rolls faster than this (m/s) -- backing up while it
+rolls forward, or driving on while it rolls back -- is never clear: the robot stops first. (Sent
+while rolling, such a command brakes one wheel and reverses the other, and the robot rolls on,
+turning, much farther than either sweep says: measured on the Jackal.)"""
+
+
+def _reversing(v: float | np.ndarray, v_now: float) -> np.ndarray:
+    """(C,) True where command speed ``v`` is against the roll ``v_now`` (m/s) beyond :data:`REVERSAL_SPEED`."""
+    v = np.atleast_1d(np.asarray(v, dtype=np.float64))
+    return ((v < 0.0) & (v_now > REVERSAL_SPEED)) | ((v > 0.0) & (v_now < -REVERSAL_SPEED))
 
 
 def _joined(points: np.ndarray, memory: np.ndarray | None, within: float) -> np.ndarray:
