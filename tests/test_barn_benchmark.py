@@ -58,8 +58,10 @@ def test_barn_worlds_expand_to_one_world_per_index_with_its_runs():
     assert command == ("bulletnav navigate --planner astar --env bulletnav/BARN-v0 --world-idx 93 --seed 7 --episodes 1 "
                        "--video episode.mp4")
     shipped = load_suite("barn")
-    assert shipped.total == 50 * 10 * 6 and shipped.controllers[2].model_path("bulletnav/BARN-v0", Path("/r")) == \
+    assert shipped.total == 50 * 10 * 9 and shipped.controllers[5].model_path("bulletnav/BARN-v0", Path("/r")) == \
         Path("/r/models/ppo_barn.zip")
+    assert [c.type for c in shipped.controllers] == ["navigator"] * 2 + ["dwa"] * 3 + ["model", "navigator", "navigator", "model"]
+    assert all(c.env.get("min_speed") == -0.5 for c in shipped.controllers if c.type != "model")
     assert load_suite("barn-quick").worlds[0].group == "barn"
 
 
@@ -303,6 +305,6 @@ def test_a_worker_keeps_at_most_max_cells_envs_open(monkeypatch):
     cells.get(0, 2)  # open: used again, not made again
     cells.get(0, 0)  # closed: made again, closing the least recently used (0, 3)
     assert made.count((0, "DWA (BARN's parameters)")) == 1 and made.count((0, "PID + A*")) == 2
-    assert closed[-1] == (0, "DWA at 2 m/s")
+    assert closed[-1] == (0, "DWA (BARN's parameters, biases per cell)")
     cells.close()
     assert len(closed) == 3 + 16

@@ -245,6 +245,8 @@ def test_barns_files_give_the_documented_values():
     assert (p.local_costmap.width, p.local_costmap.rolling_window, p.local_costmap.update_frequency) == (10.0, True, 20.0)
     assert (p.global_costmap.width, p.global_costmap.origin_x, p.global_costmap.update_frequency) == (40.0, -20.0, 10.0)
     assert p.conservative_reset.layer_names == ("obstacles",) and p.local_costmap.circumscribed_radius == 0.46
+    assert load_dwa_params("barn-per-cell").trajectory_planner.meter_scoring is False
+    assert load_dwa_params("barn").trajectory_planner.meter_scoring is True
     fast = load_dwa_params("barn-2ms").trajectory_planner
     assert (fast.max_vel_x, fast.max_vel_theta, fast.min_vel_theta, fast.acc_lim_x) == (2.0, 4.0, -4.0, 10.0)
 

@@ -29,7 +29,7 @@ Every controller runs on the same seeded episodes of a world. A ``policy`` class
 bulletnav, stable_baselines3 or sb3_contrib only (:data:`IMPORTABLE`; any other module needs
 ``--trust-code``, for it runs that module's code); any controller takes ``shield: true``. A
 ``dwa`` controller is :class:`bulletnav.control.dwa.MoveBaseDWA` with BARN's move_base
-parameters, or ``params:`` a shipped set (``barn``, ``barn-2ms``) or an override YAML (relative
+parameters, or ``params:`` a shipped set (``barn``, ``barn-2ms``, ``barn-per-cell``) or an override YAML (relative
 to the suite file); its env opens with ``min_speed`` = the parameters' ``escape_vel`` (so it can
 back up), as ``bulletnav navigate --planner dwa`` does, unless its ``env:`` sets ``min_speed``.
 A ``navigator``, ``dwa`` or ``policy`` controller may add env keywords of its own, ``env:``
@@ -140,7 +140,8 @@ class ControllerSpec:
     shield: bool = False
     """Behind the safety shield."""
     params: str = ""
-    """DWA: move_base's parameters: ``""`` (BARN's), a shipped set (``barn``, ``barn-2ms``) or an override file (a path)."""
+    """DWA: move_base's parameters: ``""`` (BARN's), a shipped set (``barn``, ``barn-2ms``,
+    ``barn-per-cell``) or an override file (a path)."""
     env: dict[str, Any] = field(default_factory=dict)
     """Env keywords of this controller's own, laid over the world's (:data:`CONTROLLER_ENV_KWARGS`)."""
 

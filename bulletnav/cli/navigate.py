@@ -32,7 +32,8 @@ def register(sub) -> None:
                           "move_base with navfn and the DWA local planner, BARN's parameters (docs/classical-navigation.md)")
     nav.add_argument("--dwa-params", metavar="FILE", default=None,
                      help="with --planner dwa: move_base parameters laid over BARN's, a YAML of the same namespaces, or a "
-                          "shipped set: barn (BARN's, the default) or barn-2ms (the Jackal's full 2.0 m/s)")
+                          "shipped set: barn (BARN's, the default), barn-2ms (the Jackal's full 2.0 m/s) or barn-per-cell "
+                          "(scores per costmap cell, the other way ROS can read BARN's file)")
     nav.add_argument("--min-speed", type=MIN_SPEED, default=None, metavar="M",
                      help="lowest speed the robot may command, m/s <= 0 (negative: it may back up; default 0, and with "
                           "--planner dwa the parameters' escape_vel, -0.5 m/s for BARN's, so its escapes can back up)")

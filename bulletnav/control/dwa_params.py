@@ -45,9 +45,11 @@ BARN_FILES: tuple[tuple[str, str], ...] = (
     ("move_base_params.yaml", ""),
 )
 """BARN's parameter files and the namespace ``move_base_DWA.launch`` loads each into, in its order."""
-SHIPPED = {"barn": None, "barn-2ms": ("dwa", "barn-2ms.yaml")}
-"""Shipped parameter sets by name: ``barn`` (BARN's files as they are) and ``barn-2ms`` (an
-override under ``bulletnav/assets/dwa/``: BARN's with the Jackal's full speed limits)."""
+SHIPPED = {"barn": None, "barn-2ms": ("dwa", "barn-2ms.yaml"), "barn-per-cell": ("dwa", "barn-per-cell.yaml")}
+"""Shipped parameter sets by name: ``barn`` (BARN's files as they are), ``barn-2ms`` (an override
+under ``bulletnav/assets/dwa/``: BARN's with the Jackal's full speed limits) and ``barn-per-cell``
+(BARN's with the scores' biases per cell: ``meter_scoring`` off, what a ROS process does when
+``TrajectoryPlanner``'s uninitialised ``meter_scoring_`` member is false)."""
 
 
 def _p(default: Any, lo: float | None = None, hi: float | None = None, aliases: tuple[str, ...] = (),
