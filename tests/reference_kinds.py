@@ -778,7 +778,7 @@ KINDS: dict[str, str] = {
     "test_shield_memory.py::test_a_remembered_cylinder_in_the_blind_sector_stops_a_turn_the_scan_alone_lets_through": "hand",
     "test_shield_memory.py::test_backing_up_sweeps_the_forward_sweep_mirrored_and_stays_within_the_room_behind": "formula",
     "test_shield_memory.py::test_the_wheel_sweep_brakes_by_the_closed_form_and_turns_late_while_the_wheels_speed_up": "formula",
-    "test_shield_memory.py::test_the_jackal_gets_the_wheel_sweep_and_the_article_robot_keeps_its_shield": "contract",
+    "test_shield_memory.py::test_the_jackal_gets_the_wheel_sweep_and_the_gyro_and_the_article_robot_keeps_its_shield": "contract",
     "test_shield_memory.py::test_a_command_against_the_roll_waits_for_the_robot_to_stop": "contract",
     "test_shield_memory.py::test_random_commands_behind_the_shield_never_touch_a_cylinder_in_barn_worlds": "contract",
     # ---- test_shield.py

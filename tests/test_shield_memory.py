@@ -161,11 +161,12 @@ def test_the_wheel_sweep_brakes_by_the_closed_form_and_turns_late_while_the_whee
     assert abs(out[0, first, 2]) < 1e-12
 
 
-def test_the_jackal_gets_the_wheel_sweep_and_the_article_robot_keeps_its_shield():
+def test_the_jackal_gets_the_wheel_sweep_and_the_gyro_and_the_article_robot_keeps_its_shield():
     jackal = ShieldWrapper(gym.make("bulletnav/BARN-v0", world_idx=1))
-    assert jackal.shield.config.wheel_accel == 3.5
+    assert jackal.shield.config.wheel_accel == 3.5 and jackal._veto._gyro
     article = ShieldWrapper(gym.make("bulletnav/Warehouse-v0"))
-    assert article.shield.config.wheel_accel is None
+    assert article.shield.config.wheel_accel is None and not article._veto._gyro
+    assert not article._veto.memory.active and jackal._veto.memory.active
     jackal.close()
     article.close()
 

@@ -147,6 +147,11 @@ class ShieldConfig:
     robot's own (``RobotConfig.wheel_accel``: the Jackal's 3.5), and no second sweep for a robot
     without one (the article robot). Without it a big change of yaw rate at speed (the Jackal's
     4 rad/s turns) counts on a turn the robot cannot make in time."""
+    gyro: bool | None = None
+    """Take the robot's current yaw rate from the IMU's gyroscope instead of the wheel odometry.
+    None: where the robot's wheels are measured (``RobotConfig.wheel_accel``: the Jackal), whose
+    four-wheel-like skid makes the wheels' rates read a yaw rate of the wrong sign while the body
+    turns (measured: odometry -2.3 rad/s, the body +1.5 rad/s); the article robot keeps odometry."""
     memory_radius: float = 1.2
     """The shield remembers what the lidar saw within this distance (m) of the body centre once
     it has left a blind sector (:mod:`bulletnav.control.shield_memory`; the Jackal's lidar sees
@@ -576,6 +581,8 @@ class Veto:
         less what it has backed since, at most ``config.memory_radius`` (the space it came
         through, whose sides the lidar saw on the way in)."""
         self._dt = scene.control_dt
+        gyro = self.shield.config.gyro
+        self._gyro = scene.wheel_accel is not None if gyro is None else gyro
 
     def reset(self) -> None:
         """Forget the last episode (call at every env reset)."""
@@ -598,7 +605,8 @@ class Veto:
             memory = self.memory.update((float(odometry[0]), float(odometry[1]), float(odometry[2])), seen)
         v_now = float(odometry[3])
         self.back_room = min(max(self.back_room + v_now * self._dt, 0.0), self.shield.config.memory_radius)
-        d = self.shield.filter(v, w, v_now, ranges, movers, tuple(scene.pose), w_now=float(odometry[4]),
+        w_now = float(scene.sensors.imu.read()[5]) if self._gyro else float(odometry[4])
+        d = self.shield.filter(v, w, v_now, ranges, movers, tuple(scene.pose), w_now=w_now,
                                stuck=self.escape if stuck else None, memory=memory,
                                back_room=self.back_room if v < 0.0 else math.inf)
         if d.intervened and (d.v == 0.0 or d.creep):  # creeping past a waiting mover stays stuck
