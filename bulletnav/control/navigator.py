@@ -153,8 +153,9 @@ BACK_GAIN = 2.0
 FIT_BRAKE_DECEL = 2.5
 """The deceleration (m/s^2) a fitted robot's speed is limited by (:func:`fit_to_robot`): the
 Jackal's motors brake at about 3.5. It was 1.5 (the shield's assumed deceleration) until the
-BARN navigator was tuned for speed on 40 non-test BARN worlds x 2 runs, backing up allowed:
-behind the shield the metric went from 0.478 to 0.493 there, every run succeeding before and after."""
+BARN navigator was tuned for speed on 40 non-test BARN worlds x 2 runs (the ``barn-tune`` suite),
+backing up allowed: behind the shield the metric went from 0.478 to 0.493 there in development
+runs, every run succeeding before and after."""
 FIT_NEAR_RANGE = 0.4
 """The clearance (m) at which a fitted robot may drive at full speed (``near_range``; 0.6 before,
 as above)."""
