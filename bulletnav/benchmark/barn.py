@@ -229,7 +229,6 @@ def plot_metric(section: dict[str, Any], path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from bulletnav.files import save_figure
 
     colours = ["#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#F0E442"]
     markers = ["o", "s", "^", "v", "P", "X", "<", ">"]
@@ -254,14 +253,25 @@ def plot_metric(section: dict[str, Any], path: Path) -> Path:
         ax.errorbar(xs, ys, yerr=[lo, hi], fmt="D" if dwa else markers[k % len(markers)], ms=5 if dwa else 4,
                     color="#000000" if black else "#8C8C8C" if dwa else colours[k % len(colours)], elinewidth=0.8,
                     capsize=0, label=label, zorder=3 if dwa else 2)
-    ax.set_xlabel("BARN world index")
-    ax.set_ylabel("BARN metric (mean of the world's runs)")
-    ax.set_ylim(-0.02, 0.52)
     ax.axhline(0.5, color="#B4B4B4", lw=0.8, ls=":")
-    ax.set_title(f"BARN metric per world: {section['group']} ({len(section['worlds'])} worlds x {section['runs']} runs; "
-                 "bars: 95 % intervals)", fontsize=10)
+    return _save_per_world(fig, ax, path, "BARN metric (mean of the world's runs)", (-0.02, 0.52),
+                           f"BARN metric per world: {section['group']} ({len(section['worlds'])} worlds x {section['runs']} "
+                           "runs; bars: 95 % intervals)", 7.5)
+
+
+def _save_per_world(fig: Any, ax: Any, path: Path, ylabel: str, ylim: tuple[float, float], title: str,
+                    legend_size: float) -> Path:
+    """A per-world plot's axes, grid and legend below it, written atomically to ``path``; the figure closed."""
+    import matplotlib.pyplot as plt
+
+    from bulletnav.files import save_figure
+
+    ax.set_xlabel("BARN world index")
+    ax.set_ylabel(ylabel)
+    ax.set_ylim(*ylim)
+    ax.set_title(title, fontsize=10)
     ax.grid(axis="y", color="#E0E0E0", lw=0.6)
-    ax.legend(fontsize=7.5, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, frameon=False)
+    ax.legend(fontsize=legend_size, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, frameon=False)
     try:
         save_figure(fig, path, format="png", dpi=110, bbox_inches="tight")
     finally:
@@ -284,7 +294,6 @@ def plot_success_pair(section: dict[str, Any], ours: str, theirs: str, path: Pat
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from bulletnav.files import save_figure
 
     by_name = {e["name"]: e for e in section["controllers"]}
     a = {p["world"]: p["success"]["mean"] for p in by_name[ours]["per_world"]}
@@ -297,15 +306,6 @@ def plot_success_pair(section: dict[str, Any], ours: str, theirs: str, path: Pat
     ax.vlines(worlds, [min(a[w], b[w]) for w in worlds], [max(a[w], b[w]) for w in worlds], color="#B4B4B4", lw=0.8)
     ax.plot(worlds, [a[w] for w in worlds], "o", color="#0072B2", ms=5, label=f"{ours} (bulletnav)")
     ax.plot(worlds, [b[w] for w in worlds], "D", color="#000000", ms=4, label=f"{theirs} (published, not run here)")
-    ax.set_xlabel("BARN world index")
-    ax.set_ylabel("success rate (runs of the world)")
-    ax.set_ylim(-0.05, 1.05)
-    ax.set_title(f"Success per world: {ours} vs {theirs}; within 0.3 in {len(worlds) - len(apart)} of {len(worlds)} "
-                 "worlds (shaded: apart)", fontsize=10)
-    ax.grid(axis="y", color="#E0E0E0", lw=0.6)
-    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2, frameon=False)
-    try:
-        save_figure(fig, path, format="png", dpi=110, bbox_inches="tight")
-    finally:
-        plt.close(fig)
-    return path
+    return _save_per_world(fig, ax, path, "success rate (runs of the world)", (-0.05, 1.05),
+                           f"Success per world: {ours} vs {theirs}; within 0.3 in {len(worlds) - len(apart)} of "
+                           f"{len(worlds)} worlds (shaded: apart)", 8)
