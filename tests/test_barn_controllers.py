@@ -15,8 +15,16 @@ import pytest
 
 import bulletnav  # noqa: F401  (registers the ids)
 from bulletnav.cli import main
-from bulletnav.control.navigator import GoToGoal, Navigator, NavigatorConfig, fit_to_robot, outline_reach
-from bulletnav.control.shield import ShieldConfig, ShieldWrapper, shield_for
+from bulletnav.control.navigator import (
+    FIT_BRAKE_DECEL,
+    FIT_NEAR_RANGE,
+    GoToGoal,
+    Navigator,
+    NavigatorConfig,
+    fit_to_robot,
+    outline_reach,
+)
+from bulletnav.control.shield import ShieldWrapper, shield_for
 
 JACKAL_V, JACKAL_W = 2.0, 4.0  # jackal_control/config/control.yaml: linear and angular max_velocity
 JACKAL_HALF_WIDTH = 0.430 / 2  # Clearpath's spec sheet: 0.508 x 0.430 m
@@ -37,7 +45,7 @@ def test_navigator_settings_come_from_the_envs_robot(barn):
     fitted = fit_to_robot(NavigatorConfig(), scene)
     c = fitted.controller
     assert (c.max_speed, c.max_turn_rate) == (JACKAL_V, JACKAL_W)
-    assert c.outline_clearance and c.brake_decel == ShieldConfig().decel
+    assert c.outline_clearance and (c.brake_decel, c.near_range) == (FIT_BRAKE_DECEL, FIT_NEAR_RANGE) == (2.5, 0.4)
     assert fitted.narrow_inflation == pytest.approx(JACKAL_HALF_WIDTH + 0.03)
     assert fit_to_robot(NavigatorConfig(fit_robot=False), scene).controller.max_speed == 0.5  # as given
     warehouse = gym.make("bulletnav/Warehouse-v0")
@@ -61,7 +69,7 @@ def test_outline_reach_and_braking_speed_by_hand(barn):
     ahead = int(np.argmin(np.abs(lidar.angles)))
     ranges[ahead] = 1.0  # one hit 1 m out, 1.9 degrees off the axis
     x = LIDAR_X + math.cos(lidar.angles[ahead])
-    expected = math.sqrt(2 * 1.5 * (x - JACKAL_NOSE - cfg.stop_distance))  # v^2 = 2 a d
+    expected = math.sqrt(2 * 2.5 * (x - JACKAL_NOSE - cfg.stop_distance))  # v^2 = 2 a d, braking at 2.5 m/s^2
     v, _ = ctrl.command((0.0, 0.0, 0.0), (10.0, 0.0), ranges, scene.control_dt, goal_distance=10.0)
     assert v == pytest.approx(expected, rel=1e-9)
     ranges[ahead] = 30.0
