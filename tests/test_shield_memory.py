@@ -26,7 +26,7 @@ DT = 1 / 24
 
 
 def _jackal_shield(**kw) -> Shield:
-    return Shield(JACKAL, ANGLES, 30.0, DT, 2.0, 4.0, ShieldConfig(**kw))
+    return Shield(JACKAL, ANGLES, 30.0, DT, 2.0, 4.0, ShieldConfig(**kw), v_min=-0.5)
 
 
 def _cylinder_ranges(cx: float, cy: float, radius: float, angles: np.ndarray = ANGLES, far: float = 30.0) -> np.ndarray:
@@ -142,6 +142,9 @@ def test_a_command_against_the_roll_waits_for_the_robot_to_stop():
     assert not shield.check(0.5, 0.0, -0.3, np.zeros((0, 2)), w_now=0.0)[0]
     rolling = shield.filter(-0.3, 1.0, 0.5, empty, w_now=0.0, back_room=1.0)
     assert rolling.intervened and rolling.v >= 0.0
+    # a robot that cannot back up never asks to; its shield keeps the sweeps it always had
+    forward_only = Shield(JACKAL, ANGLES, 30.0, DT, 2.0, 4.0)
+    assert not forward_only.can_back and forward_only.check(0.5, 0.0, -0.3, np.zeros((0, 2)), w_now=0.0)[0]
 
 
 def test_the_wheel_sweep_brakes_by_the_closed_form_and_turns_late_while_the_wheels_speed_up():

@@ -207,11 +207,15 @@ class Shield:
         max_range: lidar range (m): readings at it are no hit.
         control_dt: the control period (s).
         v_max, w_max: the action bounds (m/s, rad/s).
+        v_min: the lowest speed (m/s): below 0 the robot may back up.
     """
 
     def __init__(self, geometry: RobotGeometry, angles: np.ndarray, max_range: float, control_dt: float,
-                 v_max: float, w_max: float, config: ShieldConfig = ShieldConfig()) -> None:
+                 v_max: float, w_max: float, config: ShieldConfig = ShieldConfig(), v_min: float = 0.0) -> None:
         self.config = config
+        self.can_back = v_min < 0.0
+        """Whether the robot may back up (the env's lowest speed under 0): only then is a command
+        against the way it rolls refused (:data:`REVERSAL_SPEED`)."""
         self.geometry = geometry
         self.angles = np.asarray(angles, dtype=np.float64)
         self.cos, self.sin = np.cos(self.angles), np.sin(self.angles)
@@ -388,7 +392,7 @@ class Shield:
         if back.any():
             # backing up goes no farther back than the room behind (the way the robot came)
             blocked |= back & (-poses[:, :, 0].min(axis=1) > back_room)
-        return ~(blocked | _reversing(v, v_now))
+        return ~(blocked | _reversing(v, v_now)) if self.can_back else ~blocked
 
     def _touch_free(self, v_now: float, points: np.ndarray, movers: list[Any], pose: tuple[float, float, float],
                     w_now: float | None) -> bool:
@@ -414,7 +418,9 @@ class Shield:
         if movers:
             blocked |= self._blocked(poses, self._mover_points(movers, times, pose), margin)
         back = v < 0.0
-        blocked |= back & (-poses[:, :, 0].min(axis=1) > back_room) | _reversing(v, v_now)
+        blocked |= back & (-poses[:, :, 0].min(axis=1) > back_room)
+        if self.can_back:
+            blocked |= _reversing(v, v_now)
         if back.any():  # a slow back-up with a fast turn: the turn goes on after the stop (the spiral sweep)
             idx = np.flatnonzero(back)
             spiral, spiral_t = self.sweep(v[idx], w[idx], v_now, w_now, tighten=True)
@@ -695,6 +701,7 @@ def shield_for(env: Any, config: ShieldConfig = ShieldConfig()) -> Shield:
     lidar = scene.sensors.lidar
     space = env.action_space
     v_max, w_max = env.unwrapped.command(space.high.astype(np.float64))
+    v_min, _ = env.unwrapped.command(space.low.astype(np.float64))
     if config.wheel_accel is None and scene.wheel_accel is not None:
         config = replace(config, wheel_accel=scene.wheel_accel)
-    return Shield(scene.geometry, lidar.angles, lidar.config.max_range, scene.control_dt, v_max, w_max, config)
+    return Shield(scene.geometry, lidar.angles, lidar.config.max_range, scene.control_dt, v_max, w_max, config, v_min=v_min)
