@@ -494,7 +494,8 @@ class Navigator:
         ranges = np.asarray(state[: self.n_rays], dtype=np.float64) * self.max_range
         new_cells = self.mapper.integrate(pose, self.angles, ranges, self.max_range, sensor_offset=self.lidar_offset)
         goal_distance = math.hypot(self.goal[0] - pose[0], self.goal[1] - pose[1])
-        if self._can_back:
+        if self._can_back and not (self.scene.dynamic and cfg.wait_for_movers and self._mover_ahead(pose)):
+            # (waiting for a mover to pass is no reason to back up)
             backing = self._back_up(pose, ranges, goal_distance)
             if backing is not None:
                 return self._action(*backing)
