@@ -350,17 +350,16 @@ class Shield:
         blocked = self._blocked(poses, points, margin)
         if movers:
             blocked |= self._blocked(poses, self._mover_points(movers, times, pose), margin)
+        vv = np.atleast_1d(np.asarray(v, dtype=np.float64))
+        ww = np.broadcast_to(np.atleast_1d(np.asarray(w, dtype=np.float64)), vv.shape)
         if self.config.wheel_accel is not None:
             # a robot whose wheels are measured (the Jackal) keeps turning as it brakes: measured
             # braking from 1.5 m/s at 1.6 rad/s, its yaw rate held 1.6-1.9 rad/s to the stop, and
             # a slow reverse turning at 3.4 rad/s turned on for 0.1 s after its stop; the sweep
             # whose arc tightens so, then spins down, is checked too
-            vv = np.atleast_1d(np.asarray(v, dtype=np.float64))
-            turning = (vv != 0.0) & (np.broadcast_to(np.atleast_1d(np.asarray(w, dtype=np.float64)), vv.shape) != 0.0)
-            turning &= ~blocked
+            turning = (vv != 0.0) & (ww != 0.0) & ~blocked
             if turning.any():
                 idx = np.flatnonzero(turning)
-                ww = np.broadcast_to(np.atleast_1d(np.asarray(w, dtype=np.float64)), vv.shape)
                 spiral, spiral_t = self.sweep(vv[idx], ww[idx], v_now, w_now, tighten=True)
                 hit = self._blocked(spiral, points, margin[idx])
                 if movers:
@@ -368,8 +367,6 @@ class Shield:
                 blocked[idx] |= hit
         if w_now is not None and self.config.wheel_accel is not None:
             # commands the wheels cannot reach in one period: also their sweep as the wheels can follow it
-            vv = np.atleast_1d(np.asarray(v, dtype=np.float64))
-            ww = np.broadcast_to(np.atleast_1d(np.asarray(w, dtype=np.float64)), vv.shape)
             hb, reach = self._half_base, self.config.wheel_accel * self.dt
             slow = ((np.abs((vv - ww * hb) - (v_now - w_now * hb)) > reach)
                     | (np.abs((vv + ww * hb) - (v_now + w_now * hb)) > reach)) & ~blocked
@@ -388,7 +385,7 @@ class Shield:
                 if movers:
                     hit |= self._blocked(lag, self._mover_points(movers, lag_t, pose), margin[idx])
                 blocked[idx] |= hit
-        back = np.atleast_1d(np.asarray(v, dtype=np.float64)) < 0.0
+        back = vv < 0.0
         if back.any():
             # backing up goes no farther back than the room behind (the way the robot came)
             blocked |= back & (-poses[:, :, 0].min(axis=1) > back_room)
