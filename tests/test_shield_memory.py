@@ -164,6 +164,62 @@ def test_the_wheel_sweep_brakes_by_the_closed_form_and_turns_late_while_the_whee
     assert abs(out[0, first, 2]) < 1e-12
 
 
+def test_close_to_a_wall_a_back_up_out_of_a_turn_is_checked_along_the_turn_the_wheels_keep():
+    """Turning in place at -1 rad/s and told to back up straight, the Jackal's body turns on for
+    two periods and stops turning after five (measured; the wheels' rims follow at 3.5 m/s^2).
+    Inside the margin (the close-range test), a point the front-right corner reaches only along
+    that lagging turn blocks the back-up; the sweep that stops turning within one period misses
+    it, and so does the same shield without the wheels' model."""
+    shield = _jackal_shield(wheel_accel=3.5)
+    hb = JACKAL.wheelbase / 2
+    lag, lag_t = np.zeros((1, 12, 3)), np.zeros((1, 12))
+    wheel_sweep(np.array([-0.5]), np.array([0.0]), 0.0, -1.0, DT, 3.5, 1.5, hb, lag, lag_t)
+    plain, _ = shield.sweep(-0.5, 0.0, 0.0, -1.0)
+    assert lag[0, -1, 2] < plain[0, -1, 2] - 0.05  # the wheels turn the body on, clockwise
+    # the front-right corner at the lagging sweep's last pose, 5 mm inside the outline
+    front = max(r.cx + r.half_x for r in JACKAL.rectangles)
+    right = min(r.cy - r.half_y for r in JACKAL.rectangles)
+    x, y, yaw = lag[0, -1]
+    cx, cy = front - 0.005, right + 0.005
+    point = np.array([[x + math.cos(yaw) * cx - math.sin(yaw) * cy, y + math.sin(yaw) * cx + math.cos(yaw) * cy]])
+    # by hand: the plain sweep's outline (grown by the close margin) never covers it
+    for px, py, pyaw in plain[0]:
+        bx = math.cos(pyaw) * (point[0, 0] - px) + math.sin(pyaw) * (point[0, 1] - py)
+        by = -math.sin(pyaw) * (point[0, 0] - px) + math.cos(pyaw) * (point[0, 1] - py)
+        assert not any(abs(bx - r.cx) <= r.half_x + 0.02 and abs(by - r.cy) <= r.half_y + 0.02 for r in JACKAL.rectangles)
+    empty = np.full(len(ANGLES), 30.0)
+    args = (np.array([-0.5]), np.array([0.0]), 0.0, empty, [], (0.0, 0.0, 0.0), -1.0, point, 1.0)
+    assert not shield._close_clear(*args)[0]
+    no_wheels = Shield(JACKAL, ANGLES, 30.0, DT, 2.0, 4.0, ShieldConfig(), v_min=-0.5)
+    assert no_wheels.config.wheel_accel is None and no_wheels._close_clear(*args)[0]
+
+
+def test_the_jackal_shield_carries_its_memory_by_the_gyro_where_the_wheels_drift():
+    """Dithering turns in place (a new random yaw rate every 4 steps, for 600 steps): the
+    shield's own dead-reckoned heading (the gyroscope's rate) stays within 0.05 rad of the
+    body's true heading change, where the wheels' odometry drifts much farther (the
+    skid-steered Jackal's wheels slip while it turns in place)."""
+    env = ShieldWrapper(gym.make("bulletnav/BARN-v0", world_idx=1))
+    base = env.unwrapped
+    env.reset(seed=3)
+    veto = env._veto
+    rng = np.random.default_rng(0)
+    yaw0 = base.scene.pose[2]
+    odo0 = float(base.scene.sensors.odometry.read()[2])
+    w = 0.0
+    for k in range(600):
+        if k % 4 == 0:
+            w = float(rng.uniform(-3.0, 3.0))
+        env.step(base.scene.action_for(0.0, w))
+    veto(base.scene.action_for(0.0, 0.0))  # the shield's step folds in the last period's rates
+    true_turn = math.remainder(base.scene.pose[2] - yaw0, 2 * math.pi)
+    gyro_err = abs(math.remainder(veto._pose[2] - true_turn, 2 * math.pi))
+    odo_err = abs(math.remainder(float(base.scene.sensors.odometry.read()[2]) - odo0 - true_turn, 2 * math.pi))
+    assert gyro_err < 0.05, gyro_err
+    assert odo_err > 4 * gyro_err, (odo_err, gyro_err)
+    env.close()
+
+
 def test_the_jackal_gets_the_wheel_sweep_and_the_gyro_and_the_article_robot_keeps_its_shield():
     jackal = ShieldWrapper(gym.make("bulletnav/BARN-v0", world_idx=1))
     assert jackal.shield.config.wheel_accel == 3.5 and jackal._veto._gyro

@@ -4,13 +4,14 @@ does not see all the way round.
 The Jackal's UST-10 sees 270 degrees; the 90 degrees behind it are blind. A shield that looks only
 at the current scan finds that sector empty, and a rectangle turning in place (or backing up)
 sweeps its rear corners through it. :class:`ScanMemory` keeps the scan's points, carried forward
-by odometry, for as long as they lie in the blind sector:
+by the pose it is given (the shield's dead reckoning: the gyroscope's heading, the wheels'
+distance), for as long as they lie in the blind sector:
 
-- every step it moves the remembered points (kept in the odometry frame) into the current body
+- every step it moves the remembered points (kept in the frame of the poses given) into the current body
   frame; those the lidar now sees again (a ray spacing or more inside its field of view) are
   dropped, for the current scan is the truth there, and so are those farther than ``radius`` from the body centre and those
   inside the robot's own outline (a point there cannot be an obstacle: the robot stands on it, so
-  it is odometry's drift or something that moved away);
+  it is dead reckoning's drift or something that moved away);
 - then it adds the current scan's points (the shield's filled surfaces) within ``radius``: the
   ones that leave the field of view before the next step stay remembered.
 
@@ -90,7 +91,7 @@ class ScanMemory:
         which this step's points ``seen`` (body frame, (M, 2)) join the memory.
 
         Args:
-            pose: the robot's pose (x, y, yaw) by odometry (m, m, rad).
+            pose: the robot's pose (x, y, yaw) by dead reckoning (m, m, rad), in a frame fixed for the episode.
             seen: the current scan's points (the shield's filled surfaces), body frame.
         """
         if not self.active:
