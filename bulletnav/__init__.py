@@ -19,56 +19,18 @@ import gymnasium as gym  # noqa: E402
 
 
 def _import_pybullet_quietly() -> None:
-    """Import pybullet with file descriptors 1 and 2 on /dev/null: its C code prints ``pybullet
-    build time: ...`` when first imported (to stderr in pybullet 3.2.7, to stdout in some builds),
-    which would precede every command's output and every error message. The C stdio buffers are
-    flushed (while both still point at /dev/null) before they come back, so a banner buffered
-    because stdout is a pipe is dropped too. A process that imported pybullet before bulletnav
-    has had its banner already; nothing is done then."""
+    """Import pybullet without its ``pybullet build time: ...`` line, which its C code prints
+    when first imported (to stderr in pybullet 3.2.7, to stdout in some builds) and which would
+    precede every command's output and every error message. Whatever else reaches file
+    descriptors 1 and 2 meanwhile (another thread's output) comes out after the import
+    (:func:`bulletnav.stdio.import_without_banner`). A process that imported pybullet before
+    bulletnav has had its banner already; nothing is done then."""
     import sys
 
-    if "pybullet" in sys.modules:
-        return
-    for stream in (sys.stdout, sys.stderr):  # Python's own buffered output goes out first, where it belongs
-        try:
-            stream.flush()
-        except (AttributeError, OSError, ValueError):
-            pass
-    saved: list[tuple[int, int]] = []
-    try:
-        devnull = os.open(os.devnull, os.O_WRONLY)
-    except OSError:
-        devnull = -1
-    try:
-        for fd in (1, 2):
-            try:
-                saved.append((fd, os.dup(fd)))
-            except OSError:  # no such descriptor: nothing of the user's to protect there
-                continue
-            if devnull >= 0:
-                os.dup2(devnull, fd)
-        try:
-            import pybullet  # noqa: F401
-        finally:
-            _flush_c_stdio()
-    finally:
-        for fd, copy in saved:
-            os.dup2(copy, fd)
-            os.close(copy)
-        if devnull >= 0:
-            os.close(devnull)
+    from bulletnav.stdio import import_without_banner
 
-
-def _flush_c_stdio() -> None:
-    """``fflush(NULL)``: every C stdio buffer of the process written out (where libc is found)."""
-    import ctypes
-    import ctypes.util
-
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or None)
-        libc.fflush(None)
-    except (OSError, AttributeError):
-        pass
+    if "pybullet" not in sys.modules:
+        import_without_banner("pybullet", (b"pybullet build time:",))
 
 
 _import_pybullet_quietly()

@@ -50,6 +50,27 @@ def test_pybullet_banner_never_reaches_the_terminal(tmp_path):
     assert both.stdout.split() == ["out", "after"] and both.stderr.split() == ["err"]
 
 
+def test_output_of_another_thread_while_pybullet_loads_is_delayed_not_lost():
+    """A thread that writes to both descriptors all through ``import bulletnav`` (which imports
+    pybullet with 1 and 2 held aside): every byte arrives, on its own stream; the banner does not."""
+    code = (
+        "import os, sys, threading, time\n"
+        "go, stop, n = threading.Event(), threading.Event(), [0]\n"
+        "def spam():\n"
+        "    go.set()\n"
+        "    while not stop.is_set():\n"
+        "        os.write(1, b'o'); os.write(2, b'e'); n[0] += 1; time.sleep(0.0005)\n"
+        "t = threading.Thread(target=spam); t.start(); go.wait()\n"
+        "import bulletnav\n"
+        "time.sleep(0.05); stop.set(); t.join()\n"
+        "os.write(1, b' %d' % n[0])\n")
+    run = _fresh("-c", code)
+    assert run.returncode == 0, run.stderr
+    assert BANNER not in run.stdout and BANNER not in run.stderr
+    written, count = run.stdout.split()
+    assert written == "o" * int(count) and run.stderr == "e" * int(count)
+
+
 # A syntax error at a position counted by hand: line 3 (``  c: 3``), column 4 (the ``:`` after ``c``)
 # breaks the flow sequence opened on line 2, column 8.
 BROKEN = "name: x\nitems: [1, 2\n  c: 3\n"

@@ -16,6 +16,7 @@ import sys
 from collections.abc import Iterator
 
 from bulletnav.errors import BulletnavError
+from bulletnav.stdio import flush_c_stdio
 
 _held: list[str] | None = None
 """The document of the ``--json`` run in progress (None: no run, :func:`print_json` prints at once)."""
@@ -52,16 +53,6 @@ def print_json(obj) -> None:
         _held.append(text)
 
 
-def _flush_c_stdio() -> None:
-    """Write out what C code (PyBullet) holds in its stdio buffers, to the descriptors they now name."""
-    import ctypes
-
-    try:
-        ctypes.CDLL(None).fflush(None)
-    except (OSError, AttributeError):  # no C library to ask (not on Linux or macOS)
-        pass
-
-
 @contextlib.contextmanager
 def json_mode() -> Iterator[None]:
     """Run a ``--json`` command within: stdout (Python's ``sys.stdout`` and file descriptor 1)
@@ -70,7 +61,7 @@ def json_mode() -> Iterator[None]:
     global _held
     stdout = sys.stdout
     stdout.flush()
-    _flush_c_stdio()
+    flush_c_stdio()
     saved = os.dup(1)
     os.dup2(2, 1)
     _held = held = []
@@ -81,7 +72,7 @@ def json_mode() -> Iterator[None]:
         _held = None
         stdout.flush()
         sys.stderr.flush()
-        _flush_c_stdio()
+        flush_c_stdio()
         os.dup2(saved, 1)
         os.close(saved)
     for text in held:
