@@ -1,5 +1,5 @@
 """Ctrl-C (SIGINT to the process group, as a terminal sends it) and SIGTERM (to the command's
-process alone, as ``kill`` sends it) in the long commands: exit 130, exactly one line on stderr
+process alone, as ``kill`` sends it) in the long commands: exit 130 (143 for SIGTERM), exactly one line on stderr
 after the signal, naming what was kept and how to go on (no traceback, nothing from the workers),
 the workers gone, every file whole, and ``--resume`` finishing the run and reporting all of it.
 
@@ -110,12 +110,13 @@ class Run:
         return False
 
 
-def interrupted(run: Run, command: str) -> re.Match:
-    """The run ended with 130 and one line after the signal, of the interrupted form."""
-    code = run.finish(f"bulletnav {command} after its signal")
+def interrupted(run: Run, command: str, code: int = 130) -> re.Match:
+    """The run ended with ``code`` (128 + the signal: 130 for Ctrl-C, 143 for SIGTERM) and one
+    line after the signal, of the interrupted form."""
+    status = run.finish(f"bulletnav {command} after its signal")
     lines = run.lines_after_signal()
     assert "Traceback" not in run.err.read_text(), run.err.read_text()[-3000:]
-    assert code == 130, run.err.read_text()[-3000:]
+    assert status == code, run.err.read_text()[-3000:]
     assert len(lines) == 1, lines
     match = LINE.match(lines[0])
     assert match and match["command"] == command, lines[0]
@@ -189,7 +190,7 @@ def test_benchmark_sigterm_with_two_workers_stops_them_and_keeps_whole_rows(tmp_
     run = Run(tmp_path, "benchmark", str(suite), "--out", str(out), "--workers", "2")
     run.wait_for(rows_ready(log, 1), "its first rows")
     run.signal(signal.SIGTERM, group=False)  # the command alone: it must stop its workers itself
-    match = interrupted(run, "benchmark")
+    match = interrupted(run, "benchmark", 143)
     kept = len(rows_of(log))
     assert match["what"] == f" after {kept} of 6 episodes; rows kept in {log}"
     assert match["again"] == f"bulletnav benchmark {suite} --out {out} --workers 2 --resume"
@@ -281,9 +282,94 @@ def test_dataset_recording_sigterm_writes_no_half_dataset(tmp_path, monkeypatch)
     run = Run(tmp_path, *argv)
     run.wait_for(lambda: "--- Episode 1/50 " in run.out.read_text(), "its first episode")
     run.signal(signal.SIGTERM, group=False)
-    match = interrupted(run, "evaluate")
+    match = interrupted(run, "evaluate", 143)
     done = run.out.read_text().count("--- Episode ")
     assert match["what"] == (f" after {done} of 50 episodes; no dataset written (an unfinished run's are dropped); "
                              "nothing can be resumed")
     assert match["again"] == "bulletnav " + " ".join(argv)
     assert not (minari / "bulletnav" / "interrupt-test-v0").exists()
+
+
+def _signalled(code: str, signals: list[tuple[float, int]], tmp_path: Path) -> tuple[int, str, float]:
+    """Run ``code`` in a fresh interpreter (signals at their defaults, as typed in a terminal);
+    after it prints ``ready`` send each ``(delay_s, signal)``; return its exit status, stderr and
+    the seconds from the last signal to its end."""
+    err = tmp_path / "err"
+    with err.open("wb") as e:
+        proc = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, stdout=subprocess.PIPE, stderr=e,
+                                preexec_fn=_as_in_a_terminal)
+        assert proc.stdout.readline().strip() == b"ready"
+        for delay, sig in signals:
+            time.sleep(delay)
+            proc.send_signal(sig)
+        sent = time.monotonic()
+        try:
+            status = proc.wait(timeout=HANG_S)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            pytest.fail(f"hang: the process outlived its signals by {HANG_S} s")
+        return status, err.read_text(), time.monotonic() - sent
+
+
+ENDLESS_QUERY = """
+import sqlite3, sys
+from bulletnav.cli import interrupts
+interrupts.start(["map", "x.db3"], "map")
+with interrupts.signals_as_interrupt():
+    db = sqlite3.connect(":memory:")
+    print("ready", flush=True)
+    db.execute("WITH RECURSIVE c(x) AS (SELECT 1 UNION ALL SELECT x + 1 FROM c) SELECT count(*) FROM c").fetchone()
+"""
+
+
+def test_a_signal_inside_a_c_call_that_never_returns_ends_the_command_at_once(tmp_path):
+    """An endless SQLite query (C code, Python's handlers never run): SIGTERM still ends it within
+    the grace second, with the one line and 143."""
+    status, err, after = _signalled(ENDLESS_QUERY, [(0.3, signal.SIGTERM)], tmp_path)
+    assert status == 143, err
+    assert "Traceback" not in err and err.count("\n") == 1, err
+    assert err.startswith("bulletnav map: interrupted at once"), err
+    assert after < 20.0  # the grace second plus a loaded machine's start; it was endless before
+
+
+SLOW_CLEANUP = """
+import time
+from bulletnav.cli import interrupts
+interrupts.start(["benchmark"], "benchmark")
+with interrupts.signals_as_interrupt():
+    try:
+        print("ready", flush=True)
+        while True:
+            time.sleep(0.01)
+    except KeyboardInterrupt:
+        t = time.monotonic()
+        while time.monotonic() - t < 600:  # a cleanup that takes its time (Python code)
+            pass
+"""
+
+
+def test_a_second_ctrl_c_during_a_slow_cleanup_ends_the_command_at_once(tmp_path):
+    status, err, after = _signalled(SLOW_CLEANUP, [(0.3, signal.SIGINT), (0.5, signal.SIGINT)], tmp_path)
+    assert status == 130, err
+    assert "Traceback" not in err and err.startswith("bulletnav benchmark: interrupted at once"), err
+    assert after < 20.0
+
+
+HELD = """
+import os, signal, sys, time
+from bulletnav.cli import interrupts
+interrupts.start(["navigate"], "navigate")
+print("ready", flush=True)
+with interrupts.deferred():
+    os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(0.2)
+    print("the line, whole", file=sys.stderr, flush=True)
+print("not reached", file=sys.stderr, flush=True)
+"""
+
+
+def test_a_signal_while_the_interrupted_line_is_printed_waits_for_it_then_ends_the_process(tmp_path):
+    """``deferred()`` holds the signal (the line is not cut) and then acts on it: the process ends
+    with 143 (it was dropped before, and the command went on)."""
+    status, err, _ = _signalled(HELD, [], tmp_path)
+    assert status == 143 and err == "the line, whole\n", err

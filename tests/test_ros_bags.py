@@ -159,6 +159,64 @@ def test_bad_rosbags_are_refused_naming_the_file(bags, tmp_path):
         read_rosbag(bags["ros1"], scan_topic="/odom")
 
 
+def test_a_db3_whose_tables_are_views_is_refused_at_once(tmp_path):
+    """A ``.db3`` whose ``messages`` is a view over an endless recursive query (SQL of the file's
+    author): refused by name before any query of it runs, in the time a plain open takes. It
+    ran until SIGKILL before. Views and virtual tables are refused alike."""
+    import sqlite3
+    import subprocess
+    import sys
+    import time
+
+    endless = tmp_path / "endless.db3"
+    db = sqlite3.connect(endless)
+    db.execute("CREATE TABLE topics (id INTEGER PRIMARY KEY, name TEXT, type TEXT, serialization_format TEXT)")
+    db.execute("INSERT INTO topics VALUES (1, '/scan', 'sensor_msgs/msg/LaserScan', 'cdr')")
+    db.execute("CREATE VIEW messages AS WITH RECURSIVE c(x) AS (SELECT 1 UNION ALL SELECT x + 1 FROM c) "
+               "SELECT x AS id, 1 AS topic_id, x AS timestamp, x'00' AS data FROM c ORDER BY x DESC")
+    db.commit()
+    db.close()
+    t = time.monotonic()
+    run = subprocess.run([sys.executable, "-m", "bulletnav.cli", "map", str(endless)], capture_output=True, text=True,
+                         timeout=600)
+    assert run.returncode == 2 and "Traceback" not in run.stderr
+    assert run.stderr.strip() == (f"bulletnav map: error: {endless}: not a ROS 2 sqlite3 bag: 'messages' is a view, "
+                                  "not a plain table (bulletnav does not run a bag's own SQL)")
+    assert time.monotonic() - t < 300  # a hang detector: it never ended before
+    missing = tmp_path / "missing.db3"
+    db = sqlite3.connect(missing)
+    db.execute("CREATE TABLE topics (id INTEGER, name TEXT, type TEXT)")
+    db.commit()
+    db.close()
+    with pytest.raises(BulletnavError, match="missing.db3: not a ROS 2 sqlite3 bag: it has no 'messages' table"):
+        read_rosbag(missing)
+
+
+def test_a_db3_is_read_for_the_topics_the_map_needs_only(bags, tmp_path):
+    """Messages of a topic the map does not read (here one whose data would not even decode as
+    CDR) are never read: the map is the same as without them."""
+    import sqlite3
+
+    lone = tmp_path / "extra.db3"
+    lone.write_bytes(bags["ros2"].read_bytes())
+    db = sqlite3.connect(lone)
+    columns = [row[1] for row in db.execute("PRAGMA table_info(topics)")]  # rosbags' schema version's columns
+    values = {"id": 99, "name": "/camera", "type": "sensor_msgs/msg/Image", "serialization_format": "cdr"}
+    db.execute(f"INSERT INTO topics ({', '.join(columns)}) VALUES ({', '.join('?' * len(columns))})",
+               [values.get(c, "") for c in columns])
+    db.executemany("INSERT INTO messages (topic_id, timestamp, data) VALUES (99, ?, ?)",
+                   [(k, b"\xff" * 7) for k in range(1000)])
+    db.commit()
+    db.close()
+    a, b = read_rosbag(lone), read_rosbag(bags["ros2"])
+    assert [s.stamp_ns for s in a.scans] == [s.stamp_ns for s in b.scans] and a.poses == b.poses
+    from bulletnav.ros.bags import _sqlite
+
+    stream = list(_sqlite(lone, ("/scan", "/odom", "/tf", "/tf_static")))
+    assert ("", "sensor_msgs/msg/Image", "/camera") in stream  # announced (an error names every topic) ...
+    assert not [m for m in stream if m[0] == "/camera"]  # ... but none of its 1,000 messages is read
+
+
 def test_format_ros_is_what_map_server_reads(bags, tmp_path, capsys):
     stem = tmp_path / "site"
     assert main(["map", str(bags["ros1"]), "--format", "ros", "--out", str(stem), "--json"]) == 0

@@ -44,23 +44,30 @@ def build_parser() -> Parser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``bulletnav`` with ``argv`` (default ``sys.argv[1:]``); the exit status: 0, 2 on a
-    library error (one line on stderr), or 130 when interrupted (Ctrl-C or SIGTERM: one line on
-    stderr saying what was kept and how to go on, :mod:`~bulletnav.cli.interrupts`)."""
+    library error (one line on stderr), or 128 + the signal's number when interrupted (130 for
+    Ctrl-C, 143 for SIGTERM: one line on stderr saying what was kept and how to go on,
+    :mod:`~bulletnav.cli.interrupts`)."""
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-    interrupts.start(argv)
+    interrupts.start(argv, args.command)
     try:
-        with interrupts.sigterm_as_interrupt():
+        with interrupts.signals_as_interrupt():
             if getattr(args, "env_id", None) is not None:
                 check_env_id(args.env_id)
             with json_mode() if getattr(args, "json", False) else contextlib.nullcontext():
                 return int(args.func(args) or 0)
     except BulletnavError as exc:
+        if interrupts.received:  # a signal that ended a C call (an SQLite query) as its error
+            return _interrupted(args.command)
         print(f"bulletnav {args.command}: error: {' '.join(str(exc).split())}", file=sys.stderr)  # one line
         return 2
     except KeyboardInterrupt:  # Ctrl-C or SIGTERM: what was kept and how to go on, one line
-        with interrupts.deferred():
-            print(interrupts.interrupted_line(args.command), file=sys.stderr, flush=True)
-        return interrupts.EXIT_INTERRUPTED
+        return _interrupted(args.command)
+
+
+def _interrupted(command: str) -> int:
+    with interrupts.deferred():
+        print(interrupts.interrupted_line(command), file=sys.stderr, flush=True)
+    return interrupts.exit_status()

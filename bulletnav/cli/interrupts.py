@@ -1,35 +1,62 @@
 """Ctrl-C (SIGINT) and SIGTERM in a command: one line on stderr naming what was kept and how to
-go on, exit status 130, no traceback.
+go on, exit status 128 + the signal's number (130 for Ctrl-C, 143 for SIGTERM), no traceback.
 
 A command says, as it goes, what an interruption from that point on would keep and how to
 continue (:func:`on_interrupt`, with :func:`continue_command` or :func:`rerun_command` for the
 command to type); :func:`bulletnav.cli.main` turns the ``KeyboardInterrupt`` into that one
-line. SIGTERM is made a ``KeyboardInterrupt`` in this process only (:func:`sigterm_as_interrupt`):
+line. SIGTERM is made a ``KeyboardInterrupt`` in this process only (:func:`signals_as_interrupt`):
 worker processes ignore SIGINT (the library's pools and vector envs start them so), and the
 command stops them, so a Ctrl-C at the terminal, which reaches the whole process group, prints
 nothing from them. The library itself never prints: it cleans up (workers stopped, files whole)
 and lets the interrupt through.
+
+Python runs a signal's handler only between steps of its own code, so a process inside a long C
+call (an SQLite query over a hostile file) would not notice one. A watcher thread reads the
+signal numbers that the C-level handler writes to a pipe (``signal.set_wakeup_fd``) the moment
+they arrive; where the C call lets other threads run (SQLite's does), it ends the process at
+once, with the same one line, when the main thread has not taken the signal within
+:data:`GRACE_S`, and on any second signal.
 """
 
 from __future__ import annotations
 
 import contextlib
+import os
 import shlex
 import signal
+import sys
 import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 
 EXIT_INTERRUPTED = 130
-"""The exit status of an interrupted command (128 + SIGINT, what shells report for Ctrl-C)."""
+"""The exit status of a command interrupted by Ctrl-C (128 + SIGINT, what shells report)."""
+
+GRACE_S = 1.0
+"""How long (s) the watcher waits for the main thread to take a signal before it ends the
+process itself (the main thread is then inside a C call that does not come back)."""
 
 _argv: list[str] = []
+_command = ""
 _note: Callable[[], str] | None = None
+received: list[int] = []
+"""The signals this command has taken (SIGINT, SIGTERM), in order; the first sets the exit status."""
+_taken = threading.Event()
+_deferring = False
 
 
-def start(argv: Sequence[str]) -> None:
-    """A new command: its arguments (as typed after ``bulletnav``), and no note yet."""
-    global _argv, _note
-    _argv, _note = list(argv), None
+def exit_status() -> int:
+    """128 + the number of the first signal taken (130 for Ctrl-C, 143 for SIGTERM)."""
+    return 128 + (received[0] if received else signal.SIGINT)
+
+
+def start(argv: Sequence[str], command: str = "") -> None:
+    """A new command: its arguments (as typed after ``bulletnav``), its name, no note and no
+    signal yet."""
+    global _argv, _note, _command
+    _argv, _note, _command = list(argv), None, command
+    received.clear()
+    _taken.clear()
 
 
 def on_interrupt(note: Callable[[], str] | None) -> None:
@@ -59,45 +86,132 @@ def nothing_kept() -> str:
 
 
 @contextlib.contextmanager
-def sigterm_as_interrupt() -> Iterator[None]:
-    """Within: SIGTERM raises ``KeyboardInterrupt`` as Ctrl-C does (in the main thread of this
-    process only; elsewhere nothing changes). A SIGTERM the process was started ignoring stays ignored."""
+def signals_as_interrupt() -> Iterator[None]:
+    """Within: SIGINT and SIGTERM raise ``KeyboardInterrupt`` (in the main thread of this process
+    only; elsewhere nothing changes), and a watcher ends the process at once on a second signal
+    or on one the main thread does not take within :data:`GRACE_S` (module docstring). A signal
+    the process was started ignoring stays ignored."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
 
     def interrupt(signum, frame):
+        received.append(signum)
+        if len(received) > 1:  # asked twice: the cleanup of the first is not waited for
+            _end_now(signum)
+        _taken.set()
         raise KeyboardInterrupt(f"signal {signum}")
 
-    old = signal.getsignal(signal.SIGTERM)
-    if old is None:  # a handler set outside Python: put the default back after
-        old = signal.SIG_DFL
-    elif old == signal.SIG_IGN:
-        yield
-        return
-    signal.signal(signal.SIGTERM, interrupt)
+    old = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        handler = signal.getsignal(sig)
+        if handler == signal.SIG_IGN:
+            continue
+        old[sig] = signal.SIG_DFL if handler is None else handler  # a handler set outside Python: the default after
+        signal.signal(sig, interrupt)
+    read_end, write_end = os.pipe()
+    os.set_blocking(write_end, False)
     try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, old)
-
-
-@contextlib.contextmanager
-def deferred() -> Iterator[None]:
-    """Within: a Ctrl-C or SIGTERM waits (the line being printed is not cut by a second one)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    old = {sig: signal.signal(sig, signal.SIG_IGN) for sig in (signal.SIGINT, signal.SIGTERM)}
+        old_fd = signal.set_wakeup_fd(write_end, warn_on_full_buffer=False)
+    except (ValueError, OSError):  # not possible here: no watcher, the handlers alone
+        os.close(read_end)
+        os.close(write_end)
+        read_end = write_end = -1
+        old_fd = -1
+    watcher = None
+    if read_end >= 0:
+        watcher = threading.Thread(target=_watch, args=(read_end, interrupt), name="bulletnav-signals", daemon=True)
+        watcher.start()
     try:
         yield
     finally:
         for sig, handler in old.items():
+            signal.signal(sig, handler)
+        if write_end >= 0:
+            signal.set_wakeup_fd(old_fd)
+            os.close(write_end)  # the watcher's read ends (EOF) and it returns
+            if watcher is not None:
+                watcher.join(timeout=1.0)
+            os.close(read_end)
+
+
+def _watch(read_end: int, handler: Callable) -> None:
+    """The watcher thread: every signal number the C handler writes to the pipe, as it comes.
+    Only signals whose Python handler is still ``handler`` count: within :func:`deferred`, or
+    where a library put its own handler (Ray Tune's first Ctrl-C), the signal is theirs."""
+    seen = 0
+    while True:
+        try:
+            data = os.read(read_end, 64)
+        except OSError:
+            return
+        if not data:
+            return
+        for signum in data:
+            try:
+                ours = signal.getsignal(signum) is handler
+            except ValueError:
+                ours = False
+            if not ours:
+                continue
+            seen += 1
+            if seen >= 2 or not _taken.wait(GRACE_S):
+                _end_now(signum)
+
+
+def _end_now(signum: int) -> None:
+    """End the process at once: the interrupted line (unless one is being printed), exit 128 +
+    the first signal's number. Nothing is cleaned up: the caller asked twice, or the main
+    thread is stuck in a C call."""
+    if signum not in received:
+        received.append(signum)
+    if not _deferring:
+        try:
+            line = interrupted_line(_command or "command", hurried=True)
+            os.write(2, (line + "\n").encode(errors="replace"))
+        except Exception:  # noqa: BLE001 -- nothing may stop the exit
+            pass
+    os._exit(exit_status())
+
+
+@contextlib.contextmanager
+def deferred() -> Iterator[None]:
+    """Within: a Ctrl-C or SIGTERM waits (the line being printed is not cut by a second one);
+    one that came meanwhile ends the process at once after it (exit 128 + the first signal's
+    number)."""
+    global _deferring
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held: list[int] = []
+
+    def hold(signum, frame):
+        held.append(signum)
+
+    old = {sig: signal.signal(sig, hold) for sig in (signal.SIGINT, signal.SIGTERM)}
+    _deferring = True
+    try:
+        yield
+    finally:
+        _deferring = False
+        for sig, handler in old.items():
             signal.signal(sig, signal.SIG_DFL if handler is None else handler)
+        if held:
+            received.extend(held)
+            for stream in (sys.stdout, sys.stderr):
+                try:
+                    stream.flush()
+                except (OSError, ValueError, AttributeError):
+                    pass
+            os._exit(exit_status())
 
 
-def interrupted_line(command: str) -> str:
-    """The one line of an interrupted ``command``: ``bulletnav COMMAND: <the note>``."""
+def interrupted_line(command: str, hurried: bool = False) -> str:
+    """The one line of an interrupted ``command``: ``bulletnav COMMAND: <the note>``; ``hurried``:
+    the process ends at once, nothing is cleaned up, so the note is not asked."""
+    if hurried:
+        return (f"bulletnav {command}: interrupted at once (a second signal, or one the command could not take "
+                f"inside a long call); files being written may be incomplete; run again with: {rerun_command()}")
     try:
         text = (_note or nothing_kept)()
     except Exception as exc:  # noqa: BLE001 -- the line must come out whatever the note trips over

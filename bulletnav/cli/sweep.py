@@ -53,7 +53,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         print(f"bulletnav sweep: interrupted with {unfinished} of {len(record['trials'])} trials unfinished; "
               f"finished trials and checkpoints kept in {record['experiment']}; continue with: "
               f"{interrupts.continue_command()}", file=sys.stderr)
-        return interrupts.EXIT_INTERRUPTED
+        return interrupts.EXIT_INTERRUPTED  # Ray Tune took the Ctrl-C itself
     return 0
 
 

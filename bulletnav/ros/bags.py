@@ -59,8 +59,15 @@ def _any_reader(paths: list[Path], kind: str, path: Path) -> Iterator[tuple[str,
         raise BulletnavError(f"{path}: not a readable {kind} ({type(exc).__name__}: {exc})") from None
 
 
-def _sqlite(path: Path) -> Iterator[tuple[str, str, Any]]:
-    """The same from a lone ``.db3`` (no ``metadata.yaml``): its tables, Humble's definitions."""
+BAG_TABLES = ("topics", "messages")
+
+
+def _sqlite(path: Path, wanted: tuple[str, ...]) -> Iterator[tuple[str, str, Any]]:
+    """The same from a lone ``.db3`` (no ``metadata.yaml``): its tables, Humble's definitions,
+    the messages of the ``wanted`` topics only. The file is opened read-only with
+    ``trusted_schema`` off, and its ``topics`` and ``messages`` must be plain tables: a view (or
+    a virtual table) is SQL of the file's author, run by whoever reads it, and one view can
+    be an endless query. A progress handler lets Ctrl-C and SIGTERM in during a long query."""
     from rosbags.typesys import Stores, get_typestore
 
     store = get_typestore(Stores.ROS2_HUMBLE)
@@ -69,17 +76,41 @@ def _sqlite(path: Path) -> Iterator[tuple[str, str, Any]]:
     except sqlite3.Error as exc:
         raise BulletnavError(f"{path}: not a readable ROS 2 sqlite3 bag ({exc})") from None
     try:
+        db.execute("PRAGMA trusted_schema = OFF")
+        db.execute("PRAGMA query_only = ON")
+        db.set_progress_handler(_let_signals_in, 100_000)
+        kinds = {name: (kind, sql or "") for name, kind, sql in
+                 db.execute("SELECT name, type, sql FROM sqlite_master WHERE name IN (?, ?)", BAG_TABLES)}
+        for table in BAG_TABLES:
+            kind, sql = kinds.get(table, ("", ""))
+            if not kind:
+                raise BulletnavError(f"{path}: not a ROS 2 sqlite3 bag: it has no {table!r} table")
+            if kind != "table" or sql.lstrip().upper().startswith("CREATE VIRTUAL"):
+                what = "a virtual table" if kind == "table" else f"a {kind}"
+                raise BulletnavError(f"{path}: not a ROS 2 sqlite3 bag: {table!r} is {what}, not a plain table "
+                                     "(bulletnav does not run a bag's own SQL)")
         topics = {tid: (name, typ) for tid, name, typ in db.execute("SELECT id, name, type FROM topics")}
         yield from (("", typ, name) for name, typ in topics.values())
-        for tid, raw in db.execute("SELECT topic_id, data FROM messages ORDER BY timestamp, id"):
+        ids = [tid for tid, (name, _typ) in topics.items() if name in wanted]
+        if not ids:
+            return
+        marks = ", ".join("?" * len(ids))
+        for tid, raw in db.execute(f"SELECT topic_id, data FROM messages WHERE topic_id IN ({marks}) "
+                                   "ORDER BY timestamp, id", ids):
             name, typ = topics.get(tid, ("", ""))
             yield name, typ, _decoder(lambda r=raw, t=typ: store.deserialize_cdr(r, t), path, "ROS 2 sqlite3 bag")
     except sqlite3.Error as exc:
         raise BulletnavError(f"{path}: not a readable ROS 2 sqlite3 bag ({exc})") from None
-    except (KeyError, IndexError, ValueError) as exc:
+    except (KeyError, IndexError, ValueError, TypeError) as exc:
         raise BulletnavError(f"{path}: not a readable ROS 2 sqlite3 bag ({type(exc).__name__}: {exc})") from None
     finally:
         db.close()
+
+
+def _let_signals_in() -> int:
+    """SQLite's progress handler: Python code, so a pending signal's handler runs here (Python
+    runs them between its own steps only); 0 lets the query go on."""
+    return 0
 
 
 def read_rosbag(path: str | Path, scan_topic: str = "/scan", odom_topic: str = "/odom") -> BagData:
@@ -99,7 +130,7 @@ def read_rosbag(path: str | Path, scan_topic: str = "/scan", odom_topic: str = "
     elif (path.parent / "metadata.yaml").is_file():
         stream = _any_reader([path.parent], "ROS 2 bag", path)
     else:
-        stream = _sqlite(path)
+        stream = _sqlite(path, (scan_topic, odom_topic, "/tf", "/tf_static"))
     return collect_bag(stream, path, scan_topic, odom_topic)
 
 
