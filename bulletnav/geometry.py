@@ -16,6 +16,7 @@ from pathlib import Path
 
 from bulletnav.config import RobotConfig
 from bulletnav.errors import ConfigError
+from bulletnav.xmlfile import XmlRefused, parse_xml
 
 
 @dataclass(frozen=True)
@@ -89,9 +90,12 @@ def _xyz(element: ET.Element | None, attribute: str = "xyz") -> tuple[float, flo
 @lru_cache(maxsize=8)
 def _parse(path: str, footprint_radius: float) -> RobotGeometry:
     try:
-        root = ET.parse(path).getroot()
-    except (OSError, ET.ParseError) as exc:
-        raise ConfigError(f"{path}: cannot read the robot URDF ({exc})") from exc
+        with open(path, "rb") as f:
+            root = parse_xml(f.read())
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read the robot URDF ({exc.strerror or exc})") from None
+    except XmlRefused as exc:
+        raise ConfigError(f"{path}: cannot read the robot URDF ({exc})") from None
     links = {link.get("name"): link for link in root.findall("link")}
     joints = {joint.get("name"): joint for joint in root.findall("joint")}
     for name in ("base_link",):

@@ -359,9 +359,20 @@ def test_sdf_refusals_name_the_file_and_model(tmp_path):
     doctype.write_text("<?xml version='1.0'?><!DOCTYPE sdf [<!ENTITY big 'xxxxxxxx'>]><sdf><world name='w'>"
                        "<model name='m'><link name='l'/></model></world></sdf>")
     _refused(doctype, "DOCTYPE", "never expands entities")
-    entity = tmp_path / "ent.sdf"
+    # the same in UTF-16 (a byte search for "<!ENTITY" does not see it): refused, not expanded into the name
+    utf16 = tmp_path / "utf16.world"
+    utf16.write_bytes("<?xml version='1.0' encoding='UTF-16'?><!DOCTYPE sdf [<!ENTITY n 'expanded'>]><sdf>"
+                      "<world name='&n;'><model name='m'><link name='l'/></model></world></sdf>".encode("utf-16"))
+    _refused(utf16, "<!DOCTYPE> declaration at line 1", "never expands entities")
+    utf16le = tmp_path / "utf16le.world"  # no byte-order mark, the entity declared after a comment
+    utf16le.write_bytes("<!-- x --><!DOCTYPE sdf [<!ENTITY n 'expanded'>]><sdf><world name='&n;'/></sdf>".encode("utf-16-le"))
+    _refused(utf16le, "DOCTYPE")
+    entity = tmp_path / "ent.sdf"  # an entity declaration outside a DTD is not XML at all
     entity.write_text("<sdf><!ENTITY x 'y'><world name='w'/></sdf>")
-    _refused(entity, "ENTITY")
+    _refused(entity, "not well-formed XML")
+    deep = tmp_path / "deep.world"  # 3,000 nested models: one line, not a RecursionError
+    deep.write_text("<sdf><world name='w'>" + "<model name='m'>" * 3000 + "</model>" * 3000 + "</world></sdf>")
+    _refused(deep, "elements nested more than 100 deep")
     broken = tmp_path / "broken.world"
     broken.write_text("<sdf><world name='w'><model name='m'></world></sdf>")
     _refused(broken, "not well-formed XML")

@@ -20,15 +20,15 @@ loading: its model and link poses (world frame) replace the composed ones, its `
 are built and its ``<deletions>`` are not. Visuals are ignored (the collisions are what the robot meets); models that
 are not ``<static>`` are built as static obstacles too (bulletnav has no pushable bodies).
 
-The file is parsed with :mod:`xml.etree.ElementTree` after refusing any ``<!DOCTYPE`` or
-``<!ENTITY`` declaration, so no entity from a user's file is ever expanded.
+The file is parsed by :func:`bulletnav.xmlfile.parse_xml`: a DOCTYPE or an entity declaration is
+refused in any encoding, so no entity from a user's file is ever expanded, and elements nest at
+most :data:`~bulletnav.xmlfile.MAX_DEPTH` deep.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from bulletnav.errors import LayoutError
+from bulletnav.xmlfile import XmlRefused, parse_xml
 
 log = logging.getLogger(__name__)
 
@@ -45,7 +46,6 @@ TOLERANCE = 1e-6
 """How far from vertical (cosine) an axis may be and still count as vertical."""
 BUILTIN_INCLUDES = ("ground_plane", "sun")
 """Models an ``<include>`` may name: Gazebo's stock ground plane (the floor) and sun (a light)."""
-_DECLARATION = re.compile(rb"<!\s*(DOCTYPE|ENTITY)", re.IGNORECASE)
 _REFUSED_GEOMETRY = ("mesh", "sphere", "capsule", "ellipsoid", "heightmap", "polyline", "image")
 
 
@@ -303,8 +303,9 @@ def read_shapes(path: str | Path) -> tuple[list[Shape], bool, str]:
         (shapes, whether a ground plane was found, the world's name).
 
     Raises:
-        LayoutError: the file is missing, too large, declares a DOCTYPE or ENTITY, is not XML or
-            not SDF, or holds something that cannot be built (named with its model).
+        LayoutError: the file is missing, too large, declares a DOCTYPE or ENTITY, nests
+            elements too deep, is not XML or not SDF, or holds something that cannot be built
+            (named with its model).
     """
     path = Path(path)
     where = str(path)
@@ -315,14 +316,10 @@ def read_shapes(path: str | Path) -> tuple[list[Shape], bool, str]:
         raw = path.read_bytes()
     except OSError as exc:
         raise LayoutError(f"{where}: cannot read the SDF file ({exc.strerror or exc})") from None
-    declaration = _DECLARATION.search(raw)
-    if declaration:
-        raise LayoutError(f"{where}: a <!{declaration.group(1).decode().upper()}> declaration is refused: "
-                          "bulletnav never expands entities from a user's file (remove it)")
     try:
-        root = ET.fromstring(raw)
-    except ET.ParseError as exc:
-        raise LayoutError(f"{where}: not well-formed XML ({exc})") from None
+        root = parse_xml(raw)
+    except XmlRefused as exc:
+        raise LayoutError(f"{where}: {exc}") from None
     if root.tag != "sdf":
         raise LayoutError(f"{where}: the root element is <{root.tag}>, not <sdf>")
     worlds = root.findall("world")
