@@ -414,6 +414,43 @@ def test_map_server_refusals_name_the_file_and_field(tmp_path):
     _refused(wrapper, "field 'map'", "gone.world")
 
 
+def test_hostile_map_server_maps_are_refused_in_one_line_before_the_work_grows(tmp_path):
+    """Each refused by name: an image outside the YAML's folder (absolute or climbing), with the
+    same message whether the file exists or not; an origin or wall height past any site; a PGM
+    whose header claims 10^10 pixels (the project's limit, before Pillow's bomb check); a 5 kB
+    checkerboard PNG of 2048^2 cells, whose walls would merge into 2 M boxes (refused from its
+    first row's runs, before any merge)."""
+    base = "resolution: 0.1\norigin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    inner = tmp_path / "maps"
+    inner.mkdir()
+    _pgm(tmp_path / "outside.pgm", np.full((40, 40), 254))
+    messages = []
+    for image in (str(tmp_path / "outside.pgm"), "../outside.pgm", "../nothere.pgm", "/etc/passwd"):
+        path = inner / "m.yaml"
+        path.write_text(f"image: {image}\n" + base)
+        messages.append(_refused(path, "field 'image' must name a file in the map YAML's folder or below it"))
+    assert len({m.replace(m.split("got ")[-1], "") for m in messages}) == 1  # nothing says whether it exists
+    _pgm(inner / "m.pgm", np.pad(np.full((38, 38), 254), 1))
+    for text, needles in (("image: m.pgm\n" + base.replace("origin: [0, 0, 0]", "origin: [1.0e+300, 0, 0]"),
+                           ("field 'origin'", "within 1e+06 m")),
+                          ("image: m.pgm\n" + base + "height: 1.0e+300\n", ("field 'height'", "at most 100 m"))):
+        path = inner / "far.yaml"
+        path.write_text(text)
+        _refused(path, *needles)
+    (inner / "bomb.pgm").write_bytes(b"P5\n100000 100000\n255\n" + bytes(64))
+    bomb = inner / "bomb.yaml"
+    bomb.write_text("image: bomb.pgm\n" + base)
+    _refused(bomb, "image bomb.pgm pixels = 10000000000 exceeds the limit 16777216", "BULLETNAV_MAX_MAP_CELLS")
+    from PIL import Image
+
+    board = ((np.indices((2048, 2048)).sum(axis=0) % 2) * 254).astype(np.uint8)
+    Image.fromarray(board).save(inner / "board.png", optimize=True)
+    assert (inner / "board.png").stat().st_size < 20_000
+    checker = inner / "board.yaml"
+    checker.write_text("image: board.png\n" + base.replace("resolution: 0.1", "resolution: 0.01"))
+    _refused(checker, "more than 1000 boxes", "BULLETNAV_MAX_OBSTACLES")
+
+
 def test_navigate_cli_refuses_a_mesh_world_in_one_line(tmp_path, capsys):
     path = _world(tmp_path, f"<model name='robot_arm'>{SHAPE.format('<mesh><uri>arm.stl</uri></mesh>')}</model>")
     assert main(["navigate", "--world", str(path), "--episodes", "1"]) == 2

@@ -43,6 +43,14 @@ SAVE_OCCUPIED, SAVE_FREE, SAVE_UNKNOWN = 0, 254, 205
 """Pixel values ``map_saver`` writes in trinary mode."""
 SAVE_OCCUPIED_THRESH, SAVE_FREE_THRESH = 0.65, 0.196
 """Thresholds :func:`write_map` puts in the YAML (ROS's ``map_saver`` defaults)."""
+MAX_ORIGIN = 1.0e6
+"""Largest distance (m) of a map's ``origin`` from its frame's origin, along x and y: 1,000 km,
+past any site's map (a SLAM run's origin is tens or hundreds of metres off)."""
+MAX_ORIGIN_YAW = 1.0e3
+"""Largest ``origin`` yaw (rad), as a sanity bound (maps use -pi..pi)."""
+ROWS_AT_ONCE = 256
+"""Image rows turned into cell values at a time: the float64 arithmetic Nav2 does, on a bounded
+slice, so a large image costs its own bytes and not 24 times them."""
 
 
 @dataclass(frozen=True)
@@ -97,6 +105,9 @@ def read_meta(data: Any, where: str) -> MapMeta:
     if not isinstance(origin, list) or len(origin) != 3:
         raise LayoutError(f"{where}: field 'origin' must be [x, y, yaw], got {show(origin)}")
     xyz = tuple(_number({"origin": v}, "origin", where) for v in origin)
+    if max(abs(xyz[0]), abs(xyz[1])) > MAX_ORIGIN or abs(xyz[2]) > MAX_ORIGIN_YAW:
+        raise LayoutError(f"{where}: field 'origin' must be within {MAX_ORIGIN:g} m of the map frame's origin and its "
+                          f"yaw within {MAX_ORIGIN_YAW:g} rad, got {show(origin)}")
     negate = data["negate"]
     if negate not in (0, 1) or isinstance(negate, float):  # Nav2 reads an int, else a bool
         raise LayoutError(f"{where}: field 'negate' must be 0 or 1, got {show(negate)}")
@@ -111,9 +122,26 @@ def read_meta(data: Any, where: str) -> MapMeta:
     if mode == "scale" and thresholds["occupied_thresh"] <= thresholds["free_thresh"]:
         raise LayoutError(f"{where}: field 'free_thresh' ({thresholds['free_thresh']}) must be below 'occupied_thresh' "
                           f"({thresholds['occupied_thresh']}) in scale mode")
-    path = Path(image) if Path(image).is_absolute() else Path(where).parent / image
+    path = _inside_folder(image, where)
     return MapMeta(path, resolution, xyz, bool(negate), thresholds["occupied_thresh"], thresholds["free_thresh"],
                    mode)  # type: ignore[arg-type]
+
+
+def _inside_folder(image: str, where: str) -> Path:
+    """The image a map YAML names, which must lie in the YAML's folder or below it: an absolute
+    path or one that climbs out with ``..`` (or a link out) is refused with the same message
+    whether or not the file exists, so a map file cannot read, nor tell whether there is, a
+    file elsewhere on the reader's machine."""
+    folder = Path(where).parent
+    path = Path(image)
+    try:
+        inside = not path.is_absolute() and (folder / path).resolve().is_relative_to(folder.resolve())
+    except (OSError, RuntimeError, ValueError):  # a link loop, a NUL byte
+        inside = False
+    if not inside:
+        raise LayoutError(f"{where}: field 'image' must name a file in the map YAML's folder or below it "
+                          f"(a relative path that stays inside), got {show(image)}")
+    return folder / path
 
 
 def cell_values(rgb: np.ndarray, alpha: np.ndarray | None, meta: MapMeta) -> np.ndarray:
@@ -146,19 +174,24 @@ def cell_values(rgb: np.ndarray, alpha: np.ndarray | None, meta: MapMeta) -> np.
     return out
 
 
-def read_image(meta: MapMeta, where: str) -> tuple[np.ndarray, np.ndarray | None]:
-    """The image's red, green, blue (and alpha, if it has one) on [0, 1], as :func:`cell_values` takes them.
+def read_image(meta: MapMeta, where: str) -> tuple[np.ndarray, float]:
+    """The image's pixels as stored (uint8, or uint16 for a 16-bit grey image): ``(H, W)`` grey,
+    or ``(H, W, C)`` with C = 2 (grey, alpha), 3 (RGB) or 4 (RGBA); and the value of full
+    intensity (255 or 65535). :func:`read_grid` turns them into cell values a slice at a time.
 
     Raises:
-        LayoutError: the image is missing, not PGM/PPM/PBM or PNG, or unreadable.
-        LimitError: its pixels pass the limit ``map_cells`` (checked before it is decoded).
+        LayoutError: the image is missing, not PGM/PPM/PBM or PNG, or unreadable; its pixels pass
+            the limit ``map_cells`` (checked from the header, before it is decoded, and before
+            Pillow's own decompression-bomb check).
     """
     from PIL import Image, UnidentifiedImageError
 
     if not meta.image.is_file():
         raise LayoutError(f"{where}: field 'image' names {meta.image}, which does not exist")
     try:
-        with Image.open(meta.image, formats=IMAGE_FORMATS) as img:
+        with _header_only(Image):
+            img = Image.open(meta.image, formats=IMAGE_FORMATS)
+        with img:
             width, height = img.size
             try:
                 limits.check("map_cells", width * height, f"{where}: image {meta.image.name} pixels")
@@ -168,58 +201,98 @@ def read_image(meta: MapMeta, where: str) -> tuple[np.ndarray, np.ndarray | None
                 raise LayoutError(f"{where}: field 'image' names {meta.image}, an empty image")
             mode = img.mode
             if mode.startswith("I;16") or mode == "I":
-                grey = np.asarray(img, dtype=np.float64) / 65535.0
-                return np.repeat(grey[..., None], 3, axis=2), None
+                return np.asarray(img, dtype=np.uint16 if mode.startswith("I;16") else np.int64), 65535.0
             if mode in ("P", "PA"):
                 img = img.convert("RGBA" if mode == "PA" or "transparency" in img.info else "RGB")
             elif mode == "1":
                 img = img.convert("L")
             elif mode not in ("L", "LA", "RGB", "RGBA"):
                 img = img.convert("RGBA" if "A" in mode else "RGB")
-            pixels = np.asarray(img, dtype=np.float64) / 255.0
-    except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as exc:
+            return np.asarray(img, dtype=np.uint8), 255.0
+    except (UnidentifiedImageError, OSError, ValueError, SyntaxError, Image.DecompressionBombError) as exc:
         raise LayoutError(f"{where}: field 'image' names {meta.image}, not a readable PGM or PNG image ({exc})") from None
-    if pixels.ndim == 2:
-        return np.repeat(pixels[..., None], 3, axis=2), None
-    if pixels.shape[2] == 2:  # grey + alpha
-        return np.repeat(pixels[..., :1], 3, axis=2), pixels[..., 1]
-    return pixels[..., :3], (pixels[..., 3] if pixels.shape[2] == 4 else None)
+
+
+class _header_only:
+    """Within: Pillow's decompression-bomb check off, for ``Image.open`` (which reads only the
+    header): the project's own limit (``map_cells``) is checked on the size before any pixel is
+    decoded, and says which limit and how to raise it."""
+
+    def __init__(self, image_module) -> None:
+        self.image = image_module
+
+    def __enter__(self) -> None:
+        self.saved = self.image.MAX_IMAGE_PIXELS
+        self.image.MAX_IMAGE_PIXELS = None
+
+    def __exit__(self, *exc: object) -> None:
+        self.image.MAX_IMAGE_PIXELS = self.saved
+
+
+def _channels(pixels: np.ndarray, full: float) -> tuple[np.ndarray, np.ndarray | None]:
+    """Stored pixels (a slice of rows) as :func:`cell_values` takes them: RGB and alpha on [0, 1]."""
+    values = pixels.astype(np.float64) / full
+    if values.ndim == 2:
+        return np.repeat(values[..., None], 3, axis=2), None
+    if values.shape[2] == 2:  # grey + alpha
+        return np.repeat(values[..., :1], 3, axis=2), values[..., 1]
+    return values[..., :3], (values[..., 3] if values.shape[2] == 4 else None)
 
 
 def read_grid(data: Any, where: str) -> tuple[MapMeta, np.ndarray]:
-    """A map YAML's metadata and its grid ``[ix, iy]`` of cell values (iy = 0 the bottom row).
+    """A map YAML's metadata and its grid ``[ix, iy]`` of cell values (iy = 0 the bottom row),
+    computed :data:`ROWS_AT_ONCE` image rows at a time (int8 cells; the float arithmetic on a
+    slice only).
 
     Raises:
         LayoutError: a field or the image is wrong (named in the message).
     """
     meta = read_meta(data, where)
-    rgb, alpha = read_image(meta, where)
-    return meta, np.ascontiguousarray(cell_values(rgb, alpha, meta)[::-1].T)
+    pixels, full = read_image(meta, where)
+    height, width = pixels.shape[:2]
+    cells = np.empty((height, width), dtype=np.int8)
+    for r0 in range(0, height, ROWS_AT_ONCE):
+        rgb, alpha = _channels(pixels[r0:r0 + ROWS_AT_ONCE], full)
+        cells[r0:r0 + ROWS_AT_ONCE] = cell_values(rgb, alpha, meta)
+    return meta, np.ascontiguousarray(cells[::-1].T)
 
 
-def merge_boxes(occupied: np.ndarray) -> list[tuple[int, int, int, int]]:
+def merge_boxes(occupied: np.ndarray, most: int | None = None) -> list[tuple[int, int, int, int]] | None:
     """Cover the True cells of ``occupied[ix, iy]`` exactly with few axis-aligned rectangles.
 
     Runs of True cells along one axis are merged with the identical runs of the next rows;
     this is done along x and along y, and the cover with fewer rectangles is kept. The
     rectangles do not overlap.
 
+    Args:
+        most: give up (return None) once both covers need more rectangles than this: each
+            merge stops at its ``most + 1``-th rectangle, and a grid one of whose rows (or
+            columns) alone holds more runs than this is not merged that way at all (every
+            run of a row is a rectangle of its own), so a hostile image costs the limit, not
+            its cells.
+
     Returns:
-        ``(i0, j0, i1, j1)`` per rectangle: cells ``i0 <= ix < i1``, ``j0 <= iy < j1``.
+        ``(i0, j0, i1, j1)`` per rectangle: cells ``i0 <= ix < i1``, ``j0 <= iy < j1``; None
+        when ``most`` was passed.
     """
-    by_rows = _merge_runs(occupied.T)  # runs along x, stacked along y
-    by_cols = _merge_runs(occupied)  # runs along y, stacked along x
-    if len(by_cols) < len(by_rows):
+    by_rows = _merge_runs(occupied.T, most)  # runs along x, stacked along y
+    by_cols = _merge_runs(occupied, most)  # runs along y, stacked along x
+    if by_rows is None and by_cols is None:
+        return None
+    if by_rows is None or (by_cols is not None and len(by_cols) < len(by_rows)):
         return by_cols  # rows of occupied are ix: (i0, j0, i1, j1) already
     return [(i0, j0, i1, j1) for j0, i0, j1, i1 in by_rows]
 
 
-def _merge_runs(grid: np.ndarray) -> list[tuple[int, int, int, int]]:
-    """Rectangles (r0, c0, r1, c1) over ``grid[r, c]``: runs along c in row r, merged down the rows."""
+def _merge_runs(grid: np.ndarray, most: int | None = None) -> list[tuple[int, int, int, int]] | None:
+    """Rectangles (r0, c0, r1, c1) over ``grid[r, c]``: runs along c in row r, merged down the
+    rows; None once there would be more than ``most``."""
     rows, cols = grid.shape
     padded = np.zeros((rows, cols + 2), dtype=np.int8)
     padded[:, 1:-1] = grid
     step = np.diff(padded, axis=1)
+    if most is not None and int((step == 1).sum(axis=1).max(initial=0)) > most:
+        return None  # one row's runs alone are more rectangles than allowed
     starts = np.argwhere(step == 1)  # (row, first column), row-major: rows in order, runs left to right
     ends = np.argwhere(step == -1)[:, 1]  # one past each run's last column, in the same order
     boxes: list[list[int]] = []
@@ -232,6 +305,8 @@ def _merge_runs(grid: np.ndarray) -> list[tuple[int, int, int, int]]:
         else:
             open_runs[key] = len(boxes)
             boxes.append([r, c0, r + 1, c1])
+            if most is not None and len(boxes) > most:
+                return None
     return [tuple(b) for b in boxes]  # type: ignore[misc]
 
 

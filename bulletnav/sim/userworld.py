@@ -49,6 +49,8 @@ from bulletnav.yamlfile import read_yaml, show
 
 SDF_SUFFIXES = (".world", ".sdf")
 OPTIONS = {"start", "goal", "unknown", "height", "margin", "name"}
+MAX_WALL_HEIGHT = 100.0
+"""Tallest walls (m) a map_server map's ``height`` may ask for (the default is 2 m)."""
 """bulletnav's keys beside a map (in a wrapper, or in a map_server YAML)."""
 WRAPPER_KEYS = OPTIONS | {"map"}
 DEFAULT_HEIGHT = 2.0
@@ -133,11 +135,21 @@ def load_map_yaml(path: Path, data: dict[str, Any], options: dict[str, Any] | No
     if unknown not in ("occupied", "free"):
         raise LayoutError(f"{where}: field 'unknown' must be 'occupied' (walls, the default) or 'free', got {show(unknown)}")
     height = _positive(options.get("height", DEFAULT_HEIGHT), where, "height")
+    if height > MAX_WALL_HEIGHT:
+        raise LayoutError(f"{where}: field 'height' must be at most {MAX_WALL_HEIGHT:g} m (the walls' height), "
+                          f"got {show(options['height'])}")
     meta, grid = mapserver.read_grid(data, str(path))
     walls = grid == mapserver.OCCUPIED
     if unknown == "occupied":
         walls |= grid == mapserver.UNKNOWN
-    boxes = mapserver.merge_boxes(walls)
+    try:
+        most = limits.current().obstacles
+    except LimitError as exc:
+        raise LayoutError(f"{where}: {exc}") from None
+    boxes = mapserver.merge_boxes(walls, most)
+    if boxes is None:  # merging stopped at the limit: a hostile image costs the limit, not its cells
+        raise LayoutError(f"{where}: the map's walls need more than {most} boxes (merged wall cells), past the limit "
+                          f"obstacles = {most} (raise it with {limits.env_var('obstacles')})")
     _limit("obstacles", len(boxes), where, "boxes (merged wall cells)")
     res = meta.resolution
     nx, ny = grid.shape
