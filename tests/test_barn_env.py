@@ -143,6 +143,29 @@ def test_world_index_by_make_and_by_reset_and_bad_ones_named(env):
             gym.make("bulletnav/BARN-v0", **kwargs)
 
 
+def test_barn_refuses_keywords_that_change_its_rules_and_defaults_to_a_training_world():
+    """A 0.5 m goal radius let an episode end at BARN's 1 m and 'succeed' without the goal bonus;
+    now every keyword that would change BARN's rules is refused unless it says BARN's value, and
+    those that draw a warehouse are refused; the default world is 1, not test world 0."""
+    from bulletnav.barn.data import TEST_WORLDS
+
+    for key, value in (("goal_radius", 0.5), ("collision_terminates", False), ("goals", 3), ("forklifts", (1, 2)),
+                       ("workers", [0, 1]), ("pallet_events_per_min", 2.0), ("goal_order", "fixed")):
+        with pytest.raises(TypeError, match=f"keeps BARN's rules: {key}="):
+            gym.make("bulletnav/BARN-v0", **{key: value})
+    for key, value in (("num_obstacles", 10), ("world_size", 12.0), ("steps_per_goal", 100)):
+        with pytest.raises(TypeError, match=f"runs BARN's worlds, start and goal: {key}="):
+            gym.make("bulletnav/BARN-v0", **{key: value})
+    same = gym.make("bulletnav/BARN-v0", goal_radius=1, collision_terminates=True, forklifts=[0, 0])
+    default = gym.make("bulletnav/BARN-v0")
+    try:
+        assert same.unwrapped.config.task.goal_radius == 1.0
+        assert default.unwrapped.world_idx == 1 and 1 not in TEST_WORLDS
+    finally:
+        same.close()
+        default.close()
+
+
 def test_check_env_passes():
     e = gym.make("bulletnav/BARN-v0", world_idx=6).unwrapped
     try:

@@ -46,6 +46,23 @@ def test_hits_on_hand_geometry():
     assert caster.cast(np.array([3.0, 0.1, 0.5]), unit(1, 0, 0)[None], 5.0)[0] == 0.0
 
 
+def test_vertical_rays_hit_only_the_cylinders_they_start_over():
+    """A ray with no horizontal part stays over the point it starts from: straight down from
+    z = 2 it meets a cylinder's top cap (z = 1, 1 m below) only where that point lies within the
+    cylinder's radius, by hand. (It "hit" every cylinder in the world before, wherever it was.)"""
+    near = Primitive("cylinder", (3.0, 0.0, 0.5), (0.2, 0.2, 0.5))
+    far = Primitive("cylinder", (-4.0, 5.0, 0.5), (0.075, 0.075, 0.5))
+    caster = ExactCaster([near, far])
+    down, up = unit(0, 0, -1)[None], unit(0, 0, 1)[None]
+    assert math.isinf(caster.cast(np.array([0.0, 0.0, 2.0]), down, 10.0)[0])  # over neither
+    assert math.isinf(caster.cast(np.array([3.0, 0.21, 2.0]), down, 10.0)[0])  # 1 cm outside the radius
+    assert caster.cast(np.array([3.0, 0.19, 2.0]), down, 10.0)[0] == pytest.approx(1.0, abs=1e-12)
+    assert caster.cast(np.array([-4.0, 5.07, 2.0]), down, 10.0)[0] == pytest.approx(1.0, abs=1e-12)
+    assert math.isinf(caster.cast(np.array([3.0, 0.19, 2.0]), up, 10.0)[0])  # rising away from it
+    many = ExactCaster([Primitive("cylinder", (x, 0.0, 0.5), (0.1, 0.1, 0.5)) for x in range(-50, 50, 2)])
+    assert math.isinf(many.cast(np.array([1.0, 0.0, 2.0]), down, 10.0)[0])  # between two of fifty
+
+
 def test_box_plane_and_the_nearest_of_several():
     # a box turned 45 degrees: its corner points at the origin, sqrt(2) * 0.5 from its centre
     box = Primitive("box", (4.0, 0.0, 1.0), (0.5, 0.5, 1.0), math.pi / 4)

@@ -21,9 +21,33 @@ collision ending the episode, BARN's robot (a Jackal, :func:`bulletnav.config.ro
 the lidar cast in closed form against BARN's cylinders (:mod:`bulletnav.sensors.raycast`: the
 true geometry, and a scan of 30 m rays through hundreds of cylinders in a fraction of PyBullet's time:
 ``bulletnav bench env --env bulletnav/BARN-v0``)."""
+BARN_RULES: dict[str, Any] = {"goal_radius": 1.0, "collision_terminates": True, "goals": 1, "goal_order": "free",
+                              "forklifts": (0, 0), "workers": (0, 0), "pallet_events_per_min": 0.0}
+"""Keywords that would change BARN's rules (its 1 m goal, a collision ending the run, one goal,
+a static world): BARN-v0 accepts them only at BARN's own values, so an episode scored by BARN's
+metric is always one BARN's rules would score."""
+BARN_WORLD_KEYWORDS = frozenset({"num_obstacles", "world_size", "layout_style", "aisles", "min_goal_distance",
+                                 "max_goal_distance", "min_detour", "blocked_by", "detour_share", "layouts_every",
+                                 "steps_per_goal", "yield_to_robot", "forklift_speed", "worker_speed"})
+"""Warehouse-v0 keywords that draw a warehouse's world, goals or movers: BARN's worlds, start and
+goal are BARN's (and its clock, not a step budget, ends a run), so BARN-v0 refuses them."""
+DEFAULT_WORLD = 1
+"""The world of ``gym.make("bulletnav/BARN-v0")`` without ``world_idx``: the first non-test world
+(BARN's test worlds 0, 6, ..., 294 are for scoring only; never train or tune on them)."""
 POOL_STREAM = 0xBA2
 """Second word of the pool generator's seed (``[seed, POOL_STREAM]``): the world draws are a stream
 of their own, apart from the episode's ``np_random``."""
+
+
+def _same(value: Any, rule: Any) -> bool:
+    """``value`` equals BARN's ``rule`` (a list for a tuple, an int for a float)."""
+    if isinstance(rule, tuple):
+        return isinstance(value, (list, tuple)) and len(value) == len(rule) and all(_same(v, r) for v, r in zip(value, rule))
+    if isinstance(rule, bool) or isinstance(value, bool):
+        return value is rule
+    if isinstance(rule, (int, float)):
+        return isinstance(value, (int, float)) and value == rule
+    return value == rule
 
 
 class BarnEnv(WarehouseEnv):
@@ -50,8 +74,10 @@ class BarnEnv(WarehouseEnv):
     (:func:`bulletnav.barn.metric.barn_metric`).
 
     ## Arguments
-    ``gym.make("bulletnav/BARN-v0", world_idx=N)``, N in 0-299 (default 0), and Warehouse-v0's
-    keywords except ``world`` and ``task_name``. ``reset(options={"world_idx": N})`` switches world; a bad index raises
+    ``gym.make("bulletnav/BARN-v0", world_idx=N)``, N in 0-299 (default 1, the first non-test
+    world), and Warehouse-v0's keywords except ``world``, ``task_name``, those that draw a
+    warehouse (:data:`BARN_WORLD_KEYWORDS`) and those that would change BARN's rules
+    (:data:`BARN_RULES`: accepted at BARN's values only). ``reset(options={"world_idx": N})`` switches world; a bad index raises
     :class:`~bulletnav.errors.LayoutError` naming it.
 
     ``world_idx`` may also name a pool: ``"train"`` (BARN's 250 non-test worlds,
@@ -66,12 +92,20 @@ class BarnEnv(WarehouseEnv):
     - v0: initial release.
     """
 
-    def __init__(self, world_idx: int | str | Sequence[int] = 0, render_mode: str | None = None, config: EnvConfig | None = None,
-                 **kwargs: Any) -> None:
+    def __init__(self, world_idx: int | str | Sequence[int] = DEFAULT_WORLD, render_mode: str | None = None,
+                 config: EnvConfig | None = None, **kwargs: Any) -> None:
         if "world" in kwargs:
             raise TypeError(f"bulletnav/BARN-v0 takes world_idx (0-299), not world={show(kwargs['world'])}")
         if kwargs.get("task_name", "barn") != "barn":
             raise TypeError(f"bulletnav/BARN-v0 runs BARN's task only, not task_name={show(kwargs['task_name'])}")
+        for key, rule in BARN_RULES.items():
+            if key in kwargs and not _same(kwargs[key], rule):
+                raise TypeError(f"bulletnav/BARN-v0 keeps BARN's rules: {key}={show(kwargs[key])} would change them "
+                                f"(BARN's is {show(rule)})")
+        drawn = sorted(BARN_WORLD_KEYWORDS & set(kwargs))
+        if drawn:
+            raise TypeError(f"bulletnav/BARN-v0 runs BARN's worlds, start and goal: {drawn[0]}={show(kwargs[drawn[0]])} "
+                            "does not apply (it draws a warehouse's)")
         if isinstance(world_idx, (int, np.integer)):
             self._pool: tuple[int, ...] | None = None
             index = check_index(world_idx)

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import argparse
 
+from bulletnav import BARN_ENV_ID
+from bulletnav.barn.data import N_WORLDS
 from bulletnav.cli import interrupts
 from bulletnav.cli.args import DEFAULT_ENV_ID, int_type
 from bulletnav.cli.envs import check_env_id, shielded, world_kwargs, world_label
@@ -14,18 +16,14 @@ from bulletnav.cli.output import print_json, safety_line, shield_line
 from bulletnav.errors import BulletnavError
 from bulletnav.rl.envs import EVALUATE_OBSTACLES
 
-BARN_ENV_ID = "bulletnav/BARN-v0"
-"""The env whose worlds ``--world-idx`` picks."""
-BARN_WORLDS = 300
-"""BARN's static worlds, 0-299."""
-WORLD_IDX = int_type(0, BARN_WORLDS - 1, "a BARN world index, a whole number")
+WORLD_IDX = int_type(0, N_WORLDS - 1, "a BARN world index, a whole number")
 
 
 def add_world_idx_arg(parser: argparse.ArgumentParser) -> None:
     """``--world-idx N``: the BARN world of every episode (``--env bulletnav/BARN-v0`` only)."""
     parser.add_argument("--world-idx", type=WORLD_IDX, default=None, metavar="N",
-                        help=f"BARN world 0-{BARN_WORLDS - 1} for every episode (with --env {BARN_ENV_ID} only; "
-                             "default 0; BARN's test worlds are 0, 6, ..., 294)")
+                        help=f"BARN world 0-{N_WORLDS - 1} for every episode (with --env {BARN_ENV_ID} only; "
+                             "default 1, the first non-test world; BARN's test worlds are 0, 6, ..., 294)")
 
 
 def world_idx_kwargs(args: argparse.Namespace) -> dict:

@@ -87,10 +87,14 @@ class ExactCaster:
         if not len(ray):
             return best
         a_k, b_k, root = a[ray], b[ray, cyl], np.sqrt(disc[ray, cyl])
-        flat = a_k <= 1e-12  # a vertical ray: inside the circle for all t, or never (disc < 0 then)
+        # a vertical ray (no horizontal part: a = b = disc = 0 for every cylinder) stays where it
+        # starts in the plane: inside the circle for all t when it starts within the radius
+        # (c <= 0), else never
+        flat = a_k <= 1e-12
+        within = c[cyl] <= 0.0
         a_safe = np.where(flat, 1.0, a_k)
-        t_in = np.where(flat, -np.inf, (-b_k - root) / a_safe)
-        t_out = np.where(flat, np.inf, (-b_k + root) / a_safe)
+        t_in = np.where(flat, np.where(within, -np.inf, np.inf), (-b_k - root) / a_safe)
+        t_out = np.where(flat, np.where(within, np.inf, -np.inf), (-b_k + root) / a_safe)
         oz = -rel[cyl, 2]
         dz = d[ray, 2]
         hz = self._cyl_hz[cyl]
