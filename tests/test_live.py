@@ -197,6 +197,12 @@ def test_cli_port_in_use_and_speed_alone(tmp_path, capsys):
     assert list(tmp_path.iterdir()) == []
     assert main(["navigate", "--episodes", "1", "--speed", "0"]) == 2
     assert "--speed paces a live stream: give --live" in capsys.readouterr().err
+    for speed in ("1e-300", "nan", "-1", "1e9"):  # 1e-300 asked for a wait past the clock's range: OverflowError
+        with pytest.raises(SystemExit) as exit_:
+            main(["navigate", "--episodes", "1", "--live", "0", "--speed", speed])
+        assert exit_.value.code == 2
+        err = capsys.readouterr().err.strip()
+        assert err.count("\n") == 0 and "--speed" in err and "0.001-1000" in err and speed in err, err
 
 
 def test_cli_navigate_live_announces_and_finishes(capsys):

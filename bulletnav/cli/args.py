@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 
 from bulletnav.errors import BulletnavError
+from bulletnav.ros.live import SPEED_RANGE
 
 DEFAULT_ENV_ID = "bulletnav/Warehouse-v0"
 """The env every subcommand uses unless ``--env`` names another."""
@@ -80,8 +81,9 @@ positive_seconds = float_type(lambda v: 0 < v < _INF, "seconds > 0", "positive_s
 """Seconds > 0, finite (``--duration``, ``--seconds``)."""
 MIN_SPEED = float_type(lambda v: -_INF < v <= 0, "a speed <= 0 m/s", "MIN_SPEED")
 """``--min-speed``: the lowest commanded speed, m/s <= 0 (negative: the robot may back up)."""
-speed_factor = float_type(lambda v: 0 <= v < _INF, "a speed >= 0 (1: real time, 0: as fast as it goes)", "speed_factor")
-"""``--speed``: simulated seconds per wall-clock second, >= 0 (0: unpaced)."""
+speed_factor = float_type(lambda v: v == 0 or SPEED_RANGE[0] <= v <= SPEED_RANGE[1],
+                          "a speed of 0 (as fast as it goes) or 0.001-1000 (1: real time)", "speed_factor")
+"""``--speed``: simulated seconds per wall-clock second, 0 (unpaced) or within :data:`SPEED_RANGE`."""
 
 
 def hz_list(text: str) -> tuple[int, ...]:

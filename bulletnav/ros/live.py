@@ -28,10 +28,13 @@ from pathlib import Path
 from typing import Any
 
 from bulletnav.errors import BulletnavError
-from bulletnav.ros.msgdefs import msgdef
+from bulletnav.ros.msgdefs import base_topic, msgdef
 
 log = logging.getLogger(__name__)
 
+SPEED_RANGE = (0.001, 1000.0)
+"""``speed`` other than 0: from a thousandth of real time (a step of 1/24 s shown over 42 s)
+to a thousand times it (``1e-300`` asked for a wait too long for the clock: OverflowError)."""
 DEFAULT_HOST = "127.0.0.1"
 """Where the server listens when ``--live`` names only a port: this machine alone."""
 
@@ -73,7 +76,7 @@ def parse_address(text: str) -> tuple[str, int]:
 @functools.lru_cache(maxsize=1024)
 def is_latched(topic: str) -> bool:
     """Whether ``topic`` is one of :data:`LATCHED` (also under a robot's namespace)."""
-    return any(topic == t or topic.endswith(t) for t in LATCHED)
+    return base_topic(topic, LATCHED) is not None
 
 
 class _Listener:
@@ -107,8 +110,9 @@ class LiveServer:
         import foxglove
         from foxglove.websocket import Capability
 
-        if not speed >= 0:
-            raise BulletnavError(f"--speed {speed!r}: give a speed >= 0 (1: real time, 0: as fast as it goes)")
+        if not (speed == 0 or SPEED_RANGE[0] <= speed <= SPEED_RANGE[1]):
+            raise BulletnavError(f"--speed {speed!r}: give 0 (as fast as it goes) or a speed from {SPEED_RANGE[0]:g} to "
+                                 f"{SPEED_RANGE[1]:g} (1: real time)")
         self.host, port = parse_address(address)
         self.speed = float(speed)
         self._context = foxglove.Context()
