@@ -3,6 +3,7 @@ BARN's DWA rows, the per-world plot, and barn_score as BARN's score."""
 
 from __future__ import annotations
 
+import html
 import json
 import math
 from pathlib import Path
@@ -244,7 +245,7 @@ def test_barn_score_is_barns_score_with_the_2_t_opt_clip():
 
 # ------------------------------------------------------------------ a run
 @pytest.mark.slow
-def test_a_barn_run_scores_its_rows_as_barn_and_reports_them(tmp_path):
+def test_a_barn_run_scores_its_rows_as_barn_and_reports_them(tmp_path, capsys):
     """Two real BARN episodes (the straight policy on world 93, a success, and world 0, a
     collision): the rows carry BARN's clock and score, the group's figures are report_test.py's
     of those rows, the report shows DWA's note and links the plot it wrote. A second controller
@@ -278,6 +279,13 @@ def test_a_barn_run_scores_its_rows_as_barn_and_reports_them(tmp_path):
     assert written["suite"]["worlds"][0]["barn_world"] == 93 and written["barn"][0]["worlds"] == [93, 0]
     page = write_report(written, tmp_path / "out" / "report.html").read_text()
     assert DWA_NOTE in page and "href='barn_metric_barn.png'" in page and (tmp_path / "out" / "barn_metric_barn.png").is_file()
+    # the two t_opts are each labelled where their figure is shown: the rows' (run.py's start) and the tables' (report_test.py's)
+    assert "report_test.py's start (-2, 3)" in section["metric"] and "run.py's start (-2.25, 3)" in section["metric"]
+    assert html.escape(section["metric"]) in page
+    from bulletnav.cli.benchmark import _print_barn
+
+    _print_barn(section)
+    assert f"BARN metric: {section['metric']}" in capsys.readouterr().out
 
 
 def test_a_worker_keeps_at_most_max_cells_envs_open(monkeypatch):

@@ -69,8 +69,9 @@ __doc__ += "\n".join(f"- ``{name}``: {text}" for name, text in METRICS.items())
 BARN_KEYS = ("world_idx", "barn_time_s", "barn_metric")
 """What a row of a ``bulletnav/BARN-v0`` episode adds (from the last step's ``info``): the BARN
 world, BARN's clock (s; it starts at the first 0.1 m of motion) and BARN's score of the episode
-(t_opt from BARN's reference path, :func:`bulletnav.barn.metric.barn_metric`). Rows of other
-worlds have none of them."""
+as the env reports it (t_opt from BARN's reference path measured from run.py's start (-2.25, 3),
+:func:`bulletnav.barn.metric.barn_metric`; the BARN tables recompute it from report_test.py's
+start (-2, 3), :data:`bulletnav.benchmark.barn.METRIC_LABEL`). Rows of other worlds have none."""
 
 RATE_METRICS = ("success", "collision", "collision_static", "collision_mover", "collision_person", "timeout")
 """Metrics that are 0/1 per episode (their cell mean is a rate)."""

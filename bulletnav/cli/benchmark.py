@@ -184,6 +184,7 @@ def _print_barn(section: dict) -> None:
         name = f"{e['name']} (published: {e['note']})" if e["source"] == "published" else e["name"]
         print(f"| {name} | {o['worlds']} | {fig(o['success'], True)} | {fig(o['collision'], True)} | "
               f"{fig(o['timeout'], True)} | {fig(o['time_s'], False)} | {fig(o['metric'], False)} |")
+    print(f"BARN metric: {section['metric']}")
     for e in section["controllers"]:
         print(f"{e['name']}: {e['overall']['line'] or 'no runs'}")
         a = e.get("agreement")
