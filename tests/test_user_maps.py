@@ -451,6 +451,28 @@ def test_hostile_map_server_maps_are_refused_in_one_line_before_the_work_grows(t
     _refused(checker, "more than 1000 boxes", "BULLETNAV_MAX_OBSTACLES")
 
 
+def test_a_map_yamls_typos_are_map_typos_and_an_image_or_model_as_a_world_says_what_belongs(tmp_path):
+    """A YAML with ``image:`` is a map: a misspelt field is named as map_server's with the
+    nearest (it fell through to the layout parser, which called every valid field unknown). The
+    map's picture given as the world names the YAML beside it; a saved model names --model."""
+    _pgm(tmp_path / "site.pgm", np.pad(np.full((38, 38), 254), 1))
+    base = "origin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    typo = tmp_path / "site.yaml"
+    typo.write_text("image: site.pgm\nresolutoin: 0.1\n" + base)
+    _refused(typo, "unknown map field 'resolutoin' (did you mean 'resolution'?)")
+    missing = tmp_path / "short.yaml"
+    missing.write_text("image: site.pgm\n" + base)
+    _refused(missing, "field 'resolution' is missing")
+    _refused(tmp_path / "site.pgm", "site.pgm: an image, not a world: give the map's YAML (site.yaml beside it)")
+    alone = tmp_path / "alone"
+    alone.mkdir()
+    Path(alone / "plan.png").write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(32))
+    _refused(alone / "plan.png", "an image, not a world", "the .yaml beside it that names plan.png")
+    model = tmp_path / "policy.zip"
+    model.write_bytes(b"PK\x03\x04" + bytes(30))
+    _refused(model, "a zip archive (a saved model?), not a world: a model goes to --model")
+
+
 def test_navigate_cli_refuses_a_mesh_world_in_one_line(tmp_path, capsys):
     path = _world(tmp_path, f"<model name='robot_arm'>{SHAPE.format('<mesh><uri>arm.stl</uri></mesh>')}</model>")
     assert main(["navigate", "--world", str(path), "--episodes", "1"]) == 2

@@ -373,6 +373,7 @@ def load_layout(path: str | Path) -> Layout:
     path = Path(path)
     if userworld.is_sdf(path):
         return Layout(**userworld.load_sdf(path))
+    userworld.refuse_wrong_kind(path)
     data = read_yaml(path, "layout file", LayoutError)
     if userworld.is_user_map(data):
         return Layout(**userworld.load_user_map(path, data))

@@ -2,9 +2,10 @@
 PNG image) or a Gazebo SDF world, given wherever a layout file is (``world=PATH``, ``--world PATH``).
 
 :func:`~bulletnav.sim.layout.load_layout` sends a file here when it is SDF (suffix ``.world`` or
-``.sdf``, or text starting ``<?xml`` or ``<sdf``) or a YAML mapping with ``image`` and
-``resolution`` (a map_server map) or with ``map`` and no ``size`` (a wrapper naming one); the
-functions here return the :class:`~bulletnav.sim.layout.Layout`'s fields, which ``load_layout``
+``.sdf``, or text starting ``<?xml`` or ``<sdf``) or a YAML mapping with ``image`` (a map_server
+map: its other fields are checked as map_server's, a misspelt one named with the nearest) or with
+``map`` and no ``size`` (a wrapper naming one). An image or a saved model given as a world is
+refused with what belongs there (:func:`refuse_wrong_kind`). The functions here return the :class:`~bulletnav.sim.layout.Layout`'s fields, which ``load_layout``
 builds (so this module does not import the layout module that imports it)::
 
     map: site.yaml          # a map_server map YAML or a Gazebo world, relative to this file
@@ -34,6 +35,7 @@ would give a floor mostly empty).
 
 from __future__ import annotations
 
+import difflib
 import math
 from pathlib import Path
 from typing import Any
@@ -73,8 +75,58 @@ def is_sdf(path: Path) -> bool:
 
 
 def is_user_map(data: Any) -> bool:
-    """True for a decoded YAML that is a map_server map or a wrapper naming a map."""
-    return isinstance(data, dict) and (("image" in data and "resolution" in data) or ("map" in data and "size" not in data))
+    """True for a decoded YAML that is a map_server map (it names an ``image``, map_server's own
+    field: its other fields may be misspelt) or a wrapper naming a map."""
+    return isinstance(data, dict) and ("image" in data or ("map" in data and "size" not in data))
+
+
+IMAGE_MAGIC = (b"\x89PNG\r\n\x1a\n", b"P1", b"P2", b"P3", b"P4", b"P5", b"P6", b"\xff\xd8\xff", b"GIF8", b"BM")
+"""The first bytes of PNG, the netpbm family (PBM/PGM/PPM), JPEG, GIF and BMP images."""
+MODEL_MAGIC = b"PK\x03\x04"
+"""The first bytes of a zip archive (a saved model)."""
+
+
+def refuse_wrong_kind(path: Path) -> None:
+    """Refuse, naming what belongs where, a file given as a world that is an image (a map's
+    picture: its YAML is the world) or a saved model (a zip archive).
+
+    Raises:
+        LayoutError: the file is an image or a zip archive.
+    """
+    try:
+        with open(path, "rb") as f:
+            head = f.read(8)
+    except OSError:
+        return  # the YAML reader names the problem
+    if head.startswith(IMAGE_MAGIC) or path.suffix.lower() in (".pgm", ".png", ".pbm", ".ppm", ".jpg", ".jpeg"):
+        beside = _yaml_naming(path)
+        hint = f"{beside.name} beside it" if beside else f"the .yaml beside it that names {path.name} as its image"
+        raise LayoutError(f"{path}: an image, not a world: give the map's YAML ({hint}), not its image")
+    if head.startswith(MODEL_MAGIC):
+        raise LayoutError(f"{path}: a zip archive (a saved model?), not a world: a model goes to --model; "
+                          "a world is a layout or map YAML or a Gazebo .world/.sdf file")
+
+
+def _yaml_naming(image: Path) -> Path | None:
+    """The map YAML in ``image``'s folder whose ``image:`` names it (its namesake first; the
+    first 50 YAML files looked at, each under 64 kB), or None."""
+    try:
+        candidates = sorted((p for p in image.parent.iterdir() if p.suffix.lower() in (".yaml", ".yml")),
+                            key=lambda p: (p.stem != image.stem, p.name))[:50]  # its namesake first
+    except OSError:
+        return None
+    for candidate in candidates:
+        try:
+            if candidate.stat().st_size > 65536:
+                continue
+            text = candidate.read_text(errors="replace")
+        except OSError:
+            continue
+        for line in text.splitlines():
+            key, _, value = line.partition(":")
+            if key.strip() == "image" and Path(value.strip().strip("'\"")).name == image.name:
+                return candidate
+    return None
 
 
 def to_map_frame(layout: Any, x: float, y: float) -> tuple[float, float]:
@@ -128,6 +180,14 @@ def load_map_yaml(path: Path, data: dict[str, Any], options: dict[str, Any] | No
                   where: str | None = None) -> dict[str, Any]:
     """A map_server map (its decoded YAML ``data``) as a layout's fields (module docstring)."""
     where = where or str(path)
+    unknown_keys = [k for k in data if k not in mapserver.KEYS and k not in OPTIONS]
+    if unknown_keys:
+        key = unknown_keys[0]
+        own_options = sorted(OPTIONS - {"margin"})  # margin is for Gazebo worlds
+        near = difflib.get_close_matches(str(key), [*mapserver.KEYS, *own_options], n=1)
+        hint = f" (did you mean '{near[0]}'?)" if near else ""
+        raise LayoutError(f"{where}: unknown map field '{key}'{hint}; a map_server map YAML has "
+                          f"{', '.join(mapserver.KEYS)} and bulletnav's {', '.join(own_options)}")
     own = {k: v for k, v in data.items() if k in OPTIONS}
     options = {**own, **(options or {})}
     _no_options(options, ("margin",), where, "a map_server map")
