@@ -93,6 +93,27 @@ def test_demo_without_a_model_says_so(tmp_path, capsys):
     assert "model file not found" in capsys.readouterr().err
 
 
+def test_model_takes_the_run_directory_train_wrote_and_says_which_file_it_loaded(tmp_path, capsys):
+    """``--model RUN`` (the folder ``bulletnav train --out RUN`` wrote) loads ``RUN/model.zip`` and
+    says so; a folder without one is named in one line. (It said ``model file not found``.)"""
+    run = tmp_path / "run"
+    run.mkdir()
+    models = ROOT / "models"
+    for src, dst in (("ppo_warehouse.zip", "model.zip"), ("ppo_warehouse.json", "model.json"),
+                     ("ppo_warehouse.safetensors", "model.safetensors"),
+                     ("ppo_warehouse_vecnormalize.json", "model_vecnormalize.json")):
+        shutil.copy(models / src, run / dst)
+    assert main(["evaluate", "--model", str(run), "--episodes", "1", "--seed", "3"]) == 0
+    out = capsys.readouterr().out
+    assert f"--model {run}: loading {run / 'model.zip'}" in out and "Success rate:" in out
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert main(["evaluate", "--model", str(empty), "--episodes", "1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == (f"bulletnav evaluate: error: {empty}: a folder without a model.zip (bulletnav train writes "
+                   "RUN/model.zip; give that file or the run folder that holds it)")
+
+
 @pytest.mark.slow
 def test_demo_runs_the_shipped_dynamic_policy_and_reproduces_its_card(tmp_path, capsys):
     """``demo --env bulletnav/WarehouseDynamic-v0`` picks models/ppo_dynamic.zip, and its episode

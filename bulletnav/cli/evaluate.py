@@ -110,8 +110,21 @@ def _register_demo(sub) -> None:
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
     refuse_existing_files(args, "video", "plot", "record")
-    evaluate_report(args, args.model)
+    evaluate_report(args, str(run_model(args.model)))
     return 0
+
+
+def run_model(model: str):
+    """``--model``'s file: itself, or a run directory's ``model.zip`` (:func:`bulletnav.rl.io.model_file`),
+    with a line saying which file a run directory gave."""
+    from pathlib import Path
+
+    from bulletnav.rl.io import model_file
+
+    path = model_file(model)
+    if path != Path(model):
+        print(f"--model {model}: loading {path}")
+    return path
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
@@ -160,7 +173,7 @@ def _demo_model(args: argparse.Namespace):
     shipped = args.model is None
     if shipped:
         args.model = SHIPPED_MODELS.get(args.env_id, DEFAULT_MODEL)
-    model = Path(args.model)
+    model = Path(args.model) if shipped else run_model(args.model)
     if not model.is_file():
         packaged = Path(__file__).resolve().parents[2] / args.model
         if shipped and packaged.is_file():

@@ -19,9 +19,10 @@ def register(sub) -> None:
 def cmd_convert_model(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from bulletnav.rl.io import model_file
     from bulletnav.rl.safe import convert_model, weights_path
 
-    path = Path(args.model)
+    path = model_file(args.model)
     meta = convert_model(path, trust_pickle=args.trust_pickle)
     print(f"wrote {weights_path(path)} and {path.with_suffix('.json')} ({meta['policy']['algo'].upper()}, "
           f"{meta['policy']['class'].rsplit('.', 1)[1]}, statistics: {'yes' if meta['normalization'] else 'none'}); "

@@ -134,6 +134,7 @@ def cmd_train(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from bulletnav.provenance import command_line
+    from bulletnav.rl.io import model_file
     from bulletnav.rl.train import TrainConfig, train
     from bulletnav.viz.compare import plot_learning_curve
 
@@ -152,7 +153,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         resume=args.resume, eval_freq=args.eval_freq, eval_episodes=args.eval_episodes,
         checkpoint_freq=args.checkpoint_freq, progress_bar=not args.no_progress, vec_env=args.vec_env,
         hyperparams=Path(args.hyperparams) if args.hyperparams else None, command=command_line(), shield=args.shield,
-        init_from=Path(args.init_from) if args.init_from else None, trust_pickle=args.trust_pickle,
+        init_from=model_file(args.init_from) if args.init_from else None, trust_pickle=args.trust_pickle,
         stop_at_success=args.stop_at_success, **extra,
     )
     interrupts.on_interrupt(lambda: interrupted_note(out))

@@ -123,8 +123,10 @@ def model_env_kwargs(model_path: str | Path) -> dict[str, Any]:
 
     from bulletnav.fleet.env import _UNSUPPORTED
     from bulletnav.rl.envs import evaluation_env_kwargs
+    from bulletnav.rl.io import model_file
     from bulletnav.rl.sidecar import sidecar_path
 
+    model_path = model_file(model_path)
     if not Path(model_path).is_file():
         raise ModelError(f"{model_path}: model file not found")
     side = sidecar_path(model_path)

@@ -30,8 +30,30 @@ def atomic_save_vecnormalize(vecnorm, path: str | Path) -> None:
     write_json(path, safe.stats_to_json(vecnorm))
 
 
+RUN_MODEL = "model.zip"
+"""The model file ``bulletnav train --out RUN`` writes in its run directory."""
+
+
+def model_file(path: str | Path) -> Path:
+    """The model file ``path`` names: the file itself, or ``RUN/model.zip`` for a run directory
+    that ``bulletnav train`` wrote (every ``--model`` takes either).
+
+    Raises:
+        ModelError: a folder without ``model.zip``.
+    """
+    path = Path(path)
+    if path.is_dir():
+        inner = path / RUN_MODEL
+        if not inner.is_file():
+            raise ModelError(f"{path}: a folder without a {RUN_MODEL} (bulletnav train writes RUN/{RUN_MODEL}; give "
+                             "that file or the run folder that holds it)")
+        return inner
+    return path
+
+
 def load_model(path: str | Path, algo: str | None = None, trust_pickle: bool = False):
-    """Load a model saved by ``bulletnav train`` (or any SB3 zip) without running code it holds.
+    """Load a model saved by ``bulletnav train`` (or any SB3 zip; or the run directory that holds
+    ``model.zip``, :func:`model_file`) without running code it holds.
 
     The safe format (``NAME.safetensors`` + ``NAME.json``, :mod:`bulletnav.rl.safe`) is
     preferred; an SB3 zip without it loads with every pickled entry rebuilt from its text, and
@@ -46,7 +68,7 @@ def load_model(path: str | Path, algo: str | None = None, trust_pickle: bool = F
             algorithm than its sidecar says.
         UnsafeModelError: it can only be opened by running its code (and ``trust_pickle`` is off).
     """
-    path = Path(path)
+    path = model_file(path)
     if not path.is_file():
         raise ModelError(f"{path}: model file not found")
     meta = read_sidecar(path)
