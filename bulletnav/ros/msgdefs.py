@@ -98,9 +98,17 @@ def msgdef(datatype: str) -> str:
     return "\n".join(parts)
 
 
+def base_topic(topic: str, names) -> str | None:
+    """The topic of ``names`` that ``topic`` is, itself or under a robot's namespace
+    (``/robot_2/scan`` is ``/scan``; the longest name that ends it wins), or None."""
+    if topic in names:
+        return topic
+    return next((name for name in sorted(names, key=len, reverse=True) if topic.endswith(name)), None)
+
+
 def known_types() -> list[str]:
     """Every type :func:`msgdef` knows, as ``pkg/msg/Type``."""
     return sorted(n.replace("/", "/msg/", 1) for n in _FIELDS)
 
 
-__all__ = ["known_types", "msgdef"]
+__all__ = ["base_topic", "known_types", "msgdef"]

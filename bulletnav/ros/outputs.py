@@ -21,7 +21,7 @@ import numpy as np
 
 from bulletnav.errors import BulletnavError
 from bulletnav.files import discard, finish, temp_path
-from bulletnav.ros.msgdefs import msgdef
+from bulletnav.ros.msgdefs import base_topic, msgdef
 
 if TYPE_CHECKING:
     from bulletnav.ros.live import LiveServer
@@ -52,12 +52,10 @@ TOPIC_TYPES = {
 def topic_type(topic: str) -> str:
     """The message type of ``topic``: :data:`TOPIC_TYPES`'s, a robot's namespaced topic
     (``/robot_2/scan``) that of its last part (``/scan``)."""
-    if topic in TOPIC_TYPES:
-        return TOPIC_TYPES[topic]
-    for name, kind in sorted(TOPIC_TYPES.items(), key=lambda kv: -len(kv[0])):
-        if topic.endswith(name):
-            return kind
-    raise KeyError(f"no message type for topic {topic!r}")
+    name = base_topic(topic, TOPIC_TYPES)
+    if name is None:
+        raise KeyError(f"no message type for topic {topic!r}")
+    return TOPIC_TYPES[name]
 
 
 _GRID = "nav_msgs/msg/OccupancyGrid"
