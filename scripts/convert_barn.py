@@ -3,10 +3,11 @@
     git clone https://github.com/Daffan/the-barn-challenge /tmp/barn
     python scripts/convert_barn.py /tmp/barn --commit "$(git -C /tmp/barn rev-parse HEAD)"
 
-Reads ``jackal_helper/worlds/BARN/world_N.world`` (N = 0-299: every ``unit_cylinder`` model's
-``<pose>``, checked to be a static 0.075 m-radius, 1 m cylinder, and checked against the same
-model in the world's ``<state>``), ``jackal_helper/worlds/BARN/path_files/path_N.npy``
-(``numpy.load(allow_pickle=False)``: 2-column integer arrays), ``res/dwa_out.txt`` and
+Reads ``jackal_helper/worlds/BARN/world_N.world`` (N = 0-299) with the package's SDF reader
+(:func:`bulletnav.sim.sdf.read_shapes`: every collision placed as Gazebo places it), each shape
+checked to be a ``unit_cylinder`` of 0.075 m radius and 1 m length standing on the floor;
+``jackal_helper/worlds/BARN/path_files/path_N.npy`` (``numpy.load(allow_pickle=False)``:
+2-column integer arrays), ``res/dwa_out.txt`` and
 ``LICENSE``; writes ``bulletnav/assets/barn/barn.npz`` (format in :mod:`bulletnav.barn.data`),
 ``dwa_out.txt`` and ``LICENSE`` (both verbatim). The attribution README beside them is kept
 by hand.
@@ -16,60 +17,50 @@ from __future__ import annotations
 
 import argparse
 import sys
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 
 from bulletnav import files
+from bulletnav.barn.data import N_WORLDS
+from bulletnav.barn.metric import CYLINDER_RADIUS_M
+from bulletnav.errors import LayoutError
+from bulletnav.sim.sdf import read_shapes
 
 OUT = Path(__file__).resolve().parent.parent / "bulletnav" / "assets" / "barn"
-N_WORLDS = 300
-RADIUS = 0.075  # m, every BARN cylinder
+RADIUS = CYLINDER_RADIUS_M  # m, every BARN cylinder
 LENGTH = 1.0  # m
 
 
-def _um(text: str, where: str) -> int:
-    """A metre value from the world file as integer micrometres, refusing one that is not exact."""
-    um = float(text) * 1e6
+def _um(metres: float, where: str) -> int:
+    """A metre value as integer micrometres, refusing one that is not a whole number of them (the
+    world files write 6 decimals)."""
+    um = metres * 1e6
     if abs(um - round(um)) > 1e-3:
-        raise SystemExit(f"convert_barn: {where}: {text} m is not a whole number of micrometres")
+        raise SystemExit(f"convert_barn: {where}: {metres!r} m is not a whole number of micrometres")
     return round(um)
 
 
-def _poses(models) -> dict[str, tuple[float, ...]]:
-    return {m.get("name"): tuple(float(v) for v in m.find("pose").text.split()) for m in models
-            if m.get("name", "").startswith("unit_cylinder_")} if models is not None else {}
-
-
 def read_world(path: Path) -> np.ndarray:
-    """The cylinder centres (n x 2, micrometres) of one BARN world file."""
-    return read_world_text(path.read_bytes(), path.name)
-
-
-def read_world_text(text: bytes, name: str) -> np.ndarray:
-    """The cylinder centres (n x 2, micrometres) of a BARN world file's text; ``name`` names it in errors."""
-    world = ET.fromstring(text).find("world")
+    """The cylinder centres (n x 2, micrometres) of one BARN world file, in file order, as the
+    package's SDF reader builds it (:func:`bulletnav.sim.sdf.read_shapes`: Gazebo's placement,
+    the world's ``<state>`` applied), each checked to be an upright 0.075 m-radius, 1 m cylinder
+    standing on the floor (its centre at z = 0, as BARN's are)."""
+    try:
+        shapes, _ground, _name = read_shapes(path)
+    except LayoutError as exc:
+        raise SystemExit(f"convert_barn: {exc}") from None
     centres = []
-    for model in world.findall("model"):
-        model_name = model.get("name")
-        if model_name == "ground_plane":
-            continue
-        cyl = model.find("link/collision/geometry/cylinder")
-        if not model_name.startswith("unit_cylinder_") or cyl is None or model.findtext("static") != "1":
-            raise SystemExit(f"convert_barn: {name}: model {model_name!r} is not a static unit cylinder")
-        radius, length = float(cyl.findtext("radius")), float(cyl.findtext("length"))
+    for shape in shapes:
+        who = f"{path.name}: model {shape.model!r}"
+        if not shape.model.startswith("unit_cylinder_") or shape.kind != "cylinder":
+            raise SystemExit(f"convert_barn: {who} is not a unit cylinder")
+        radius, length = shape.size[0] / 2, shape.top - shape.bottom
         if (radius, length) != (RADIUS, LENGTH):
-            raise SystemExit(f"convert_barn: {name}: model {model_name!r} has radius {radius}, length {length}")
-        pose = model.findtext("pose").split()
-        if any(float(v) != 0.0 for v in pose[2:]):
-            raise SystemExit(f"convert_barn: {name}: model {model_name!r} is raised or rotated: {pose}")
-        centres.append((_um(pose[0], f"{name} {model_name} x"), _um(pose[1], f"{name} {model_name} y")))
-    state = world.find("state")
-    declared = _poses(world.findall("model"))
-    stated = _poses(state.findall("model") if state is not None else None)
-    if stated and stated != declared:
-        raise SystemExit(f"convert_barn: {name}: the <state> poses differ from the models' poses")
+            raise SystemExit(f"convert_barn: {who} has radius {radius}, length {length}")
+        if (shape.bottom, shape.top) != (-LENGTH / 2, LENGTH / 2):
+            raise SystemExit(f"convert_barn: {who} is raised: from z = {shape.bottom} to {shape.top} m")
+        centres.append((_um(shape.center[0], f"{who} x"), _um(shape.center[1], f"{who} y")))
     return np.asarray(centres, dtype=np.int32).reshape(-1, 2)
 
 

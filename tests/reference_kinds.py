@@ -151,7 +151,7 @@ KINDS: dict[str, str] = {
     # ---- test_benchmark.py
     "test_benchmark.py::test_bad_suites_name_file_and_field": "contract",
     "test_benchmark.py::test_suite_names_and_counts": "hand",
-    "test_benchmark.py::test_optimal_time_is_the_trapezoid_or_the_triangle": "hand",
+    "test_benchmark.py::test_drive_time_is_the_trapezoid_or_the_triangle": "hand",
     "test_benchmark.py::test_straight_drive_metrics_against_hand_values": "hand",
     "test_benchmark.py::test_turning_and_a_slow_drive": "hand",
     "test_benchmark.py::test_person_zones_are_counted_both_ways_and_collisions_by_kind": "hand",

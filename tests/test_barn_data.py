@@ -39,14 +39,21 @@ def _converter():
     return module
 
 
+def _world_file(i: int, tmp_path: Path, text: str | None = None) -> Path:
+    """BARN world ``i``'s file (or ``text`` in its place) unpacked into ``tmp_path``."""
+    path = tmp_path / f"world_{i}.world"
+    path.write_text(text if text is not None else gzip.decompress((DATA / f"world_{i}.world.gz").read_bytes()).decode())
+    return path
+
+
 @pytest.mark.parametrize("i", FIXTURE_WORLDS)
-def test_shipped_worlds_match_the_world_files_text(i):
+def test_shipped_worlds_match_the_world_files_text(i, tmp_path):
     expected = _text_centres(i)
     world = data.load_world(i)
     assert world.index == i and world.cylinders.shape == expected.shape
     np.testing.assert_allclose(world.cylinders, expected, rtol=0, atol=1e-9)
-    # the converter's own reading of the same file gives the same micrometres
-    um = _converter().read_world_text(gzip.decompress((DATA / f"world_{i}.world.gz").read_bytes()), f"world_{i}")
+    # the converter's reading of the same file (through the package's SDF reader) gives the same micrometres
+    um = _converter().read_world(_world_file(i, tmp_path))
     np.testing.assert_array_equal(um, np.round(expected * 1e6).astype(np.int64))
     # the reference path is BARN's .npy, cell for cell
     np.testing.assert_array_equal(world.path_cells, np.load(DATA / f"path_{i}.npy", allow_pickle=False))
@@ -100,10 +107,16 @@ def test_converter_refuses_what_it_cannot_convert(tmp_path):
     convert = _converter()
     text = gzip.decompress((DATA / "world_0.world.gz").read_bytes()).decode()
     with pytest.raises(SystemExit, match="unit_cylinder_0.*radius 0.1"):
-        convert.read_world_text(text.replace("<radius>0.075000</radius>", "<radius>0.1</radius>", 1).encode(), "w")
-    with pytest.raises(SystemExit, match="state"):
-        moved = text.replace("-0.075000 0.075000 0.000000", "-0.075000 0.080000 0.000000", 1)
-        convert.read_world_text(moved.encode(), "w")
+        convert.read_world(_world_file(0, tmp_path, text.replace("<radius>0.075000</radius>", "<radius>0.1</radius>", 1)))
+    with pytest.raises(SystemExit, match="unit_cylinder_0.*raised"):
+        convert.read_world(_world_file(0, tmp_path, text.replace("0.075000 0.000000 0.000000", "0.075000 0.300000 0.000000")))
+    with pytest.raises(SystemExit, match="world_0.world.*mesh"):
+        convert.read_world(_world_file(0, tmp_path, text.replace("<cylinder>", "<mesh>").replace("</cylinder>", "</mesh>")))
+    # the world's <state> places a model as Gazebo does (the converter checked it against the
+    # model's own pose when it had a parser of its own): a cylinder moved there is converted there
+    state = text.index("<state")
+    moved = text[:state] + text[state:].replace("-0.075000 0.075000 0.000000", "-0.075000 0.090000 0.000000", 2)
+    assert convert.read_world(_world_file(0, tmp_path, moved))[0].tolist() == [-75000, 90000]
     bad = tmp_path / "path_7.npy"
     np.save(bad, np.zeros((3, 3)))
     with pytest.raises(SystemExit, match="path_7.npy"):

@@ -17,7 +17,7 @@ from bulletnav.benchmark.metrics import (
     bootstrap_interval,
     cell_summary,
     episode_metrics,
-    optimal_time,
+    drive_time,
 )
 from bulletnav.benchmark.runner import build_results, run_in_pool, run_suite
 from bulletnav.benchmark.suite import SuiteError, load_suite, parse_suite
@@ -69,12 +69,12 @@ def test_suite_names_and_counts():
 
 
 # ------------------------------------------------------------------ metrics
-def test_optimal_time_is_the_trapezoid_or_the_triangle():
+def test_drive_time_is_the_trapezoid_or_the_triangle():
     # 4 m at 0.5 m/s, 2.5 m/s^2: 0.2 s ramps each way covering 0.05 m each, 3.9 m cruising
-    assert optimal_time(4.0, 0.5, 2.5) == pytest.approx(0.2 + 3.9 / 0.5 + 0.2)
+    assert drive_time(4.0, 0.5, 2.5) == pytest.approx(0.2 + 3.9 / 0.5 + 0.2)
     # 0.05 m never reaches top speed: accelerate half way, brake half way
-    assert optimal_time(0.05, 0.5, 2.5) == pytest.approx(2 * math.sqrt(0.025 / 2.5 * 2))
-    assert optimal_time(0.0, 0.5, 2.5) == 0.0
+    assert drive_time(0.05, 0.5, 2.5) == pytest.approx(2 * math.sqrt(0.025 / 2.5 * 2))
+    assert drive_time(0.0, 0.5, 2.5) == 0.0
 
 
 def _result(**kw) -> EpisodeResult:
@@ -102,7 +102,7 @@ def test_straight_drive_metrics_against_hand_values():
     t = (n - 1) * dt
     assert row["time_s"] == pytest.approx(6.0)
     assert row["path_irregularity"] == 0.0 and row["jerk"] == pytest.approx(0.0, abs=1e-6)
-    t_star = optimal_time(3.0, 0.5, 2.5)  # 6.2 s: faster than possible from rest is capped at 1
+    t_star = drive_time(3.0, 0.5, 2.5)  # 6.2 s: faster than possible from rest is capped at 1
     assert row["sct"] == pytest.approx(t_star / max(t, t_star)) and row["sct"] == 1.0
     assert row["barn_score"] == pytest.approx(6.0 / (2 * 6.0))  # t <= 2 t_opt: BARN's lower clip (run.py)
     assert math.isnan(row["min_separation_m"]) and row["intimate_robot_s"] == 0.0
@@ -124,7 +124,7 @@ def test_turning_and_a_slow_drive():
         slow.record(view, {})
     row = episode_metrics(_result(steps=300, path_length=1.0, shortest_path=1.0), slow, accel=2.5)
     assert row["barn_score"] == pytest.approx(t_opt / (8 * t_opt))
-    assert row["sct"] == pytest.approx(optimal_time(1.0, 0.5, 2.5) / 30.0)
+    assert row["sct"] == pytest.approx(drive_time(1.0, 0.5, 2.5) / 30.0)
     failed = episode_metrics(_result(steps=300, success=False, spl=0.0), slow, accel=2.5)
     assert failed["sct"] == failed["barn_score"] == failed["spl"] == 0.0
 
@@ -393,6 +393,7 @@ def test_report_maps_draw_in_the_legend_colours_and_movers_in_dynamic_worlds():
         fig = Figure()
         ax = fig.add_subplot()
         report.draw_episode(ax, scene, row, draw_layout)
+        assert (ax.get_xlabel(), ax.get_ylabel()) == ("x (m)", "y (m)") and len(ax.get_xticks()) > 1  # to scale, in metres
         lines = {line.get_gid(): line for line in ax.get_lines()}
         drawn[outcome] = to_hex(lines[f"path_{outcome}"].get_color())
         patches = ax.patches

@@ -23,6 +23,7 @@ from bulletnav.viz import (
     figure_size,
     plot_trajectories,
     simplify_path,
+    trajectory_figure,
 )
 from bulletnav.viz.video import GOAL, MAP_PX
 
@@ -287,6 +288,10 @@ def test_trajectory_log_and_plots(tmp_path):
     out = plot_trajectories(multi, tmp_path / "multi.png")
     with Image.open(out) as img:
         assert img.size == figure_size(multi) == (2 * 300, 2 * 300 + 50)
+    # every panel to scale in metres: its own ticks, the axis names on the outer panels
+    panels = [ax for ax in trajectory_figure(multi).axes if ax.get_title()]
+    assert len(panels) == 3 and all(len(ax.get_xticks()) > 1 and len(ax.get_yticks()) > 1 for ax in panels)
+    assert panels[0].get_ylabel() == "y (m)" and {ax.get_xlabel() for ax in panels[1:]} == {"x (m)"}
 
 
 @pytest.mark.gui

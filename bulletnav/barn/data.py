@@ -79,26 +79,28 @@ def check_index(world_idx: object) -> int:
     return int(world_idx)
 
 
-def world_pool(spec: object) -> tuple[int, ...]:
-    """The worlds a pool ``spec`` names: ``"train"`` (:data:`TRAIN_WORLDS`), ``"test"``
-    (:data:`TEST_WORLDS`) or a non-empty sequence of distinct indices 0-299.
+def world_pool(spec: object, names: dict[str, tuple[int, ...]] = POOLS, what: str = "BARN world_idx") -> tuple[int, ...]:
+    """The worlds a pool ``spec`` names: a name of ``names`` (:data:`POOLS`: ``"train"``,
+    :data:`TRAIN_WORLDS`; ``"test"``, :data:`TEST_WORLDS`) or a non-empty sequence of distinct
+    indices 0-299, in its order. ``what`` names the value in messages (``BarnEnv``'s
+    ``world_idx``; a benchmark suite's ``barn_worlds`` field, which also takes ``"all"``).
 
     Raises:
         LayoutError: an unknown name, an empty sequence, a repeated or bad index (named).
     """
-    if isinstance(spec, str) and spec in POOLS:
-        return POOLS[spec]
+    if isinstance(spec, str) and spec in names:
+        return names[spec]
     if isinstance(spec, np.ndarray):
         spec = spec.tolist()
     if not isinstance(spec, (list, tuple)):
-        raise LayoutError(f"BARN world_idx {spec!r} is neither an index 0-{N_WORLDS - 1} nor a pool "
-                          f"({', '.join(map(repr, POOLS))}) nor a list of indices")
+        raise LayoutError(f"{what} {spec!r} is neither an index 0-{N_WORLDS - 1} nor a pool "
+                          f"({', '.join(map(repr, names))}) nor a list of indices")
     if not spec:
-        raise LayoutError("BARN world_idx is an empty list: a pool needs at least one world")
+        raise LayoutError(f"{what} is an empty list: a pool needs at least one world")
     pool = tuple(check_index(i) for i in spec)
     if len(set(pool)) != len(pool):
         twice = sorted({i for i in pool if pool.count(i) > 1})
-        raise LayoutError(f"BARN world_idx lists world(s) {twice} more than once")
+        raise LayoutError(f"{what} names BARN world(s) {twice} more than once")
     return pool
 
 

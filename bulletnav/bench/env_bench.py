@@ -225,7 +225,6 @@ def bench_env_pair(env_id: str, reference_id: str, steps: int = 6000, block: int
     (env time / reference time): 1.3 means a step costs 30 % more than the static one.
     """
     import bulletnav  # noqa: F401
-
     from bulletnav import BARN_ENV_ID
 
     def make(name: str) -> gym.Env:  # BARN-v0 keeps one world anyway: world 0, as docs/barn-and-maps.md measured it

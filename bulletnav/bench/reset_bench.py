@@ -41,16 +41,15 @@ import gymnasium as gym
 import numpy as np
 import pybullet as p
 
+from bulletnav import AISLES_ENV_ID, BARN_ENV_ID, DYNAMIC_ENV_ID, ENV_ID, MISSION_ENV_ID
 from bulletnav.bench.env_bench import step_with_resets
 from bulletnav.errors import BulletnavError
 from bulletnav.sim.client import configure_physics
 from bulletnav.sim.world import STATIC_GROUP
 
-REGISTERED = ("bulletnav/Warehouse-v0", "bulletnav/WarehouseAisles-v0", "bulletnav/WarehouseDynamic-v0",
-              "bulletnav/WarehouseMission-v0")
-"""The registered ids, in the order the benchmark reports them."""
-BARN_ID = "bulletnav/BARN-v0"
-"""BARN's worlds: resets timed by :func:`bench_barn_resets` (seeded, so they rebuild)."""
+REGISTERED = (ENV_ID, AISLES_ENV_ID, DYNAMIC_ENV_ID, MISSION_ENV_ID)
+"""The registered ids, in the order the benchmark reports them (BARN's worlds, ``BARN_ENV_ID``,
+have their resets timed by :func:`bench_barn_resets`: seeded, so they rebuild)."""
 
 
 def _snapshot(cid: int, robot: int, skip: frozenset[tuple[float, float, float]] = frozenset()) -> list[tuple]:
@@ -108,7 +107,7 @@ def bench_resets(env_id: str, resets: int = 200, seed: int = 0) -> dict[str, Any
     BARN-v0's by :func:`bench_barn_resets`."""
     import bulletnav  # noqa: F401  (registers the ids)
 
-    if env_id == BARN_ID:
+    if env_id == BARN_ENV_ID:
         return bench_barn_resets(resets, seed)
 
     env = gym.make(env_id)
@@ -173,7 +172,7 @@ def bench_barn_resets(resets: int = 200, seed: int = 0, world_idx: int = 0) -> d
     - ``scan_ms`` / ``bullet_scan_ms``: one lidar scan from the start pose, by the env's caster
       and by PyBullet's ``rayTestBatch`` (:func:`_scan_costs`).
     """
-    env = gym.make(BARN_ID, world_idx=world_idx)
+    env = gym.make(BARN_ENV_ID, world_idx=world_idx)
     env.reset(seed=seed)  # compiles the kernels, loads the caches: not timed
     scene = env.unwrapped.scene
     clock = time.perf_counter

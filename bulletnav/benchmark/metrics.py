@@ -126,7 +126,7 @@ def _collision_kind(info: dict[str, Any], movers: tuple, xy: tuple[float, float]
     return "person" if min(movers, key=gap).kind == "worker" else "mover"
 
 
-def optimal_time(length: float, top_speed: float, accel: float) -> float:
+def drive_time(length: float, top_speed: float, accel: float) -> float:
     """Seconds to drive ``length`` m from rest to rest at most ``top_speed`` (m/s) and
     ``accel`` (m/s^2): a trapezoidal speed profile (triangular when too short to reach top speed)."""
     if length <= 0:
@@ -141,7 +141,7 @@ def episode_metrics(result: EpisodeResult, trace: EpisodeTrace, accel: float) ->
     t = result.steps * trace.dt
     shortest = result.shortest_path
     ok = result.success and shortest > 0 and math.isfinite(shortest)
-    t_star = optimal_time(shortest, trace.top_speed, accel) if ok else math.nan
+    t_star = drive_time(shortest, trace.top_speed, accel) if ok else math.nan
     t_opt = shortest / trace.top_speed if ok else math.nan
     xy = np.asarray(trace.xy, dtype=float)
     yaw = np.unwrap(np.asarray(trace.yaw, dtype=float))

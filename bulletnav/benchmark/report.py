@@ -350,8 +350,9 @@ def draw_episode(ax: Any, scene: EpisodeScene, row: dict[str, Any] | None, draw_
     sx, sy, syaw = scene.start
     ax.plot([sx, sx + 0.5 * math.cos(syaw)], [sy, sy + 0.5 * math.sin(syaw)], color=PALETTE["start"], lw=1.2, zorder=5)
     ax.plot(sx, sy, ls="", marker="o", ms=6, mfc="white", mec=PALETTE["start"], mew=1.2, zorder=5, gid="start")
-    ax.set_xticks([])
-    ax.set_yticks([])
+    ax.tick_params(labelsize=6, length=2, pad=1)  # to scale, in the world's metres
+    ax.set_xlabel("x (m)", fontsize=6, labelpad=1)
+    ax.set_ylabel("y (m)", fontsize=6, labelpad=1)
 
 
 def _map(scene: EpisodeScene, row: dict[str, Any] | None, draw_layout: DrawLayout | None) -> str:
@@ -364,7 +365,7 @@ def _map(scene: EpisodeScene, row: dict[str, Any] | None, draw_layout: DrawLayou
     hx, hy = scene.layout.half_extents if scene.layout is not None else (1.0, 1.0)
     fig, ax = plt.subplots(figsize=(MAP_IN, max(1.5, MAP_IN * hy / hx)))
     draw_episode(ax, scene, row, draw_layout)
-    fig.subplots_adjust(0, 0, 1, 1)
+    fig.subplots_adjust(0.1, 0.1, 0.99, 0.99)  # room for the metre ticks
     return _png(fig)
 
 

@@ -56,8 +56,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from bulletnav import limits
-from bulletnav.errors import ConfigError, LimitError
+from bulletnav import AISLES_ENV_ID, BARN_ENV_ID, DYNAMIC_ENV_ID, ENV_ID, MISSION_ENV_ID, limits
+from bulletnav.errors import ConfigError, LayoutError, LimitError
 from bulletnav.rl.hyperparams import IMPORTABLE as HYPERPARAM_IMPORTABLE
 from bulletnav.yamlfile import read_yaml, show
 
@@ -65,11 +65,11 @@ SUITES_DIR = Path(str(resources.files("bulletnav").joinpath("benchmark", "suites
 """The shipped suites (``quick``, ``standard``)."""
 
 SHIPPED_MODELS = {
-    "bulletnav/Warehouse-v0": "models/ppo_warehouse.zip",
-    "bulletnav/WarehouseAisles-v0": "models/ppo_dynamic.zip",
-    "bulletnav/WarehouseDynamic-v0": "models/ppo_dynamic.zip",
-    "bulletnav/WarehouseMission-v0": "models/ppo_mission.zip",
-    "bulletnav/BARN-v0": "models/ppo_barn.zip",
+    ENV_ID: "models/ppo_warehouse.zip",
+    AISLES_ENV_ID: "models/ppo_dynamic.zip",
+    DYNAMIC_ENV_ID: "models/ppo_dynamic.zip",
+    MISSION_ENV_ID: "models/ppo_mission.zip",
+    BARN_ENV_ID: "models/ppo_barn.zip",
 }
 """``model: shipped`` for each registered id: the policy trained for that world (the aisle
 world's is the dynamic policy, trained on the same aisle warehouses with movers), relative
@@ -87,8 +87,6 @@ PLANNERS = ("none", "astar", "rrt")
 CONTROLLER_TYPES = ("navigator", "dwa", "model", "policy")
 """The kinds of controller a suite may run."""
 
-BARN_ENV = "bulletnav/BARN-v0"
-"""The one id a ``barn_worlds`` entry (and the ``world_idx`` kwarg) may name."""
 BARN_SETS = {"test": "BARN's 50 test worlds 0, 6, ..., 294 (report_test.py's)",
              "train": "the 250 other worlds (those a BARN policy may train on)",
              "all": "all 300 static worlds 0-299"}
@@ -148,7 +146,7 @@ class ControllerSpec:
     def model_path(self, env_id: str, root: Path) -> Path:
         """The model file this controller runs on ``env_id`` (``shipped`` resolved, relative
         paths against ``root``)."""
-        path = Path(SHIPPED_MODELS.get(env_id, SHIPPED_MODELS["bulletnav/Warehouse-v0"]) if self.model == "shipped"
+        path = Path(SHIPPED_MODELS.get(env_id, SHIPPED_MODELS[ENV_ID]) if self.model == "shipped"
                     else self.model)
         return path if path.is_absolute() else root / path
 
@@ -316,13 +314,13 @@ def _parse_world(w: Any, where: str, tag: str) -> list[WorldSpec]:
     _limit(where, "suite_episodes", count, f"field '{tag}.episodes'")
     name = _str(w.get("name", default_name), where, f"{tag}.name")
     if "world_idx" in kwargs:
-        if env != BARN_ENV:
-            raise SuiteError(f"{where}: field '{tag}.kwargs.world_idx' is for {BARN_ENV} only, not {show(env)}")
+        if env != BARN_ENV_ID:
+            raise SuiteError(f"{where}: field '{tag}.kwargs.world_idx' is for {BARN_ENV_ID} only, not {show(env)}")
         _barn_index(kwargs["world_idx"], where, f"{tag}.kwargs.world_idx")
     if "barn_worlds" not in w:
         return [WorldSpec(name, env, dict(kwargs), count)]
-    if env != BARN_ENV:
-        raise SuiteError(f"{where}: field '{tag}.barn_worlds' is for env {BARN_ENV} only, not {show(env)}")
+    if env != BARN_ENV_ID:
+        raise SuiteError(f"{where}: field '{tag}.barn_worlds' is for env {BARN_ENV_ID} only, not {show(env)}")
     if "world_idx" in kwargs:
         raise SuiteError(f"{where}: field '{tag}.kwargs.world_idx' and field '{tag}.barn_worlds' both choose the "
                          "BARN world: give one")
@@ -333,27 +331,24 @@ def _parse_world(w: Any, where: str, tag: str) -> list[WorldSpec]:
 
 def barn_indices(value: Any, where: str, field_: str) -> list[int]:
     """The BARN world indices a ``barn_worlds`` field names: a set of :data:`BARN_SETS` or a
-    non-empty list of distinct indices 0-299 (in the list's order).
+    non-empty list of distinct indices 0-299 (in the list's order), as
+    :func:`bulletnav.barn.data.world_pool` reads a pool.
 
     Raises:
-        SuiteError: naming ``where``, the field and the value.
+        SuiteError: naming ``where``, the field (an index by its place in the list) and the value.
     """
-    from bulletnav.barn.data import N_WORLDS, POOLS
+    from bulletnav.barn.data import N_WORLDS, POOLS, world_pool
 
-    if isinstance(value, str):
-        sets = {**{name: list(pool) for name, pool in POOLS.items()}, "all": list(range(N_WORLDS))}
-        if value not in sets:
-            raise SuiteError(f"{where}: field '{field_}' must be one of {sorted(BARN_SETS)} or a list of BARN world "
-                             f"indices 0-299, got {show(value)}")
-        return sets[value]
-    if not isinstance(value, list) or not value:
+    if not (value in BARN_SETS if isinstance(value, str) else isinstance(value, list) and value):
         raise SuiteError(f"{where}: field '{field_}' must be one of {sorted(BARN_SETS)} or a non-empty list of BARN "
                          f"world indices 0-299, got {show(value)}")
-    indices = [_barn_index(v, where, f"{field_}[{k}]") for k, v in enumerate(value)]
-    repeated = sorted({i for i in indices if indices.count(i) > 1})
-    if repeated:
-        raise SuiteError(f"{where}: field '{field_}' names BARN world(s) {repeated} more than once")
-    return indices
+    if isinstance(value, list):
+        for k, v in enumerate(value):
+            _barn_index(v, where, f"{field_}[{k}]")
+    try:
+        return list(world_pool(value, {**POOLS, "all": tuple(range(N_WORLDS))}, f"{where}: field '{field_}'"))
+    except LayoutError as exc:
+        raise SuiteError(str(exc)) from None
 
 
 def _barn_index(value: Any, where: str, field_: str) -> int:

@@ -8,7 +8,7 @@ import sys
 
 from bulletnav.cli import interrupts
 from bulletnav.cli.args import COUNT, NON_NEGATIVE, add_command
-from bulletnav.cli.output import print_json
+from bulletnav.cli.output import EpisodeBar, print_json
 from bulletnav.errors import BulletnavError
 
 
@@ -99,35 +99,20 @@ def interrupted_note(log, total: int, what: str = "episodes") -> str:
 def _run(args: argparse.Namespace, suite, out, earlier: list[int]):
     """Run the suite (a progress bar on stderr, none with ``--json``); ``(results, report path)``.
     ``earlier`` gets the number of episodes an earlier run had finished."""
-    from tqdm import tqdm
-
     from bulletnav.benchmark.report import write_report
     from bulletnav.benchmark.runner import run_suite
     from bulletnav.viz.plots import draw_layout
 
-    bar = None
-
-    def progress(done: int, total: int) -> None:
-        nonlocal bar
-        if not earlier:
-            earlier.append(done)
-        if args.json:
-            return
-        if bar is None:
-            bar = tqdm(total=total, initial=done, unit="episode", desc=f"benchmark {suite.name}", file=sys.stderr)
-        bar.update(done - bar.n)
-
     interrupts.on_interrupt(lambda: interrupted_note(out / "episodes.jsonl", suite.total))
-    try:
+    with EpisodeBar(f"benchmark {suite.name}", show=not args.json) as bar:
+
+        def progress(done: int, total: int) -> None:
+            if not earlier:
+                earlier.append(done)
+            bar.update(done, total)
+
         results = run_suite(suite, out, workers=args.workers, address=args.address, resume=args.resume, progress=progress,
                             controllers=args.controllers)
-    except KeyboardInterrupt:
-        if bar is not None:
-            bar.leave = False  # the interrupted line says where it stopped
-        raise
-    finally:
-        if bar is not None:
-            bar.close()
     return results, write_report(results, out / "report.html", draw_layout)
 
 

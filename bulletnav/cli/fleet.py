@@ -24,7 +24,7 @@ from bulletnav.cli.args import (
 )
 from bulletnav.cli.envs import fleet_world_kwargs
 from bulletnav.cli.live import start_live
-from bulletnav.cli.output import fmt, holds_run, print_json, refuse_existing_files
+from bulletnav.cli.output import EpisodeBar, fmt, holds_run, print_json, refuse_existing_files
 
 SUMMARY_KEYS = ("throughput_per_hour", "throughput_per_robot_per_hour", "errands", "legs", "collisions_robot_robot",
                 "collisions_static", "collisions_mover", "collisions_person", "deadlocks", "min_separation_m",
@@ -262,37 +262,19 @@ def cmd_fleet_compare(args: argparse.Namespace) -> int:
     """Every fleet controller, with and without the shield, on the same seeded episodes."""
     from pathlib import Path
 
-    from tqdm import tqdm
-
     from bulletnav.fleet.compare import parse_entries, run_comparison
 
     entries = parse_entries(args.controllers, args.shield)
     env_kwargs = {"duration_s": args.duration, "dynamic": args.dynamic}
-    bar = None
-
-    def progress(done: int, total: int) -> None:
-        nonlocal bar
-        if bar is None:
-            bar = tqdm(total=total, initial=done, unit="episode", desc="fleet-compare", file=sys.stderr,
-                       disable=args.json)
-        bar.update(done - bar.n)
-
     if not args.tables_only:
         from bulletnav.cli.benchmark import interrupted_note
 
         total = len(entries) * len(args.robots) * args.episodes
         interrupts.on_interrupt(lambda: interrupted_note(Path(args.out) / "episodes.jsonl", total))
-    try:
+    with EpisodeBar("fleet-compare", show=not args.json) as bar:
         results = run_comparison(Path(args.out), entries, robots=args.robots, episodes=args.episodes, seed=args.seed,
-                                 env_kwargs=env_kwargs, workers=args.workers, resume=args.resume, progress=progress,
+                                 env_kwargs=env_kwargs, workers=args.workers, resume=args.resume, progress=bar.update,
                                  run=not args.tables_only)
-    except KeyboardInterrupt:
-        if bar is not None:
-            bar.leave = False  # the interrupted line says where it stopped
-        raise
-    finally:
-        if bar is not None:
-            bar.close()
     if args.json:
         print_json({k: results[k] for k in ("settings", "cells", "provenance")})
         return 0

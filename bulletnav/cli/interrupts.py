@@ -26,7 +26,6 @@ import shlex
 import signal
 import sys
 import threading
-import time
 from collections.abc import Callable, Iterator, Sequence
 
 EXIT_INTERRUPTED = 130

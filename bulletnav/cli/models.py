@@ -17,7 +17,6 @@ def register(sub) -> None:
 
 
 def cmd_convert_model(args: argparse.Namespace) -> int:
-    from pathlib import Path
 
     from bulletnav.rl.io import model_file
     from bulletnav.rl.safe import convert_model, weights_path

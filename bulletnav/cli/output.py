@@ -104,6 +104,36 @@ def shield_line(s: dict) -> str:
             f"mean change {fmt(s['shield_change_mean'], '.3f')} m/s (wheel rim speeds, when it acted)")
 
 
+class EpisodeBar:
+    """A run's progress bar of episodes on stderr (none when not ``show``), made at the first
+    :meth:`update` (a resumed run's bar starts at the episodes already done). Use as a context
+    manager around the run: the bar is closed at the end, and left off the screen when a
+    ``KeyboardInterrupt`` ends the run (the interrupted line says where it stopped)."""
+
+    def __init__(self, desc: str, show: bool = True) -> None:
+        self.desc, self.show = desc, show
+        self.bar = None
+
+    def update(self, done: int, total: int) -> None:
+        """``done`` of ``total`` episodes finished (a runner's ``progress`` callback)."""
+        if not self.show:
+            return
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, initial=done, unit="episode", desc=self.desc, file=sys.stderr)
+        self.bar.update(done - self.bar.n)
+
+    def __enter__(self) -> EpisodeBar:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, *exc: object) -> None:
+        if self.bar is not None:
+            if kind is not None and issubclass(kind, KeyboardInterrupt):
+                self.bar.leave = False
+            self.bar.close()
+
+
 def holds_run(path) -> bool:
     """Whether ``path`` is there and not an empty folder (it then holds another run's outputs)."""
     from pathlib import Path
@@ -114,10 +144,16 @@ def holds_run(path) -> bool:
 
 def refuse_existing_files(args: argparse.Namespace, *options: str) -> None:
     """Output files (``--video``, ``--plot``) that exist already are refused unless ``--overwrite``."""
-    from pathlib import Path
-
     for option in options:
         value = getattr(args, option, None)
-        if value and Path(value).exists() and not getattr(args, "overwrite", False):
-            raise BulletnavError(f"--{option} {value}: the file already exists (another run's?); pass --overwrite "
-                                 "to replace it, or choose another name")
+        if value:
+            refuse_existing_file(option, value, getattr(args, "overwrite", False))
+
+
+def refuse_existing_file(option: str, path, overwrite: bool) -> None:
+    """``path``, an output file of ``--option``, is refused if it exists, unless ``overwrite``."""
+    from pathlib import Path
+
+    if Path(path).exists() and not overwrite:
+        raise BulletnavError(f"--{option} {path}: the file already exists (another run's?); pass --overwrite "
+                             "to replace it, or choose another name")

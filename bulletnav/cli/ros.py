@@ -16,7 +16,7 @@ from bulletnav.cli.args import (
     non_negative_seconds,
     positive_seconds,
 )
-from bulletnav.cli.output import print_json, refuse_existing_files
+from bulletnav.cli.output import print_json, refuse_existing_file, refuse_existing_files
 
 
 def register(sub) -> None:
@@ -122,8 +122,6 @@ def cmd_map(args: argparse.Namespace) -> int:
 def _map_out(args: argparse.Namespace) -> str | list[str] | None:
     """``map --out`` checked against ``--format`` (existing files refused without --overwrite):
     the PNG's path, or the YAML's and PGM's paths of the STEM (a .yaml or .pgm suffix dropped)."""
-    from pathlib import Path
-
     from bulletnav.errors import ConfigError
 
     if not args.out:
@@ -141,9 +139,7 @@ def _map_out(args: argparse.Namespace) -> str | list[str] | None:
     stem = stem[:-5] if stem.lower().endswith(".yaml") else stem
     out = [stem + ".yaml", stem + ".pgm"]
     for file in out:
-        if Path(file).exists() and not args.overwrite:
-            raise ConfigError(f"--out {file}: the file already exists (another run's?); pass --overwrite to replace it, "
-                              "or choose another name")
+        refuse_existing_file("out", file, args.overwrite)
     return out
 
 

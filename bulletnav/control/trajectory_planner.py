@@ -32,7 +32,7 @@ import numpy as np
 from numba import njit
 
 from bulletnav.control.dwa_params import TrajectoryPlannerParams
-from bulletnav.planning.costmap import NO_INFORMATION, Costmap2D, convex_fill_cells
+from bulletnav.planning.costmap import NO_INFORMATION, Costmap2D, convex_fill_cells, line_next, line_start
 
 
 def shortest_angular_distance(a: float, b: float) -> float:
@@ -131,15 +131,7 @@ def footprint_cost(x, y, theta, footprint, costs, size_x, size_y, origin_x, orig
 def _line_cost(costs, size_x, x0, y0, x1, y1):  # pragma: no cover  (compiled)
     """``CostmapModel::lineCost``: the highest cost along ``LineIterator(x0, y0, x1, y1)``; -1 at a
     lethal cell, -2 at an unknown one (``pointCost``)."""
-    deltax, deltay = abs(x1 - x0), abs(y1 - y0)
-    xinc = 1 if x1 >= x0 else -1
-    yinc = 1 if y1 >= y0 else -1
-    if deltax >= deltay:
-        xinc1, xinc2, yinc1, yinc2 = 0, xinc, yinc, 0
-        den, num, numadd, numpixels = deltax, deltax // 2, deltay, deltax
-    else:
-        xinc1, xinc2, yinc1, yinc2 = xinc, 0, 0, yinc
-        den, num, numadd, numpixels = deltay, deltay // 2, deltax, deltay
+    xinc1, yinc1, xinc2, yinc2, den, num, numadd, numpixels = line_start(x0, y0, x1, y1)
     x, y = x0, y0
     line = 0.0
     for _ in range(numpixels + 1):
@@ -150,13 +142,7 @@ def _line_cost(costs, size_x, x0, y0, x1, y1):  # pragma: no cover  (compiled)
             return -1.0
         if v > line:
             line = float(v)
-        num += numadd
-        if num >= den:
-            num -= den
-            x += xinc1
-            y += yinc1
-        x += xinc2
-        y += yinc2
+        x, y, num = line_next(x, y, num, xinc1, yinc1, xinc2, yinc2, den, numadd)
     return line
 
 

@@ -40,9 +40,8 @@ def _h(x: int, y: int, gx: int, gy: int, res: float, octile: bool) -> float:
 
 
 @njit(inline="always")
-def _push(heap: np.ndarray, n: int, key: int) -> int:
-    """Push ``key`` onto the binary min-heap ``heap[:n]``; returns the new size."""
-    i = n
+def _sift_up(heap: np.ndarray, i: int, key: int) -> None:
+    """Put ``key`` into the hole at ``heap[i]`` and move it up while its parent is larger."""
     while i > 0:
         p = (i - 1) >> 1
         hp = heap[p]
@@ -51,6 +50,12 @@ def _push(heap: np.ndarray, n: int, key: int) -> int:
         heap[i] = hp
         i = p
     heap[i] = key
+
+
+@njit(inline="always")
+def _push(heap: np.ndarray, n: int, key: int) -> int:
+    """Push ``key`` onto the binary min-heap ``heap[:n]``; returns the new size."""
+    _sift_up(heap, n, key)
     return n + 1
 
 
@@ -73,14 +78,7 @@ def _pop(heap: np.ndarray, n: int) -> int:
         heap[i] = heap[c]
         i = c
         c = 2 * i + 1
-    while i > 0:
-        p = (i - 1) >> 1
-        hp = heap[p]
-        if hp <= key:
-            break
-        heap[i] = hp
-        i = p
-    heap[i] = key
+    _sift_up(heap, i, key)
     return n
 
 

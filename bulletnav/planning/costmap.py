@@ -311,6 +311,31 @@ def convex_fill_cells(xs, ys, inclusive):  # pragma: no cover  (compiled)
     return cells
 
 
+@njit(inline="always")
+def line_start(x0, y0, x1, y1):  # pragma: no cover  (compiled)
+    """base_local_planner's ``LineIterator`` from cell (x0, y0) to (x1, y1) (Bresenham; both ends
+    are among its ``numpixels + 1`` cells): ``(xinc1, yinc1, xinc2, yinc2, den, num, numadd,
+    numpixels)``, its constructor's increments and counters. The first cell is (x0, y0), each
+    next one :func:`line_next`'s."""
+    deltax, deltay = abs(x1 - x0), abs(y1 - y0)
+    xinc = 1 if x1 >= x0 else -1
+    yinc = 1 if y1 >= y0 else -1
+    if deltax >= deltay:
+        return 0, yinc, xinc, 0, deltax, deltax // 2, deltay, deltax
+    return xinc, 0, 0, yinc, deltay, deltay // 2, deltax, deltay
+
+
+@njit(inline="always")
+def line_next(x, y, num, xinc1, yinc1, xinc2, yinc2, den, numadd):  # pragma: no cover  (compiled)
+    """``LineIterator::advance``: the cell after (x, y) and the new ``num`` (see :func:`line_start`)."""
+    num += numadd
+    if num >= den:
+        num -= den
+        x += xinc1
+        y += yinc1
+    return x + xinc2, y + yinc2, num
+
+
 @njit(cache=True, nogil=True)
 def _line_cells(x0, y0, x1, y1, raytrace, out, m):  # pragma: no cover  (compiled)
     """Write the Bresenham cells from (x0, y0) to (x1, y1) into ``out`` from row ``m``; returns
@@ -344,26 +369,12 @@ def _line_cells(x0, y0, x1, y1, raytrace, out, m):  # pragma: no cover  (compile
                     err -= abs_dy
         out[m, 0], out[m, 1] = x, y
         return m + 1
-    deltax, deltay = abs(dx), abs(dy)
-    xinc = 1 if x1 >= x0 else -1
-    yinc = 1 if y1 >= y0 else -1
-    if deltax >= deltay:
-        xinc1, xinc2, yinc1, yinc2 = 0, xinc, yinc, 0
-        den, num, numadd, numpixels = deltax, deltax // 2, deltay, deltax
-    else:
-        xinc1, xinc2, yinc1, yinc2 = xinc, 0, 0, yinc
-        den, num, numadd, numpixels = deltay, deltay // 2, deltax, deltay
+    xinc1, yinc1, xinc2, yinc2, den, num, numadd, numpixels = line_start(x0, y0, x1, y1)
     x, y = x0, y0
     for _ in range(numpixels + 1):
         out[m, 0], out[m, 1] = x, y
         m += 1
-        num += numadd
-        if num >= den:
-            num -= den
-            x += xinc1
-            y += yinc1
-        x += xinc2
-        y += yinc2
+        x, y, num = line_next(x, y, num, xinc1, yinc1, xinc2, yinc2, den, numadd)
     return m
 
 

@@ -5,8 +5,9 @@ PNG image) or a Gazebo SDF world, given wherever a layout file is (``world=PATH`
 ``.sdf``, or text starting ``<?xml`` or ``<sdf``) or a YAML mapping with ``image`` (a map_server
 map: its other fields are checked as map_server's, a misspelt one named with the nearest) or with
 ``map`` and no ``size`` (a wrapper naming one). An image or a saved model given as a world is
-refused with what belongs there (:func:`refuse_wrong_kind`). The functions here return the :class:`~bulletnav.sim.layout.Layout`'s fields, which ``load_layout``
-builds (so this module does not import the layout module that imports it)::
+refused with what belongs there (:func:`refuse_wrong_kind`). The functions here return the
+:class:`~bulletnav.sim.layout.Layout`'s fields, which ``load_layout`` builds (so this module does
+not import the layout module that imports it)::
 
     map: site.yaml          # a map_server map YAML or a Gazebo world, relative to this file
     start: [1.0, 2.0, 0.0]  # optional x, y, yaw in the map's frame (else sampled as for any layout)

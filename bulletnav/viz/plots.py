@@ -282,8 +282,13 @@ def trajectory_figure(log_or_episodes: TrajectoryLog | list[EpisodeTrajectory], 
             draw_layout(ax, ep.layout)
             _draw_episode(ax, ep, linewidth=1.4)
             ax.set_title(f"episode {i + 1}: {ep.outcome}", fontsize=8)
-            ax.set_xticks([])
-            ax.set_yticks([])
+            # every panel to scale, in metres: its own ticks (the panels' worlds differ), and the
+            # axis names on the outer ones
+            ax.tick_params(labelsize=6, length=2, pad=1)
+            if i % cols == 0:
+                ax.set_ylabel("y (m)", fontsize=7)
+            if i >= len(shown) - cols:
+                ax.set_xlabel("x (m)", fontsize=7)
     # the three outcomes always, so the colour key reads the same on every plot
     outcomes = [o for o in OUTCOME_COLOURS if o != "unfinished" or any(ep.outcome == o for ep in shown)]
     handles = [Line2D([], [], color=OUTCOME_COLOURS[o], lw=2, label=o) for o in outcomes]
