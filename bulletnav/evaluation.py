@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from bulletnav.barn.metric import INFO_KEYS
 from bulletnav.geometry import robot_geometry
 from bulletnav.planning import OccupancyGrid, astar
 from bulletnav.policy import Policy
@@ -75,9 +76,18 @@ class EpisodeResult:
     min_separation: InitVar[float] = math.nan
     # Not a field: NaN (no movers) has no strict-JSON form, and the per-episode rows
     # (``asdict``, ``summarize``'s ``per_episode``, the CLI's JSON) stay plain numbers.
+    barn: InitVar[dict[str, Any] | None] = None
+    # Not a field either: only BARN-v0's episodes have it, and the other envs' rows stay as they were.
 
-    def __post_init__(self, min_separation: float) -> None:
+    def __post_init__(self, min_separation: float, barn: dict[str, Any] | None) -> None:
         self._min_separation_m = float(min_separation)
+        self._barn = dict(barn) if barn else None
+
+    @property
+    def barn_info(self) -> dict[str, Any] | None:
+        """In ``bulletnav/BARN-v0``: the last ``info``'s BARN world, clock (s) and score
+        (:data:`bulletnav.barn.metric.INFO_KEYS`); None elsewhere."""
+        return self._barn
 
     @property
     def min_separation_m(self) -> float:
@@ -94,6 +104,10 @@ SHIELD_KEYS = ("shield_rate", "shield_change_mean")
 
 NEAR_MISS_M = 0.2
 """A step is a near miss when the robot's outline comes closer than this to a mover (m)."""
+INTIMATE_M = 0.45
+"""HuNavSim's intimate zone: within this distance (m, centre to centre) of a person."""
+PERSONAL_M = 1.2
+"""HuNavSim's personal zone: within this distance (m, centre to centre) of a person."""
 
 
 class SafetyTracker:
@@ -225,6 +239,7 @@ def run_episodes(env, policy: Policy, episodes: int, seed: int,
             plan_ms=[t * 1e3 for t in getattr(policy, "plan_times", [])], replans=int(getattr(policy, "replans", 0)),
             goals_total=len(goals), goals_reached=reached, ppl=ppl, shield_steps=shield_steps,
             shield_change=shield_change, **safety.result(info),
+            barn={key: info[key] for key in INFO_KEYS if key in info} if "barn_time_s" in info else None,
         )
         results.append(result)
         if on_episode is not None:

@@ -890,6 +890,23 @@ KINDS: dict[str, str] = {
     "test_viz_movers.py::test_video_map_shows_movers_events_and_a_text_line": "hand",
     "test_viz_movers.py::test_recording_and_logging_leave_a_dynamic_episode_unchanged": "self",
     "test_viz_movers.py::test_dashboard_draws_routes_once_and_event_messages": "hand",
+    # the session of 2026-11-29 (07:09): hostile inputs round 3, the Jackal shield's gyro memory, BARN figures
+    "test_barn_controllers.py::test_navigate_on_barn_reports_barns_figures_per_episode_and_in_total": "formula",
+    "test_barn_env.py::test_barn_refuses_keywords_that_change_its_rules_and_defaults_to_a_training_world": "contract",
+    "test_benchmark_docs.py::test_the_docs_example_suite_runs_as_written": "smoke",
+    "test_demo.py::test_model_takes_the_run_directory_train_wrote_and_says_which_file_it_loaded": "contract",
+    "test_interrupts.py::test_a_second_ctrl_c_during_a_slow_cleanup_ends_the_command_at_once": "contract",
+    "test_interrupts.py::test_a_signal_inside_a_c_call_that_never_returns_ends_the_command_at_once": "contract",
+    "test_interrupts.py::test_a_signal_while_the_interrupted_line_is_printed_waits_for_it_then_ends_the_process": "contract",
+    "test_messages.py::test_output_of_another_thread_while_pybullet_loads_is_delayed_not_lost": "hand",
+    "test_raycast.py::test_vertical_rays_hit_only_the_cylinders_they_start_over": "hand",
+    "test_ros_bags.py::test_a_db3_is_read_for_the_topics_the_map_needs_only": "self",
+    "test_ros_bags.py::test_a_db3_whose_tables_are_views_is_refused_at_once": "contract",
+    # the corner's point is placed from the wheel sweep (the code's), and checked by hand against the plain sweep
+    "test_shield_memory.py::test_close_to_a_wall_a_back_up_out_of_a_turn_is_checked_along_the_turn_the_wheels_keep": "hand",
+    "test_shield_memory.py::test_the_jackal_shield_carries_its_memory_by_the_gyro_where_the_wheels_drift": "library",
+    "test_user_maps.py::test_a_map_yamls_typos_are_map_typos_and_an_image_or_model_as_a_world_says_what_belongs": "contract",
+    "test_user_maps.py::test_hostile_map_server_maps_are_refused_in_one_line_before_the_work_grows": "contract",
 }
 
 

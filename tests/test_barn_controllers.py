@@ -163,6 +163,33 @@ def test_navigate_world_idx_drives_a_barn_training_world(capsys):
     assert episode["sim_time"] < 4 * 5.0  # under 4 t_opt (t_opt ~ 5 s): BARN's score >= 0.25
 
 
+def test_navigate_on_barn_reports_barns_figures_per_episode_and_in_total(capsys):
+    """``navigate`` on BARN-v0 shows BARN's clock, t_opt and metric per episode and report_test.py's
+    line in total, in text and in --json; by hand: t_opt from report_test.py's start (-2, 3),
+    metric = success x t_opt / clip(t, 2 t_opt, 8 t_opt)."""
+    from bulletnav.barn import data, metric
+
+    assert main(["navigate", "--env", "bulletnav/BARN-v0", "--world-idx", "7", "--episodes", "2", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    t_opt = metric.optimal_time(data.load_world(7).path_cells, metric.REPORT_START)
+    rows = out["barn"]["per_episode"]
+    assert len(rows) == 2
+    for row, episode in zip(rows, out["per_episode"]):
+        t = row["barn_time_s"]
+        expect = (t_opt / min(max(t, 2 * t_opt), 8 * t_opt)) if episode["success"] else 0.0
+        assert row["world_idx"] == 7 and row["t_opt_s"] == pytest.approx(t_opt, rel=1e-12)
+        assert row["barn_metric"] == pytest.approx(expect, rel=1e-12)
+    total = out["barn"]["summary"]
+    assert total["metric"] == pytest.approx(sum(r["barn_metric"] for r in rows) / 2, rel=1e-12)
+    assert total["line"].startswith("Avg Time: ") and "report_test.py's start (-2, 3)" in out["barn"]["metric"]
+    assert main(["navigate", "--env", "bulletnav/BARN-v0", "--world-idx", "7", "--episodes", "1"]) == 0
+    text = capsys.readouterr().out
+    assert "BARN world 7: clock " in text and f"t_opt {t_opt:.2f} s" in text
+    assert "BARN (report_test.py) Avg Time: " in text and "BARN metric: success x t_opt" in text
+    assert main(["navigate", "--episodes", "1", "--json"]) == 0
+    assert "barn" not in json.loads(capsys.readouterr().out)  # a warehouse run has none
+
+
 def test_world_idx_needs_barn_and_a_valid_index(capsys):
     assert main(["navigate", "--world-idx", "3", "--episodes", "1"]) == 2
     err = capsys.readouterr().err.strip()

@@ -25,6 +25,9 @@ CELL_M = 2 * CYLINDER_RADIUS_M
 """Side of one cell of BARN's grid (m): a cylinder's diameter, run.py lines 24-25."""
 PATH_ORIGIN_M = (-CYLINDER_RADIUS_M - 30 * CELL_M, CYLINDER_RADIUS_M + 5)
 """World position (m) of path cell (0, 0): run.py's ``r_shift`` and ``c_shift`` (lines 21-22)."""
+INFO_KEYS = ("world_idx", "barn_time_s", "barn_metric")
+"""What ``bulletnav/BARN-v0``'s last ``info`` of an episode adds for scoring: the BARN world,
+BARN's clock (s) and the env's score of the episode (t_opt from run.py's start)."""
 START = (-2.25, 3.0, 1.57)
 """Start pose (x m, y m, yaw rad) run.py sets for the static worlds 0-299 (line 46)."""
 GOAL_OFFSET = (0.0, 10.0)

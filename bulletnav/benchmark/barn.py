@@ -69,6 +69,27 @@ def out_rows(rows: Iterable[dict[str, Any]]) -> list[OutRow]:
                    float(r["barn_time_s"])) for r in rows]
 
 
+def episode_figures(results: Iterable[Any]) -> dict[str, Any] | None:
+    """BARN's figures of ``navigate`` / ``evaluate`` episodes (:class:`~bulletnav.evaluation.EpisodeResult`
+    with ``barn_info``), by the code the benchmark's BARN tables use (:func:`out_rows`,
+    :func:`report_t_opt`, :func:`~bulletnav.barn.metric.summarise`): per episode the BARN world,
+    clock, t_opt and metric; in total report_test.py's five figures and its line, and the
+    metric's definition. None when no episode is a BARN one."""
+    rows = [{"world_idx": r.barn_info["world_idx"], "success": r.success, "collision": r.collision,
+             "timeout": r.timeout, "barn_time_s": r.barn_info["barn_time_s"]} for r in results if r.barn_info]
+    if not rows:
+        return None
+    t_opt = report_t_opt()
+    runs = out_rows(rows)
+    per = [{"world_idx": run.world, "barn_time_s": run.time_s, "t_opt_s": t_opt[run.world],
+            "barn_metric": barn_metric(run.success, run.time_s, t_opt[run.world])} for run in runs]
+    total = summarise(runs, t_opt)
+    return {"per_episode": per,
+            "summary": {"success": total.success, "collision": total.collision, "timeout": total.timeout,
+                        "time_s": total.time_s, "metric": total.metric, "line": total.line()},
+            "metric": METRIC_LABEL}
+
+
 def _by_world(rows: Iterable[OutRow]) -> dict[int, list[OutRow]]:
     return dict(sorted(by_world(rows).items()))
 

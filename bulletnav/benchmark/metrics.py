@@ -18,13 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from bulletnav.barn.metric import barn_metric
-from bulletnav.evaluation import NEAR_MISS_M, EpisodeResult
+from bulletnav.barn.metric import INFO_KEYS, barn_metric
+from bulletnav.evaluation import INTIMATE_M, NEAR_MISS_M, PERSONAL_M, EpisodeResult
 
-INTIMATE_M = 0.45
-"""HuNavSim's intimate zone: within this distance (m, centre to centre) of a person."""
-PERSONAL_M = 1.2
-"""HuNavSim's personal zone: within this distance (m, centre to centre) of a person."""
 STOPPED_MPS = 0.05
 """The robot counts as stopped below this speed (m/s): a person then approaches it, not it them."""
 BOOTSTRAP_RESAMPLES = 2000
@@ -66,7 +62,7 @@ METRICS: dict[str, str] = {
 
 __doc__ += "\n".join(f"- ``{name}``: {text}" for name, text in METRICS.items())
 
-BARN_KEYS = ("world_idx", "barn_time_s", "barn_metric")
+BARN_KEYS = INFO_KEYS
 """What a row of a ``bulletnav/BARN-v0`` episode adds (from the last step's ``info``): the BARN
 world, BARN's clock (s; it starts at the first 0.1 m of motion) and BARN's score of the episode
 as the env reports it (t_opt from BARN's reference path measured from run.py's start (-2.25, 3),

@@ -231,6 +231,25 @@ REPORT_KEYS = ("episodes", "success_rate", "mean_reward", "std_reward", "mean_le
 BAR = "=" * 60
 
 
+def barn_episode_line(r) -> str | None:
+    """An episode's BARN figures as the benchmark's tables compute them (None off BARN-v0)."""
+    from bulletnav.benchmark.barn import episode_figures
+
+    figures = episode_figures([r])
+    if figures is None:
+        return None
+    e = figures["per_episode"][0]
+    return (f"BARN world {e['world_idx']}: clock {e['barn_time_s']:.2f} s  t_opt {e['t_opt_s']:.2f} s  "
+            f"metric {e['barn_metric']:.4f}")
+
+
+def barn_report_lines(figures: dict | None) -> list[str]:
+    """The run's BARN figures (report_test.py's summary line and the metric's definition)."""
+    if figures is None:
+        return []
+    return [f"BARN (report_test.py) {figures['summary']['line']}", f"BARN metric: {figures['metric']}"]
+
+
 def _episode_line(args: argparse.Namespace):
     """The report's lines of one episode (nothing with ``--json``)."""
 
@@ -242,6 +261,9 @@ def _episode_line(args: argparse.Namespace):
         print(f"Initial distance to goal: {r.initial_distance:.2f}m")
         print(f"{mark} | Steps: {r.steps} | Reward: {r.reward:.1f} | Final distance: {r.final_distance:.2f}m | "
               f"Distance traveled: {r.path_length:.2f}m")
+        barn = barn_episode_line(r)
+        if barn:
+            print(barn)
 
     return line
 
@@ -260,6 +282,8 @@ def _print_results(args: argparse.Namespace, s: dict, results, written: list[str
     if any(r.goals_total > 1 for r in results):
         print(f"Mission: progress {s['progress'] * 100:.1f} %   PPL {s['ppl']:.3f}   "
               f"goals per minute {s['goals_per_minute']:.2f}")
+    for text in barn_report_lines(s.get("barn")):
+        print(text)
     print(BAR)
     for w in written:
         print(w)
@@ -282,9 +306,16 @@ def evaluate_report(args: argparse.Namespace, model_path: str, loaded: tuple | N
     label = episode_world_label(args, env, default_obstacles)
     results, written, layout_size = run_with_visuals(args, env, SB3Policy(model, vecnorm), _episode_line(args),
                                                      f"{algo} (seed {args.seed})")
+    from bulletnav.benchmark.barn import episode_figures
+
     s = summarize(results)
+    figures = episode_figures(results)
+    if figures is not None:
+        s["barn"] = figures
     keys = (*REPORT_KEYS, *SAFETY_KEYS, *SHIELD_KEYS, "progress", "ppl", "goals_per_minute", "per_episode")
     out = {k: s[k] for k in keys}
+    if figures is not None:
+        out["barn"] = figures
     out.update(model=str(model_path), seed=args.seed, env_id=args.env_id,
                world=label, world_size=layout_size, perturb=args.perturb, shield=args.shield,
                physics=env_kwargs.get("physics", "default"), physics_hz=env.unwrapped.config.physics.physics_hz)

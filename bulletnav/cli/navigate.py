@@ -19,7 +19,14 @@ from bulletnav.cli.args import (
     add_world_args,
 )
 from bulletnav.cli.envs import make_env, shielded
-from bulletnav.cli.episodes import add_world_idx_arg, episode_world_label, run_with_visuals, world_idx_kwargs
+from bulletnav.cli.episodes import (
+    add_world_idx_arg,
+    barn_episode_line,
+    barn_report_lines,
+    episode_world_label,
+    run_with_visuals,
+    world_idx_kwargs,
+)
 from bulletnav.cli.output import fmt, outcome, print_json, refuse_existing_files, safety_line, shield_line
 from bulletnav.errors import BulletnavError
 
@@ -81,9 +88,17 @@ def cmd_navigate(args: argparse.Namespace) -> int:
             print(f"episode {r.episode:3d}/{args.episodes} seed {r.seed}: {outcome(r):9s} steps {r.steps:4d} "
                   f"sim {r.sim_time:5.1f} s  driven {r.path_length:5.2f} m  shortest to goal centre {r.shortest_path:5.2f} m  "
                   f"SPL {r.spl:.2f}  {plans}  replans {r.replans}{stop}")
+            barn = barn_episode_line(r)
+            if barn:
+                print(f"    {barn}")
 
     results, written, layout_size = run_with_visuals(args, env, nav, line, f"{title} (seed {args.seed})")
     summary = summarize(results)
+    from bulletnav.benchmark.barn import episode_figures
+
+    figures = episode_figures(results)
+    if figures is not None:
+        summary["barn"] = figures
     summary.update(planner=args.planner, seed=args.seed, pose_source=args.pose, env_id=args.env_id,
                    world=label, world_size=layout_size, perturb=args.perturb, shield=args.shield,
                    physics=args.physics or "default")
@@ -131,5 +146,7 @@ def _print_report(args: argparse.Namespace, summary: dict, results, written: lis
     if any(r.goals_total > 1 for r in results):
         print(f"mission        progress {summary['progress'] * 100:.1f} %   PPL {summary['ppl']:.3f}   "
               f"goals per minute {summary['goals_per_minute']:.2f}")
+    for text in barn_report_lines(summary.get("barn")):
+        print(text)
     for w in written:
         print(w)
