@@ -39,6 +39,23 @@ POOL_STREAM = 0xBA2
 of their own, apart from the episode's ``np_random``."""
 
 
+def check_barn_kwargs(kwargs: dict[str, Any]) -> None:
+    """Refuse keywords that would change BARN's rules (:data:`BARN_RULES`, unless at BARN's
+    value) or draw a warehouse (:data:`BARN_WORLD_KEYWORDS`).
+
+    Raises:
+        TypeError: naming the keyword, its value and BARN's.
+    """
+    for key, rule in BARN_RULES.items():
+        if key in kwargs and not _same(kwargs[key], rule):
+            raise TypeError(f"bulletnav/BARN-v0 keeps BARN's rules: {key}={show(kwargs[key])} would change them "
+                            f"(BARN's is {show(rule)})")
+    drawn = sorted(BARN_WORLD_KEYWORDS & set(kwargs))
+    if drawn:
+        raise TypeError(f"bulletnav/BARN-v0 runs BARN's worlds, start and goal: {drawn[0]}={show(kwargs[drawn[0]])} "
+                        "does not apply (it draws a warehouse's)")
+
+
 def _same(value: Any, rule: Any) -> bool:
     """``value`` equals BARN's ``rule`` (a list for a tuple, an int for a float)."""
     if isinstance(rule, tuple):
@@ -98,14 +115,7 @@ class BarnEnv(WarehouseEnv):
             raise TypeError(f"bulletnav/BARN-v0 takes world_idx (0-299), not world={show(kwargs['world'])}")
         if kwargs.get("task_name", "barn") != "barn":
             raise TypeError(f"bulletnav/BARN-v0 runs BARN's task only, not task_name={show(kwargs['task_name'])}")
-        for key, rule in BARN_RULES.items():
-            if key in kwargs and not _same(kwargs[key], rule):
-                raise TypeError(f"bulletnav/BARN-v0 keeps BARN's rules: {key}={show(kwargs[key])} would change them "
-                                f"(BARN's is {show(rule)})")
-        drawn = sorted(BARN_WORLD_KEYWORDS & set(kwargs))
-        if drawn:
-            raise TypeError(f"bulletnav/BARN-v0 runs BARN's worlds, start and goal: {drawn[0]}={show(kwargs[drawn[0]])} "
-                            "does not apply (it draws a warehouse's)")
+        check_barn_kwargs(kwargs)
         if isinstance(world_idx, (int, np.integer)):
             self._pool: tuple[int, ...] | None = None
             index = check_index(world_idx)

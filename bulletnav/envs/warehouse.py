@@ -152,9 +152,13 @@ def _set(cfg: EnvConfig, key: str, value: Any) -> EnvConfig:
         elif key in ("forklift_speed", "worker_speed"):
             value = (float(value), float(value)) if isinstance(value, (int, float)) else tuple(value)
         return _replace_at(cfg, path, name, value)
-    known = sorted([*_KWARGS, "world", "config", "render_mode", "perturb", "randomize", "physics", "robot",
-                    *(f"reward_{f}" for f in _REWARD_FIELDS), *(f"shift_{f}" for f in _SHIFT_FIELDS)])
-    raise TypeError(f"bulletnav/Warehouse-v0 got an unknown keyword argument {key!r}; known: {', '.join(known)}")
+    raise TypeError(f"bulletnav/Warehouse-v0 got an unknown keyword argument {key!r}; known: {', '.join(known_kwargs())}")
+
+
+def known_kwargs() -> list[str]:
+    """Every keyword argument ``WarehouseEnv`` (and the ids built on it) takes, sorted."""
+    return sorted([*_KWARGS, "world", "config", "render_mode", "perturb", "randomize", "physics", "robot",
+                   *(f"reward_{f}" for f in _REWARD_FIELDS), *(f"shift_{f}" for f in _SHIFT_FIELDS)])
 
 
 def _conforms(value: Any, hint: Any) -> bool:

@@ -4,6 +4,7 @@ their translation into SB3 constructor arguments."""
 from __future__ import annotations
 
 import copy
+import difflib
 import importlib
 import logging
 from importlib import resources
@@ -55,6 +56,7 @@ def load_hyperparams(algo: str, env_id: str = ENV_ID, path: str | Path | None = 
         if value is not None and value is not False and not isinstance(value, dict):  # train does **value
             raise ConfigError(f"{path}: {env_id}.{key} must be a mapping, got {show(value)}")
     hp = upgrade_hyperparams(dict(data[env_id]), str(path))
+    check_hyperparams(hp, algo, env_id, str(path))
     if hp.get("randomize"):  # checked now: a typo fails before any env starts
         from bulletnav.envs.randomization import parse_randomize
 
@@ -70,6 +72,130 @@ def load_hyperparams(algo: str, env_id: str = ENV_ID, path: str | Path | None = 
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
     return hp
+
+
+GYM_MAKE_KEYS = frozenset({"max_episode_steps", "disable_env_checker", "order_enforce", "autoreset"})
+"""``env_kwargs`` that ``gym.make`` itself takes (not the env's)."""
+VECNORMALIZE_KEYS = ("norm_obs", "norm_reward", "clip_obs", "clip_reward", "gamma", "epsilon", "norm_obs_keys")
+"""What a ``normalize:`` mapping may set (SB3's ``VecNormalize`` arguments)."""
+
+
+def _unknown(where: str, what: str, key: Any, known: Any) -> ConfigError:
+    near = difflib.get_close_matches(str(key), sorted(known), n=1)
+    hint = f" (did you mean {near[0]!r}?)" if near else ""
+    return ConfigError(f"{where}: unknown {what} {show(key)}{hint}")
+
+
+def _init_params(cls: type) -> dict[str, Any]:
+    """The named ``__init__`` parameters of ``cls``, following ``**kwargs`` up its bases (a
+    subclass that passes them on takes its parents' too)."""
+    import inspect
+
+    params: dict[str, Any] = {}
+    for klass in cls.__mro__:
+        if "__init__" not in vars(klass):
+            continue
+        sig = inspect.signature(klass.__init__)
+        for name, p in sig.parameters.items():
+            if p.kind not in (p.VAR_KEYWORD, p.VAR_POSITIONAL):
+                params.setdefault(name, p)
+        if not any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values()):
+            break
+    return params
+
+
+def check_hyperparams(hp: dict[str, Any], algo: str, env_id: str, where: str) -> None:
+    """Check an entry whole before anything starts (no env, no worker, no model): every
+    algorithm key against the algorithm's constructor, ``normalize`` against ``VecNormalize``,
+    ``policy_kwargs`` against the policy class, ``env_kwargs`` against the env id's own
+    keywords (for bulletnav's single-robot ids), and the types of numbers. Each error names
+    the file, the env id block, the key and the nearest valid key.
+
+    Raises:
+        ConfigError: one line, as above.
+    """
+    from bulletnav.rl.algos import algo_class
+
+    block = f"{where}: {env_id}"
+    cls = algo_class(algo)
+    params = _init_params(cls)
+    accepted = set(params) - {"self", "policy", "env"}
+    for key, value in hp.items():
+        if key in ENV_KEYS:
+            continue
+        if key not in accepted:
+            raise _unknown(block, f"{algo.upper()} hyperparameter", key, accepted | ENV_KEYS)
+        default = params[key].default
+        schedule = key in ("learning_rate", "clip_range") and isinstance(value, str) and value.startswith("lin_")
+        if isinstance(default, bool):
+            ok = isinstance(value, bool)
+        elif isinstance(default, (int, float)) and default is not None:
+            ok = schedule or (isinstance(value, (int, float)) and not isinstance(value, bool)) or (
+                key in ("train_freq",) and isinstance(value, (list, tuple)))
+        else:
+            ok = True
+        if not ok:
+            raise ConfigError(f"{block}.{key} must be {'true or false' if isinstance(default, bool) else 'a number'}"
+                              f"{' or lin_<value>' if key in ('learning_rate', 'clip_range') else ''}, got {show(value)}")
+    normalize = hp.get("normalize")
+    if isinstance(normalize, dict):
+        for key in normalize:
+            if key not in VECNORMALIZE_KEYS:
+                raise _unknown(f"{block}.normalize", "VecNormalize key", key, VECNORMALIZE_KEYS)
+    policy_kwargs = hp.get("policy_kwargs")
+    if isinstance(policy_kwargs, dict):
+        policy = policy_class(hp)
+        if isinstance(policy, str):
+            policy = cls.policy_aliases.get(policy)
+        if policy is None:
+            raise ConfigError(f"{block}.policy: unknown policy {show(hp.get('policy'))}; "
+                              f"{algo.upper()} has {', '.join(sorted(cls.policy_aliases))}")
+        taken = set(_init_params(policy)) - {"self", "observation_space", "action_space", "lr_schedule"}
+        for key in policy_kwargs:
+            if key not in taken:
+                raise _unknown(f"{block}.policy_kwargs", f"argument of {policy.__name__}", key, taken)
+    env_kwargs = hp.get("env_kwargs")
+    if isinstance(env_kwargs, dict):
+        check_env_kwargs(env_id, env_kwargs, f"{block}.env_kwargs")
+
+
+def check_env_kwargs(env_id: str, env_kwargs: dict[str, Any], where: str) -> None:
+    """``env_kwargs`` of a bulletnav single-robot id checked as the env will take them, without
+    building it (its config is made and dropped); other ids are left to their env.
+
+    Raises:
+        ConfigError: an unknown keyword (with the nearest) or a bad value, in one line.
+    """
+    import gymnasium as gym
+
+    from bulletnav.envs.warehouse import known_kwargs, make_config
+
+    try:
+        spec = gym.spec(env_id)
+    except gym.error.Error:
+        return
+    entry = spec.entry_point if isinstance(spec.entry_point, str) else ""
+    barn = entry.endswith(":BarnEnv")
+    if not (entry.endswith(":WarehouseEnv") or barn):
+        return
+    kwargs = {k: v for k, v in env_kwargs.items() if k not in GYM_MAKE_KEYS}
+    known = set(known_kwargs()) - {"config", "render_mode"}
+    if barn:
+        from bulletnav.barn.env import check_barn_kwargs
+
+        known.add("world_idx")
+        try:
+            check_barn_kwargs(kwargs)
+        except TypeError as exc:
+            raise ConfigError(f"{where}: {exc}") from None
+    for key in kwargs:
+        if key not in known:
+            raise _unknown(where, f"keyword of {env_id}", key, known | GYM_MAKE_KEYS)
+    base = {k: v for k, v in (spec.kwargs or {}).items() if k not in ("render_mode", "config")}
+    try:
+        make_config(None, **{**base, **{k: v for k, v in kwargs.items() if k != "world_idx"}})
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{where}: {' '.join(str(exc).split())}") from None
 
 
 def upgrade_hyperparams(hp: dict[str, Any], where: str = "hyperparameters") -> dict[str, Any]:

@@ -1,0 +1,65 @@
+"""Every kind of file a user hands bulletnav, with a misspelt key and with a wrong type: one line
+naming the file, the place and the key (with the nearest valid key for a misspelling), exit
+status 2, and nothing started (no env worker, no model)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bulletnav.cli import main
+
+HYPER = "bulletnav/Warehouse-v0:\n  policy: MlpPolicy\n  n_envs: 2\n{}\n"
+SUITE = ("name: t\nepisodes: 1\nseed: 1\nworlds:\n  - {{env: bulletnav/Warehouse-v0}}\n"
+         "controllers:\n  - {{name: a, type: navigator, planner: astar}}\n{}\n")
+LAYOUT = "name: l\nsize: [8, 8]\nobstacles:\n  - {{type: box, center: [1, 1], size: [0.5, 0.5, 1]}}\n{}\n"
+MAP = "image: m.pgm\nresolution: 0.1\norigin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n{}\n"
+SDF = ("<?xml version='1.0'?><sdf version='1.9'><world name='w'><model name='m'><static>true</static>"
+       "<link name='l'><collision name='c'><geometry>{}</geometry></collision></link></model></world></sdf>")
+
+# (kind, file name, text, the command, what the one line must say)
+CASES = [
+    ("hyperparameters: misspelt algorithm key", "h.yml", HYPER.format("  n_epoch: 5"), "train",
+     ["unknown PPO hyperparameter 'n_epoch' (did you mean 'n_epochs'?)", "bulletnav/Warehouse-v0"]),
+    ("hyperparameters: misspelt env keyword", "h.yml", HYPER.format("  env_kwargs: {reward_headng: 0.02}"), "train",
+     ["env_kwargs: unknown keyword of bulletnav/Warehouse-v0 'reward_headng' (did you mean 'reward_heading'?)"]),
+    ("hyperparameters: misspelt normalize key", "h.yml", HYPER.format("  normalize: {norm_rew: true}"), "train",
+     ["normalize: unknown VecNormalize key 'norm_rew' (did you mean 'norm_reward'?)"]),
+    ("hyperparameters: misspelt policy_kwargs key", "h.yml", HYPER.format("  policy_kwargs: {net_arc: [64]}"), "train",
+     ["policy_kwargs: unknown argument of ActorCriticPolicy 'net_arc' (did you mean 'net_arch'?)"]),
+    ("hyperparameters: wrong type", "h.yml", HYPER.format("  n_steps: many"), "train",
+     ["bulletnav/Warehouse-v0.n_steps must be a number, got 'many'"]),
+    ("hyperparameters: wrong env keyword type", "h.yml", HYPER.format("  env_kwargs: {lidar_rays: lots}"), "train",
+     ["env_kwargs", "lidar_rays"]),
+    ("suite: misspelt key", "s.yaml", SUITE.format("episods: 3"), "benchmark", ["episods"]),
+    ("suite: wrong type", "s.yaml", SUITE.replace("episodes: 1", "episodes: one").format(""), "benchmark", ["episodes"]),
+    ("layout: misspelt key", "l.yaml", LAYOUT.format("wall_heigth: 2"), "navigate", ["wall_heigth"]),
+    ("layout: wrong type", "l.yaml", LAYOUT.replace("size: [8, 8]", "size: big").format(""), "navigate", ["size"]),
+    ("map_server: misspelt key", "m.yaml", MAP.replace("resolution", "resolutoin").format(""), "navigate",
+     ["unknown map field 'resolutoin' (did you mean 'resolution'?)"]),
+    ("map_server: wrong type", "m.yaml", MAP.replace("resolution: 0.1", "resolution: fine").format(""), "navigate",
+     ["field 'resolution' must be a finite number, got 'fine'"]),
+    ("SDF: misspelt shape", "w.world", SDF.format("<boxx><size>1 1 1</size></boxx>"), "navigate", ["model 'm'"]),
+    ("SDF: wrong type", "w.world", SDF.format("<box><size>one 1 1</size></box>"), "navigate", ["<size>", "'one 1 1'"]),
+]
+
+
+@pytest.mark.parametrize("kind, name, text, command, needles", CASES, ids=[c[0] for c in CASES])
+def test_a_misspelt_key_or_a_wrong_type_is_one_line_and_exit_2(kind, name, text, command, needles, tmp_path, capsys,
+                                                              monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "m.pgm").write_bytes(b"P5\n40 40\n255\n" + np.pad(np.full((38, 38), 254, np.uint8), 1).tobytes())
+    path = tmp_path / name
+    path.write_text(text)
+    argv = {"train": ["train", "--algo", "ppo", "--hyperparams", name, "--timesteps", "256", "--out", "run"],
+            "benchmark": ["benchmark", name, "--out", "bench"],
+            "navigate": ["navigate", "--world", name, "--episodes", "1"]}[command]
+    code = main(argv)
+    err = capsys.readouterr().err.strip()
+    assert code == 2, (kind, err)
+    assert err.count("\n") == 0 and err.startswith(f"bulletnav {command}: error: ") and name in err, (kind, err)
+    for needle in needles:
+        assert needle in err, (kind, err)
+    assert not Path(tmp_path / "run").exists() and not Path(tmp_path / "bench" / "episodes.jsonl").exists()
