@@ -71,6 +71,7 @@ KINDS: dict[str, str] = {
     "test_architecture.py::test_the_package_import_graph_has_no_circles": "contract",
     "test_architecture.py::test_every_module_has_a_layer_and_layers_are_disjoint": "contract",
     "test_architecture.py::test_no_module_imports_a_higher_layer": "contract",
+    "test_architecture.py::test_the_unit_graph_has_no_circles_and_siblings_stay_apart": "contract",
     "test_architecture.py::test_every_module_imports_in_a_fresh_process_in_layer_order": "contract",
     "test_architecture.py::test_tasks_see_the_scene_through_the_protocol": "contract",
     "test_architecture.py::test_temp_file_checker_flags_what_it_should": "hand",
@@ -711,6 +712,7 @@ KINDS: dict[str, str] = {
     "test_ros_bagmap.py::test_bulletnav_bag_maps_onto_the_true_map": "formula",
     "test_ros_bagmap.py::test_bad_bags_are_refused": "contract",
     "test_ros_bagmap.py::test_map_png_has_a_legend_and_start_end_marks": "formula",  # start from the odometry, by hand
+    "test_ros_bagmap.py::test_scans_take_the_poses_a_linear_search_gives": "formula",  # pose_at's rule by a linear search
     # ---- test_ros_bags.py
     "test_ros_bags.py::test_rosbags_bags_map_the_known_room": "library",  # .bag and .db3 written by rosbags; walls by exact casts
     "test_ros_bags.py::test_a_lone_db3_and_a_bag_directory_read_alike": "self",
@@ -723,6 +725,7 @@ KINDS: dict[str, str] = {
     "test_ros_record.py::test_scan_equals_the_env_lidar": "library",
     "test_ros_record.py::test_tf_chain_reaches_the_true_pose": "library",
     "test_ros_record.py::test_maps_movers_and_metadata": "library",
+    "test_ros_record.py::test_the_encoder_writes_mcap_ros2_supports_bytes_for_every_type": "library",  # its serializer
     "test_ros_record.py::test_message_definitions_parse_as_ros2_types": "library",
     "test_ros_record.py::test_refusals_and_abort_leave_nothing": "contract",
     "test_ros_record.py::test_cli_navigate_records": "library",

@@ -327,10 +327,11 @@ def test_geometry_users_carry_no_outline_numbers():
 # (d) the package import graph: no circles, no upward imports
 
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("bulletnav", "errors"),                        # the package's ids and constants (imports nothing of its own), exceptions
+    ("bulletnav", "errors", "stdio"),               # the package's ids and constants, exceptions, pybullet's banner held
     ("limits",),
     ("config",),
-    ("geometry", "yamlfile", "provenance", "files"),
+    ("xmlfile",),                                   # XML read with DTDs and entities refused
+    ("geometry", "yamlfile", "provenance", "files", "runs"),  # runs: the row log, pool and strict JSON of a run
     ("sim",),
     ("sensors",),
     ("planning",),
@@ -339,8 +340,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("control",),
     ("policy", "evaluation"),
     ("rl",),
-    ("benchmark", "datasets"),
-    ("fleet",),
+    ("benchmark", "datasets", "fleet"),             # siblings: neither imports the other (SIBLINGS_APART)
     ("viz",),
     ("ros", "sweep", "bench"),
     ("cli",),
@@ -350,7 +350,8 @@ own layer or lower ones, never a higher one. Each name is a module or subpackage
 ``bulletnav`` (``"bulletnav"`` is the package's own ``__init__``). The order is the one the
 imports force: ``envs`` builds its scene from ``sim`` and ``sensors`` and runs ``tasks``;
 ``control`` and ``evaluation`` drive envs; ``rl`` trains on them; ``benchmark`` runs
-controllers and models; ``fleet`` reuses the env, tasks, rl and benchmark; ``viz`` draws
+controllers and models, ``fleet`` runs a fleet of them (the env, tasks and rl reused), both on
+the run machinery of ``runs`` on the ground floor, neither importing the other; ``viz`` draws
 scenes and fleets; ``ros`` replays recordings into ``viz``'s videos, ``sweep`` runs ``rl``
 training and passes ``viz``'s learning curve in, ``bench`` measures everything; the CLI
 sits on top. Benchmark reports and training draw through callables their caller passes
@@ -528,6 +529,57 @@ def test_no_module_imports_a_higher_layer():
                 upward.append(f"{_rel(MODULES[module])}: imports {target} "
                               f"(layer {LAYERS[layer_of(target)]} above {LAYERS[layer_of(module)]})")
     assert not upward, "imports of a higher layer:\n" + "\n".join(upward)
+
+
+SIBLINGS_APART: dict[tuple[str, str], str] = {
+    ("fleet", "benchmark"): "the fleet comparison runs on bulletnav.runs (row log, pool, strict JSON), as the "
+                            "benchmark runner does; the proxemic zones it shares are bulletnav.evaluation's",
+    ("benchmark", "fleet"): "the benchmark scores single-robot episodes; it has no use for the fleet",
+}
+"""Units of one layer that must not import each other, anywhere in a file (functions and
+``TYPE_CHECKING`` blocks count, as everywhere in :func:`import_graph`): (importer, imported) ->
+why. No import between them is allowed, lazy or not."""
+
+
+def unit_of(module: str) -> str:
+    """The unit of :data:`LAYERS` a module belongs to: ``bulletnav.fleet.compare`` -> ``fleet``."""
+    return "bulletnav" if module == "bulletnav" else module.split(".")[1]
+
+
+def unit_graph(graph: dict[str, set[str]] | None = None) -> dict[str, set[str]]:
+    """The import graph between units (subpackages and top-level modules): unit -> the other
+    units some module of it imports (module-level, function-level and ``TYPE_CHECKING`` imports
+    alike)."""
+    graph = import_graph() if graph is None else graph
+    units: dict[str, set[str]] = {}
+    for module, imports in graph.items():
+        units.setdefault(unit_of(module), set()).update(unit_of(t) for t in imports)
+    return {u: targets - {u} for u, targets in units.items()}
+
+
+def layer_graph_text(graph: dict[str, set[str]] | None = None) -> str:
+    """The layers, lowest first, each unit with the units it imports (``python tests/test_architecture.py``)."""
+    units = unit_graph(graph)
+    lines = []
+    for i, names in enumerate(LAYERS):
+        lines.append(f"layer {i}: " + ", ".join(
+            f"{n} -> {{{', '.join(sorted(units.get(n, ())))}}}" for n in names))
+    return "\n".join(lines)
+
+
+def test_the_unit_graph_has_no_circles_and_siblings_stay_apart():
+    """Between subpackages too (a circle of units is a circle of layers), and fleet and
+    benchmark, which share a layer, import nothing of each other."""
+    units = unit_graph()
+    assert {"fleet", "benchmark", "runs", "cli"} <= set(units) and "runs" in units["fleet"] and "runs" in units["benchmark"]
+    found = circles(units)
+    assert not found, "circles between subpackages:\n" + "\n".join(" <-> ".join(c) for c in found)
+    apart = [f"{_rel(MODULES[m])}: imports {t} ({why})" for (a, b), why in SIBLINGS_APART.items()
+             for m, imports in import_graph().items() if unit_of(m) == a for t in sorted(imports) if unit_of(t) == b]
+    assert not apart, "imports between siblings that stay apart:\n" + "\n".join(apart)
+    # the check sees a lazy import: one inside a function makes fleet import benchmark
+    lazy = {**import_graph(), "bulletnav.fleet.probe": {"bulletnav.benchmark.runner"}}
+    assert "benchmark" in unit_graph(lazy)["fleet"]
 
 
 IMPORT_IN_LAYER_ORDER = r"""
@@ -795,3 +847,7 @@ def test_no_function_is_over_80_lines_but_the_listed_kernels():
                       + "\n".join(f"{n:4d} {k}" for k, n in sorted(long.items(), key=lambda e: -e[1])))
     stale = {k: lengths.get(k) for k in LONG_FUNCTIONS if lengths.get(k, 0) <= MAX_FUNCTION_LINES}
     assert not stale, f"LONG_FUNCTIONS entries gone or no longer over {MAX_FUNCTION_LINES} lines (remove them): {stale}"
+
+
+if __name__ == "__main__":
+    print(layer_graph_text())

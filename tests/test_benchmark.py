@@ -16,14 +16,15 @@ from bulletnav.benchmark.metrics import (
     EpisodeTrace,
     bootstrap_interval,
     cell_summary,
-    episode_metrics,
     drive_time,
+    episode_metrics,
 )
-from bulletnav.benchmark.runner import build_results, run_in_pool, run_suite
+from bulletnav.benchmark.runner import build_results, run_suite
 from bulletnav.benchmark.suite import SuiteError, load_suite, parse_suite
 from bulletnav.cli import main
 from bulletnav.errors import BulletnavError
 from bulletnav.evaluation import EpisodeResult
+from bulletnav.runs import run_in_pool
 
 DATA = Path(__file__).resolve().parent / "data"
 TINY = DATA / "benchmark_tiny.yaml"

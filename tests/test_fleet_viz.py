@@ -15,7 +15,9 @@ from PIL import Image
 from bulletnav.cli import main
 from bulletnav.fleet.controllers import make_controller
 from bulletnav.fleet.metrics import run_fleet_episodes
-from bulletnav.viz.fleet import FLEET_FRAME_SIZE, ROBOT_PALETTE, FleetVisuals, robot_colour
+from bulletnav.viz.fleet import FleetVisuals
+from bulletnav.viz.fleet_frames import FLEET_FRAME_SIZE
+from bulletnav.viz.fleet_robots import ROBOT_PALETTE, robot_colour
 
 ROBOTS = 3
 DURATION = 2.0  # s: 48 control steps at 24 Hz
@@ -133,7 +135,7 @@ def test_still_frame_and_plot(recorded):
 def test_plot_draws_every_robot_path_in_its_colour(recorded):
     from matplotlib.colors import to_rgb
 
-    from bulletnav.viz.fleet import fleet_figure
+    from bulletnav.viz.fleet_paths import fleet_figure
 
     _, visuals, _, with_pictures, _ = recorded
     fig = fleet_figure(visuals.log.track)
@@ -202,7 +204,7 @@ def test_view_robots_opens_the_gui_and_tints_every_robot(display, capsys, monkey
     import pybullet as p
 
     from bulletnav.fleet.view import FleetView
-    from bulletnav.viz.fleet import FleetDashboard
+    from bulletnav.viz.fleet_gui import FleetDashboard
 
     seen = {}
     on_reset, on_step = FleetDashboard.on_reset, FleetDashboard.on_step
@@ -238,7 +240,7 @@ def test_marks_are_told_apart_and_the_legend_shows_each(recorded):
     3 px between ``4`` and ``robots``)."""
     from PIL import ImageDraw
 
-    from bulletnav.viz.fleet import STOPPED_RGB
+    from bulletnav.viz.fleet_frames import STOPPED_RGB
     from bulletnav.viz.video import draw_text, text_length, ui_font
 
     assert STOPPED_RGB == (255, 255, 255)

@@ -16,7 +16,7 @@ import pytest
 
 from bulletnav.cli import main
 from bulletnav.errors import BulletnavError
-from bulletnav.ros.bagmap import build_map, plan_path, read_bag
+from bulletnav.ros.bagmap import BagData, Scan, build_map, plan_path, pose_at, read_bag
 
 ROOM = (-3.0, -2.0, 3.0, 2.0)  # x0, y0, x1, y1 of the walls' inner faces (m)
 MOUNT = (0.1, 0.05, 0.0)  # the lidar on the base (x, y, yaw)
@@ -221,3 +221,46 @@ def test_map_png_has_a_legend_and_start_end_marks(room_bag, tmp_path):
     out = tmp_path / "map.png"
     write_map_png(bag_map, out, plan_path(bag_map, goal), goal)
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def _pose_by_search(poses, t):
+    """``pose_at``'s rule by a linear search of the poses (the reference): the pose stamped
+    ``t``; else the two around ``t``, interpolated (yaw along the shorter turn); else the first
+    or last pose within 0.1 s; else None."""
+    for s, pose in poses:
+        if s == t:
+            return pose
+    before = [k for k, (s, _) in enumerate(poses) if s < t]
+    after = [k for k, (s, _) in enumerate(poses) if s > t]
+    if not before or not after:
+        s, pose = poses[after[0]] if after else poses[before[-1]]
+        return pose if abs(s - t) <= 100_000_000 else None
+    (t0, a), (t1, b) = poses[before[-1]], poses[after[0]]
+    f = (t - t0) / (t1 - t0)
+    dyaw = math.remainder(b[2] - a[2], 2 * math.pi)
+    return a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), math.remainder(a[2] + f * dyaw, 2 * math.pi)
+
+
+def test_scans_take_the_poses_a_linear_search_gives():
+    """``build_map`` lists the pose stamps once for all scans (it listed them again for every
+    scan); every scan still takes the pose of :func:`_pose_by_search`, to the bit: at a pose's
+    stamp, between two (yaw across +-pi too), within and beyond 0.1 s of either end."""
+    # by hand: half-way from yaw 3.0 to -3.0 is the short way round, through pi
+    x, y, yaw = pose_at([(0, (0.0, 0.0, 3.0)), (10**9, (1.0, 2.0, -3.0))], 5 * 10**8)
+    assert (x, y) == (0.5, 1.0) and abs(yaw) == pytest.approx(math.pi)
+    rng = np.random.default_rng(3)
+    stamps = (10**9 + np.cumsum(rng.integers(1, 80_000_000, 200))).tolist()
+    yaws = np.cumsum(rng.normal(0.0, 0.8, 200))
+    poses = [(t, (float(rng.normal()), float(rng.normal()), math.remainder(float(w), 2 * math.pi)))
+             for t, w in zip(stamps, yaws, strict=True)]
+    times = [stamps[0] - 150_000_000, stamps[0] - 50_000_000, *stamps[::7],
+             *rng.integers(stamps[0], stamps[-1], 60).tolist(), stamps[-1] + 50_000_000, stamps[-1] + 150_000_000]
+    expected = [_pose_by_search(poses, t) for t in times]
+    assert [pose_at(poses, t, stamps) for t in times] == [pose_at(poses, t) for t in times] == expected
+    assert expected[0] is None and expected[-1] is None and expected[1] == poses[0][1]
+    scans = [Scan(t, "laser", np.zeros(1), np.ones(1), 0.0, 5.0) for t in times]
+    bag_map = build_map(BagData(scans, poses), margin=1.0)
+    placed = [pose[:2] for pose in expected if pose is not None]
+    assert (bag_map.scans_used, bag_map.scans_skipped) == (len(placed), len(times) - len(placed))
+    assert bag_map.trajectory == placed
+

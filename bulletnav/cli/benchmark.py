@@ -86,7 +86,7 @@ def _screenshots(args: argparse.Namespace, report, out) -> None:
 def interrupted_note(log, total: int, what: str = "episodes") -> str:
     """The line of an interrupted run that keeps its rows in ``log`` (an ``episodes.jsonl``; a
     ``benchmark`` or ``fleet-compare``): how many of ``total`` are kept and the command that goes on."""
-    from bulletnav.benchmark.runner import read_rows
+    from bulletnav.runs import read_rows
 
     if not log.is_file():
         return (f"interrupted before the first of {total} {what} finished; nothing kept; run again with: "

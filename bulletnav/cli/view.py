@@ -102,7 +102,7 @@ def _view_fleet(args: argparse.Namespace, live) -> int:
 
     from bulletnav.fleet.controllers import make_controller
     from bulletnav.fleet.env import FleetEnv
-    from bulletnav.viz.fleet import FleetDashboard
+    from bulletnav.viz.fleet_gui import FleetDashboard
 
     kwargs = fleet_world_kwargs(args, args.env_id if args.env_given else None)
     env = FleetEnv(num_robots=args.robots, render_mode=None if live else "human", dynamic=args.dynamic, **kwargs)

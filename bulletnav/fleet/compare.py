@@ -25,9 +25,9 @@ from typing import Any
 
 import numpy as np
 
-from bulletnav.benchmark.runner import PROJECT_ROOT, RowLog, reopen_rows, run_in_pool, run_provenance, write_strict_json
 from bulletnav.errors import BulletnavError, ConfigError
 from bulletnav.fleet.metrics import METRICS, TYPICAL_ERRAND_S, rate_counts, run_fleet_episodes, summarize
+from bulletnav.runs import PROJECT_ROOT, RowLog, reopen_rows, run_in_pool, run_provenance, write_strict_json
 
 log = logging.getLogger(__name__)
 

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from bulletnav.benchmark.metrics import INTIMATE_M, PERSONAL_M
+from bulletnav.evaluation import INTIMATE_M, PERSONAL_M
 
 DEADLOCK_WINDOW_S = 20.0
 """A robot that has not progressed for this long (s) is stalled."""

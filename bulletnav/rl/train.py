@@ -123,9 +123,9 @@ class IgnoringInterrupts:
         self.fn = fn
 
     def __call__(self) -> Any:
-        import signal
+        from bulletnav.runs import ignore_interrupts
 
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        ignore_interrupts()
         return self.fn()
 
 

@@ -180,11 +180,13 @@ def _tf_poses(tf: dict, mounts: dict, frame: str) -> tuple[str, list] | None:
     if not dynamic:
         return None
     stamps = sorted({t for key in dynamic for t, _ in tf[key]})
+    link_stamps = {key: [t for t, _ in tf[key]] for key in dynamic}  # each link's stamps, listed once
     out = []
     for t in stamps:
         pose = (0.0, 0.0, 0.0)
         for parent, child, kind in reversed(chain):  # root first
-            link = mounts[(parent, child)] if kind == "static" else _held(tf[(parent, child)], t)
+            key = (parent, child)
+            link = mounts[key] if kind == "static" else _held(tf[key], t, link_stamps[key])
             if link is None:
                 break
             pose = compose(pose, link)
@@ -193,18 +195,22 @@ def _tf_poses(tf: dict, mounts: dict, frame: str) -> tuple[str, list] | None:
     return (node, out) if out else None
 
 
-def _held(series: list[tuple[int, tuple[float, float, float]]], t: int) -> tuple[float, float, float] | None:
-    """The last value at or before ``t`` (None before the first)."""
-    i = bisect.bisect_right([s for s, _ in series], t) - 1
+def _held(series: list[tuple[int, tuple[float, float, float]]], t: int,
+          stamps: list[int]) -> tuple[float, float, float] | None:
+    """The last value at or before ``t`` (None before the first); ``stamps``: the series' stamps."""
+    i = bisect.bisect_right(stamps, t) - 1
     return series[i][1] if i >= 0 else None
 
 
-def pose_at(poses: list[tuple[int, tuple[float, float, float]]], t: int) -> tuple[float, float, float] | None:
+def pose_at(poses: list[tuple[int, tuple[float, float, float]]], t: int,
+            stamps: list[int] | None = None) -> tuple[float, float, float] | None:
     """The pose at ``t`` (ns), interpolated linearly between the two around it (yaw along the
-    shorter turn); None outside the poses' time span by more than 0.1 s."""
+    shorter turn); None outside the poses' time span by more than 0.1 s. ``stamps``: the poses'
+    stamps (``[s for s, _ in poses]``), listed once by a caller that asks for many times."""
     if not poses:
         return None
-    stamps = [s for s, _ in poses]
+    if stamps is None:
+        stamps = [s for s, _ in poses]
     i = bisect.bisect_left(stamps, t)
     if i < len(stamps) and stamps[i] == t:
         return poses[i][1]
@@ -247,10 +253,11 @@ def build_map(data: BagData, resolution: float = 0.1, margin: float | None = Non
     bad_poses = len(data.poses) - len(poses)
     if bad_poses:
         log.warning("%d of %d %s poses have a NaN or infinite value: dropped", bad_poses, len(data.poses), data.pose_source)
+    stamps = [t for t, _ in poses]
     placed = []
     skipped = 0
     for scan in data.scans:
-        base = pose_at(poses, scan.stamp_ns)
+        base = pose_at(poses, scan.stamp_ns, stamps)
         pose = None if base is None else compose(base, data.mounts.get(scan.frame, (0.0, 0.0, 0.0)))
         if pose is None or not all(math.isfinite(v) for v in pose):
             skipped += 1

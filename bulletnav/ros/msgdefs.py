@@ -10,7 +10,7 @@ is needed on either side.
 
 from __future__ import annotations
 
-import re
+from dataclasses import dataclass
 
 _SEPARATOR = "=" * 80
 
@@ -68,16 +68,52 @@ _PRIMITIVES = {"bool", "byte", "char", "int8", "uint8", "int16", "uint16", "int3
                "float32", "float64", "string", "wstring"}
 
 
+@dataclass(frozen=True)
+class Field:
+    """One field of a message definition."""
+
+    kind: str
+    """A primitive type (``float32``, ``string``) or a message type, fully named (``std_msgs/Header``)."""
+    name: str
+    length: int | None = None
+    """None: one value; -1: a sequence (``float32[]``); N: a fixed array of N (``float64[36]``)."""
+    default: str | None = None
+    """The default written after the name (``float64 w 1``), as text."""
+
+    @property
+    def primitive(self) -> bool:
+        return self.kind in _PRIMITIVES
+
+
+def fields(datatype: str) -> list[Field]:
+    """The fields of ``datatype`` (``"sensor_msgs/msg/LaserScan"`` or ``"sensor_msgs/LaserScan"``) in
+    order, constants left out, message types fully named.
+
+    Raises:
+        KeyError: a type bulletnav does not write.
+    """
+    name = datatype.replace("/msg/", "/")
+    package = name.split("/")[0]
+    out = []
+    for line in _FIELDS[name].splitlines():
+        spec, field_name, *default = line.split(maxsplit=2)
+        if "=" in field_name:  # a constant
+            continue
+        kind, bracket, size = spec.partition("[")
+        if kind not in _PRIMITIVES and "/" not in kind:
+            kind = f"{package}/{kind}"
+        length = (-1 if size == "]" else int(size[:-1])) if bracket else None
+        out.append(Field(kind, field_name, length, default[0] if default else None))
+    return out
+
+
 def _dependencies(name: str) -> list[str]:
     """The types ``name`` uses (depth first, each once), fully named."""
-    package = name.split("/")[0]
     out: list[str] = []
-    for line in _FIELDS[name].splitlines():
-        kind = re.split(r"[\[\s]", line.strip(), maxsplit=1)[0]
-        if kind in _PRIMITIVES or "=" in line.split()[1]:
+    for f in fields(name):
+        if f.primitive:
             continue
-        full = kind if "/" in kind else f"{package}/{kind}"
-        for dep in [*_dependencies(full), full]:
+        for dep in [*_dependencies(f.kind), f.kind]:
             if dep not in out:
                 out.append(dep)
     return out
@@ -111,4 +147,4 @@ def known_types() -> list[str]:
     return sorted(n.replace("/", "/msg/", 1) for n in _FIELDS)
 
 
-__all__ = ["base_topic", "known_types", "msgdef"]
+__all__ = ["Field", "base_topic", "fields", "known_types", "msgdef"]

@@ -13,7 +13,6 @@ almost nothing.
 
 from __future__ import annotations
 
-import struct
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -21,6 +20,7 @@ import numpy as np
 
 from bulletnav.errors import BulletnavError
 from bulletnav.files import discard, finish, temp_path
+from bulletnav.ros.cdr import encode
 from bulletnav.ros.msgdefs import base_topic, msgdef
 
 if TYPE_CHECKING:
@@ -62,30 +62,15 @@ _GRID = "nav_msgs/msg/OccupancyGrid"
 
 
 class Ros2Encoder:
-    """CDR encoding of ROS 2 messages from their ``ros2msg`` definitions (``mcap-ros2-support``'s
-    dynamic serializer, one encoder per message type, built on first use).
-
-    One shortcut, byte for byte the serializer's output (``tests/test_live.py`` compares them): an
-    ``OccupancyGrid``'s cells, its last field (``int8[] data``: a uint32 count, then one byte per
-    cell), are appended as bytes to the encoding of the rest, instead of the serializer's
-    per-cell Python loop (about 70 ms for a 60,000-cell warehouse map)."""
-
-    def __init__(self) -> None:
-        self._encoders: dict[str, Any] = {}
+    """CDR encoding of ROS 2 messages from their ``ros2msg`` definitions (:func:`bulletnav.ros.cdr.encode`:
+    mcap-ros2-support's serializer's bytes, an ``OccupancyGrid``'s cells taken as one NumPy block)."""
 
     def encode(self, kind: str, message: dict[str, Any]) -> bytes:
         """``message`` (nested dicts) of type ``kind`` (``"sensor_msgs/msg/LaserScan"``) as CDR bytes;
         an ``OccupancyGrid``'s ``data`` may be any int8 array-like (a NumPy array included)."""
-        fn = self._encoders.get(kind)
-        if fn is None:
-            from mcap_ros2._dynamic import serialize_dynamic
-
-            fn = self._encoders[kind] = serialize_dynamic(kind, msgdef(kind))[kind]
-        if kind == _GRID:
-            cells = np.ascontiguousarray(message["data"], dtype=np.int8).tobytes()
-            head = fn({**message, "data": []})  # ends with the empty array's count, a uint32 0
-            return head[:-4] + struct.pack("<I", len(cells)) + cells
-        return fn(message)
+        if kind == _GRID and not isinstance(message["data"], np.ndarray):
+            message = {**message, "data": np.asarray(message["data"], dtype=np.int8)}
+        return encode(kind, message)
 
 
 class McapFile:

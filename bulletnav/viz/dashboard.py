@@ -44,9 +44,10 @@ Use::
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -79,6 +80,25 @@ _HIDDEN = ((0.0, 0.0, -5.0), (0.0, 0.0, -5.0))
 """A zero-length line under the floor: how unused path segments are hidden (removing is slow)."""
 _PREVIEW_FLAGS = ("COV_ENABLE_GUI", "COV_ENABLE_RGB_BUFFER_PREVIEW", "COV_ENABLE_DEPTH_BUFFER_PREVIEW",
                   "COV_ENABLE_SEGMENTATION_MARK_PREVIEW")
+
+
+def draw_in_place(ids: list[int], i: int, draw: Callable[..., int]) -> int:
+    """Item ``i`` of a group of GUI debug items (``ids``: their PyBullet ids, -1 for none yet)
+    drawn by ``draw`` (``addUserDebugLine`` or ``addUserDebugText`` with its arguments bound):
+    replaced in place when it exists (each creation is a round trip to the GUI's render thread),
+    else created, ``ids`` growing to hold it. An item that vanished (a rebuilt scene drops them
+    all) is drawn anew. Returns the ``draw`` calls made (1, or 2 for a vanished item)."""
+    calls = 1
+    if i < len(ids) and ids[i] >= 0:
+        new = draw(replaceItemUniqueId=ids[i])
+        if new >= 0:
+            ids[i] = new
+            return calls
+        log.debug("debug item %d vanished; drawing it anew", ids[i])
+        calls += 1
+    ids.extend([-1] * (i + 1 - len(ids)))
+    ids[i] = draw()
+    return calls
 
 
 @dataclass(frozen=True)
@@ -289,19 +309,7 @@ class Dashboard:
               width: float | None = None) -> None:
         """Draw line ``i`` of a group: replace it in place when it exists, else create it."""
         kwargs = dict(lineColorRGB=colour, lineWidth=width or self.config.line_width, physicsClientId=self.cid)
-        if i < len(ids):
-            self.debug_draw_calls += 1
-            new = p.addUserDebugLine(a, b, replaceItemUniqueId=ids[i], **kwargs)
-            if new >= 0:
-                ids[i] = new
-                return
-            log.debug("debug item %d vanished; drawing it anew", ids[i])
-        self.debug_draw_calls += 1
-        new = p.addUserDebugLine(a, b, **kwargs)
-        if i < len(ids):
-            ids[i] = new
-        else:
-            ids.append(new)
+        self.debug_draw_calls += draw_in_place(ids, i, functools.partial(p.addUserDebugLine, a, b, **kwargs))
 
     def _render_camera(self) -> None:
         # in GUI mode every getCameraImage also fills the RGB / depth / segmentation preview
@@ -460,19 +468,7 @@ class Dashboard:
         exists, else created."""
         kwargs = dict(textColorRGB=colour, textSize=1.4, physicsClientId=self.cid)
         ids = self._text_ids if ids is None else ids
-        if i < len(ids):
-            self.debug_text_calls += 1
-            new = p.addUserDebugText(text, pos, replaceItemUniqueId=ids[i], **kwargs)
-            if new >= 0:
-                ids[i] = new
-                return
-            log.debug("debug text %d vanished; drawing it anew", ids[i])
-        self.debug_text_calls += 1
-        new = p.addUserDebugText(text, pos, **kwargs)
-        if i < len(ids):
-            ids[i] = new
-        else:
-            ids.append(new)
+        self.debug_text_calls += draw_in_place(ids, i, functools.partial(p.addUserDebugText, text, pos, **kwargs))
 
     def _overview(self) -> None:
         hx, hy = self.scene.layout.half_extents

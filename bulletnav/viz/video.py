@@ -363,7 +363,7 @@ class EpisodeRecorder:
         self._font = ui_font(13)
         self._small = ui_font(11)
         self._maps: OrderedDict[Layout, tuple[MapView, Image.Image]] = OrderedDict()
-        self._labels: dict[tuple[str, tuple[int, int, int], bool], Image.Image] = {}
+        self._label = LabelCache(self._font, self._small, 64)  # per-episode lines would otherwise pile up
         self._bases: dict[tuple[bool, bool, bool], Image.Image] = {}  # (dynamic, mission, camera): drawn when first needed
         self._goals: tuple[tuple[float, float], ...] = ()
         self._reached: tuple[bool, ...] = ()
@@ -655,18 +655,6 @@ class EpisodeRecorder:
         movers = movers_summary(m.kind for m in scene.movers)
         self._dynamic_text = f"movers: {movers}   last event: {event_text(events[-1])}"
 
-    def _label(self, text: str, colour: tuple[int, int, int] = TEXT, small: bool = True) -> Image.Image:
-        """``text`` on a background box, rendered once and cached: FreeType rendering is
-        most of a frame's drawing time, and most labels repeat from frame to frame."""
-        key = (text, colour, small)
-        img = self._labels.get(key)
-        if img is None:
-            img = label_image(text, self._small if small else self._font, colour)
-            if len(self._labels) > 64:  # per-episode lines would otherwise pile up
-                self._labels.clear()
-            self._labels[key] = img
-        return img
-
     def _render_base(self, dynamic: bool = False, mission: bool = False, camera: bool = True) -> Image.Image:
         """Everything that never changes: background, legend and, with a ``camera``, the depth
         colour bar and the robot's own parts its image shows (body and lidar). With ``dynamic``
@@ -727,6 +715,27 @@ def label_image(text: str, font: Any, colour: tuple[int, int, int] = TEXT) -> Im
     img = Image.new("RGB", (int(math.ceil(width)) + 6, int(y1) + 4), BACKGROUND)
     draw_text(ImageDraw.Draw(img), (3, 2), text, font, colour)
     return img
+
+
+class LabelCache:
+    """Labels (:func:`label_image`) in a frame's two fonts, each rendered once and kept: FreeType
+    rendering is most of a frame's drawing time, and most labels repeat from frame to frame.
+    Call it with ``(text, colour, small)``; beyond ``most`` labels all are dropped and made anew."""
+
+    def __init__(self, font: Any, small_font: Any, most: int) -> None:
+        self.font, self.small_font, self.most = font, small_font, most
+        self._images: dict[tuple[str, tuple[int, int, int], bool], Image.Image] = {}
+
+    def __call__(self, text: str, colour: tuple[int, int, int] = TEXT, small: bool = True) -> Image.Image:
+        """``text`` in ``colour`` on a background box, in the small font or the regular one."""
+        key = (text, colour, small)
+        img = self._images.get(key)
+        if img is None:
+            img = label_image(text, self.small_font if small else self.font, colour)
+            if len(self._images) > self.most:
+                self._images.clear()
+            self._images[key] = img
+        return img
 
 
 def draw_movers(draw: ImageDraw.ImageDraw, view: MapView, movers: Sequence[Any],
