@@ -277,6 +277,23 @@ def display():
         os.environ["DISPLAY"] = old
 
 
+@pytest.fixture
+def drawn_texts(monkeypatch) -> list[str]:
+    """Every text handed to PyBullet's ``addUserDebugText`` during the test, in order (each is
+    still drawn)."""
+    import pybullet
+
+    texts: list[str] = []
+    real_text = pybullet.addUserDebugText
+
+    def counting_text(text, *args, **kwargs):
+        texts.append(text)
+        return real_text(text, *args, **kwargs)
+
+    monkeypatch.setattr(pybullet, "addUserDebugText", counting_text)
+    return texts
+
+
 def bit_equal(a, b) -> bool:
     """Exact equality of nested dicts, sequences and arrays (same dtypes, same bits, same types)."""
     if isinstance(a, dict):

@@ -396,19 +396,9 @@ def test_bench_shield_drives_with_a_trained_model_and_times_its_creeps_apart(cap
 
 
 @pytest.mark.gui
-def test_dashboard_shows_the_shields_share_of_steps_in_a_static_world(display, monkeypatch):
-    import pybullet
-
+def test_dashboard_shows_the_shields_share_of_steps_in_a_static_world(display, drawn_texts):
     from bulletnav.viz.dashboard import Dashboard, DashboardConfig
 
-    texts = []
-    real_text = pybullet.addUserDebugText
-
-    def counting_text(text, *args, **kwargs):
-        texts.append(text)
-        return real_text(text, *args, **kwargs)
-
-    monkeypatch.setattr(pybullet, "addUserDebugText", counting_text)
     env = ShieldWrapper(gym.make("bulletnav/Warehouse-v0", render_mode="human",
                                  world=str(asset_path("worlds", "empty.yaml"))))
     try:
@@ -420,7 +410,7 @@ def test_dashboard_shows_the_shields_share_of_steps_in_a_static_world(display, m
             _, _, _, _, info = env.step(np.array([0.5, 0.0], dtype=np.float32))
             vetoed += info["shield"]["intervened"]
             dash.on_step(info=info)
-        line = [t for t in texts if t.startswith("shield acted")][-1]
+        line = [t for t in drawn_texts if t.startswith("shield acted")][-1]
         assert vetoed > 0 and f"shield acted {100 * vetoed / steps:.1f} % of steps" in line
     finally:
         env.close()

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
-import pybullet
 import pytest
 
 import bulletnav  # noqa: F401  (registers the envs)
@@ -153,22 +152,14 @@ def test_mission_video_numbers_goals_and_shows_progress(tmp_path):
 
 @pytest.mark.gui
 @pytest.mark.slow
-def test_dashboard_marks_every_goal_and_progress(display, monkeypatch):
-    texts_drawn = []
-    real_text = pybullet.addUserDebugText
-
-    def counting_text(text, *args, **kwargs):
-        texts_drawn.append(text)
-        return real_text(text, *args, **kwargs)
-
-    monkeypatch.setattr(pybullet, "addUserDebugText", counting_text)
+def test_dashboard_marks_every_goal_and_progress(display, drawn_texts):
     env = mission_env(render_mode="human")
     try:
         obs, info = env.reset(seed=0, options=SHORT_MISSION)
         dash = Dashboard(env, DashboardConfig(camera_every=10_000))  # no camera renders: slow under Xvfb
         # 3 lines per goal, a number per goal, one progress text
         assert dash.debug_items == 3 * 3 + 3 + 1
-        assert "goals 0/3" in texts_drawn and {"1", "2", "3"} <= set(texts_drawn)
+        assert "goals 0/3" in drawn_texts and {"1", "2", "3"} <= set(drawn_texts)
         nav = Navigator(env.unwrapped.scene, NavigatorConfig(planner="none"))
         nav.reset(info)
         items = set()
@@ -181,18 +172,18 @@ def test_dashboard_marks_every_goal_and_progress(display, monkeypatch):
         assert info["goals_reached"] == 3
         assert dash.goals_shown == 3
         for k in (1, 2, 3):
-            assert f"goals {k}/3" in texts_drawn
+            assert f"goals {k}/3" in drawn_texts
         # items are replaced, never piled up: 9 goal lines, 3 numbers, 1 progress text, the rays
         # (the rays from the first lidar_every-th step on)
         assert items == {3 * 3 + 3 + 1, 3 * 3 + 3 + 1 + len(range(0, 36, dash.config.lidar_ray_stride))}
 
         # Without info (as `bulletnav navigate --gui` calls it), a reset that keeps the scene:
         # the progress still follows the goals reached, from the pose in the target's zone.
-        texts_drawn.clear()
+        drawn_texts.clear()
         obs, info = env.reset(options=SHORT_MISSION)
         nav.reset(info)
         dash.on_reset()
-        assert dash.goals_shown == 0 and "goals 0/3" in texts_drawn
+        assert dash.goals_shown == 0 and "goals 0/3" in drawn_texts
         for _ in range(2000):
             obs, _, terminated, truncated, info = env.step(nav.act(obs, info))
             dash.on_step(nav.path)
