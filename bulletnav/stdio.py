@@ -46,11 +46,12 @@ def import_without_banner(name: str, banners: Sequence[bytes]) -> ModuleType:
             except OSError:  # no such descriptor: nothing of the user's to protect there
                 continue
             try:
-                hold, path = tempfile.mkstemp(prefix="bulletnav-import-")
+                scratch = tempfile.TemporaryFile(prefix="bulletnav-import-")  # unnamed: gone when closed
+                hold = os.dup(scratch.fileno())
+                scratch.close()
             except OSError:  # nowhere to hold it: leave this descriptor alone (the banner shows)
                 os.close(copy)
                 continue
-            os.unlink(path)
             saved.append((fd, copy, hold))
             os.dup2(hold, fd)
         try:
@@ -74,3 +75,16 @@ def import_without_banner(name: str, banners: Sequence[bytes]) -> ModuleType:
                     kept = kept[os.write(fd, kept):]
                 except OSError:  # the descriptor went away meanwhile: nothing to deliver to
                     break
+
+
+def exit_now(status: int) -> None:
+    """End the process at once with ``status`` (``os._exit``): Python's and C's buffered output
+    written out first, nothing else run (no ``finally``, no ``atexit``). For a process that must
+    not wait: a second Ctrl-C, a worker that could not start."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (AttributeError, OSError, ValueError):
+            pass
+    flush_c_stdio()
+    os._exit(status)

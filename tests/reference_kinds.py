@@ -911,6 +911,7 @@ KINDS: dict[str, str] = {
     "test_user_maps.py::test_a_map_yamls_typos_are_map_typos_and_an_image_or_model_as_a_world_says_what_belongs": "contract",
     "test_user_maps.py::test_hostile_map_server_maps_are_refused_in_one_line_before_the_work_grows": "contract",
     "test_file_typos.py::test_a_misspelt_key_or_a_wrong_type_is_one_line_and_exit_2": "contract",
+    "test_file_typos.py::test_an_env_that_a_worker_cannot_build_is_one_line_not_a_connection_reset": "contract",
 }
 
 

@@ -63,3 +63,24 @@ def test_a_misspelt_key_or_a_wrong_type_is_one_line_and_exit_2(kind, name, text,
     for needle in needles:
         assert needle in err, (kind, err)
     assert not Path(tmp_path / "run").exists() and not Path(tmp_path / "bench" / "episodes.jsonl").exists()
+
+
+@pytest.mark.slow  # two env worker processes start (and one dies)
+def test_an_env_that_a_worker_cannot_build_is_one_line_not_a_connection_reset(tmp_path):
+    """A value the file check cannot see (a layout file that is not there) fails in each env
+    worker: the worker ends quietly, the training process builds the env itself and prints its
+    error as one line, exit 2. It was 65-181 lines of worker tracebacks ending in
+    ``ConnectionResetError``."""
+    import subprocess
+    import sys
+
+    hp = tmp_path / "h.yml"
+    hp.write_text(HYPER.format(f"  env_kwargs: {{world: {tmp_path / 'nothere.yaml'}}}"))
+    run = subprocess.run([sys.executable, "-m", "bulletnav.cli", "train", "--algo", "ppo", "--hyperparams", str(hp),
+                          "--timesteps", "4096", "--vec-env", "subproc", "--out", str(tmp_path / "run")],
+                         capture_output=True, text=True, timeout=600)
+    assert run.returncode == 2, run.stderr[-2000:]
+    assert "Traceback" not in run.stderr and "ConnectionResetError" not in run.stderr
+    errors = [line for line in run.stderr.splitlines() if "error" in line]
+    assert errors == [f"bulletnav train: error: {tmp_path / 'nothere.yaml'}: cannot read layout file "
+                      "(No such file or directory)"], run.stderr

@@ -81,8 +81,8 @@ def episode_figures(results: Iterable[Any]) -> dict[str, Any] | None:
         return None
     t_opt = report_t_opt()
     runs = out_rows(rows)
-    per = [{"world_idx": run.world, "barn_time_s": run.time_s, "t_opt_s": t_opt[run.world],
-            "barn_metric": barn_metric(run.success, run.time_s, t_opt[run.world])} for run in runs]
+    per = [{"world_idx": row["world_idx"], "barn_time_s": run.time_s, "t_opt_s": t_opt[row["world_idx"]],
+            "barn_metric": barn_metric(run.success, run.time_s, t_opt[row["world_idx"]])} for row, run in zip(rows, runs)]
     total = summarise(runs, t_opt)
     return {"per_episode": per,
             "summary": {"success": total.success, "collision": total.collision, "timeout": total.timeout,

@@ -24,9 +24,10 @@ import contextlib
 import os
 import shlex
 import signal
-import sys
 import threading
 from collections.abc import Callable, Iterator, Sequence
+
+from bulletnav.stdio import exit_now
 
 EXIT_INTERRUPTED = 130
 """The exit status of a command interrupted by Ctrl-C (128 + SIGINT, what shells report)."""
@@ -170,7 +171,7 @@ def _end_now(signum: int) -> None:
             os.write(2, (line + "\n").encode(errors="replace"))
         except Exception:  # noqa: BLE001 -- nothing may stop the exit
             pass
-    os._exit(exit_status())
+    exit_now(exit_status())
 
 
 @contextlib.contextmanager
@@ -197,12 +198,7 @@ def deferred() -> Iterator[None]:
             signal.signal(sig, signal.SIG_DFL if handler is None else handler)
         if held:
             received.extend(held)
-            for stream in (sys.stdout, sys.stderr):
-                try:
-                    stream.flush()
-                except (OSError, ValueError, AttributeError):
-                    pass
-            os._exit(exit_status())
+            exit_now(exit_status())
 
 
 def interrupted_line(command: str, hurried: bool = False) -> str:

@@ -107,7 +107,10 @@ def _make_vec_env(cfg: TrainConfig, env_kwargs: dict[str, Any], n_envs: int, shi
 
     fns = [make_env_fn(env_kwargs, cfg.env_id, shield) for _ in range(n_envs)]
     if resolve_vec_env(cfg.vec_env, n_envs) == "subproc":
-        venv = SubprocVecEnv([IgnoringInterrupts(fn) for fn in fns], start_method="forkserver")
+        try:
+            venv = SubprocVecEnv([IgnoringInterrupts(fn) for fn in fns], start_method="forkserver")
+        except (EOFError, ConnectionError) as exc:  # a worker could not build its env: build it here to name why
+            raise _why_no_env(fns[0], cfg.env_id, exc) from None
     else:
         venv = DummyVecEnv(fns)
     venv.seed(cfg.seed)
@@ -126,7 +129,33 @@ class IgnoringInterrupts:
         from bulletnav.runs import ignore_interrupts
 
         ignore_interrupts()
-        return self.fn()
+        try:
+            return self.fn()
+        except Exception:  # noqa: BLE001 -- quietly: the training process builds one env itself and names the error
+            from bulletnav.stdio import exit_now
+
+            exit_now(WORKER_ENV_FAILED)
+
+
+WORKER_ENV_FAILED = 3
+"""Exit status of an env worker process that could not build its env (it prints nothing; the
+training process then builds the env itself and raises its error as one line)."""
+
+
+def _why_no_env(fn: Callable[[], Any], env_id: str, lost: BaseException) -> Exception:
+    """The error an env worker died of, found by building its env in this process: a
+    bulletnav error as it is, any other as a ConfigError naming the env id (one line either way)."""
+    from bulletnav.errors import BulletnavError, ConfigError
+
+    try:
+        env = fn()
+    except BulletnavError as exc:
+        return exc
+    except Exception as exc:  # noqa: BLE001 -- a TypeError or ValueError of the env's keywords
+        return ConfigError(f"{env_id}: its env cannot be made: {' '.join(str(exc).split())}")
+    env.close()
+    return RuntimeError(f"{env_id}: an env worker process ended while starting ({type(lost).__name__}), though the "
+                        "env builds in this process: out of memory or processes?")
 
 
 def stop_workers(venv: Any) -> None:
