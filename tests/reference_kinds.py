@@ -912,6 +912,8 @@ KINDS: dict[str, str] = {
     "test_user_maps.py::test_hostile_map_server_maps_are_refused_in_one_line_before_the_work_grows": "contract",
     "test_file_typos.py::test_a_misspelt_key_or_a_wrong_type_is_one_line_and_exit_2": "contract",
     "test_file_typos.py::test_an_env_that_a_worker_cannot_build_is_one_line_not_a_connection_reset": "contract",
+    "test_ros_bagmap.py::test_scans_without_a_ray_direction_are_dropped_and_counted_and_careless_map_options_refused":
+        "contract",
 }
 
 

@@ -264,3 +264,45 @@ def test_scans_take_the_poses_a_linear_search_gives():
     assert (bag_map.scans_used, bag_map.scans_skipped) == (len(placed), len(times) - len(placed))
     assert bag_map.trajectory == placed
 
+
+
+def test_scans_without_a_ray_direction_are_dropped_and_counted_and_careless_map_options_refused(room_bag, tmp_path,
+                                                                                              capsys):
+    """A scan whose angle_min or angle_increment is NaN or infinite has no ray direction: it is
+    dropped and counted (the map was silently empty); a bag of only such scans is refused.
+    ``--plan-to nan inf`` and ``--format ros --out x.png`` are one line each, exit 2."""
+    from types import SimpleNamespace as NS
+
+    from bulletnav.ros.bagmap import collect_bag
+
+    def header(k: int, frame: str):
+        return NS(stamp=NS(sec=1 + k // 10, nanosec=(k % 10) * 100_000_000), frame_id=frame)
+
+    def stream(bad: set[int]):
+        yield "", "sensor_msgs/msg/LaserScan", "/scan"
+        yield "", "nav_msgs/msg/Odometry", "/odom"
+        for k in range(10):
+            pose = NS(position=NS(x=0.1 * k, y=0.0, z=0.0), orientation=NS(x=0.0, y=0.0, z=0.0, w=1.0))
+            odom = NS(header=header(k, "odom"), child_frame_id="base_link", pose=NS(pose=pose))
+            yield "/odom", "nav_msgs/msg/Odometry", lambda m=odom: m
+            inc = math.nan if k in bad else 2 * math.pi / 90
+            scan = NS(header=header(k, "base_link"), angle_min=-math.pi, angle_increment=inc, range_min=0.1,
+                      range_max=8.0, ranges=[2.0] * 90)
+            yield "/scan", "sensor_msgs/msg/LaserScan", lambda m=scan: m
+
+    some = collect_bag(stream({2, 5, 7}), tmp_path / "b.mcap", "/scan", "/odom")
+    assert some.scans_bad_geometry == 3 and len(some.scans) == 7
+    with pytest.raises(BulletnavError, match=r"b\.mcap: every one of the 10 scans on /scan has a NaN or infinite "
+                                             "angle_min or angle_increment"):
+        collect_bag(stream(set(range(10))), tmp_path / "b.mcap", "/scan", "/odom")
+    for argv, needle in ((["--plan-to", "nan", "inf"], "--plan-to: expected a finite coordinate in m"),
+                         (["--format", "ros", "--out", str(tmp_path / "x.png")],
+                          f"--out {tmp_path / 'x.png'}: --format ros writes STEM.yaml + STEM.pgm")):
+        argv = ["map", str(room_bag), "--scan-topic", "/front_scan", "--odom-topic", "/wheel_odom", *argv]
+        try:
+            code = main(argv)
+        except SystemExit as exc:  # argparse's own refusal
+            code = exc.code
+        err = capsys.readouterr().err.strip()
+        assert code == 2 and err.count("\n") == 0 and needle in err, err
+    assert not (tmp_path / "x.png.yaml").exists()

@@ -79,6 +79,8 @@ FRACTION = float_type(lambda v: 0 < v <= 1, "a rate above 0 and at most 1", "FRA
 """A rate in (0, 1] (``--stop-at-success``)."""
 positive_seconds = float_type(lambda v: 0 < v < _INF, "seconds > 0", "positive_seconds")
 """Seconds > 0, finite (``--duration``, ``--seconds``)."""
+finite_metres = float_type(lambda v: -1.0e6 <= v <= 1.0e6, "a finite coordinate in m (within 1,000 km)", "finite_metres")
+"""A coordinate in metres, finite (``map --plan-to X Y``)."""
 MIN_SPEED = float_type(lambda v: -_INF < v <= 0, "a speed <= 0 m/s", "MIN_SPEED")
 """``--min-speed``: the lowest commanded speed, m/s <= 0 (negative: the robot may back up)."""
 speed_factor = float_type(lambda v: v == 0 or SPEED_RANGE[0] <= v <= SPEED_RANGE[1],

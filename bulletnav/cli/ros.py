@@ -13,6 +13,7 @@ from bulletnav.cli.args import (
     VIDEO_FILE,
     add_command,
     add_overwrite_arg,
+    finite_metres,
     non_negative_seconds,
     positive_seconds,
 )
@@ -36,7 +37,7 @@ def _register_map(sub) -> None:
                     help="write the map: a PNG with the path (--format png), or STEM.yaml + STEM.pgm (--format ros)")
     mp.add_argument("--format", choices=("png", "ros"), default="png",
                     help="--out as a PNG picture (default), or as ros: the map YAML and PGM Nav2's map_server reads")
-    mp.add_argument("--plan-to", type=float, nargs=2, metavar=("X", "Y"), default=None,
+    mp.add_argument("--plan-to", type=finite_metres, nargs=2, metavar=("X", "Y"), default=None,
                     help="plan an A* path on the map from the last scan's position to (X, Y) m")
     mp.add_argument("--json", action="store_true", help="print one JSON object")
     add_overwrite_arg(mp, "--out files")
@@ -98,7 +99,7 @@ def cmd_map(args: argparse.Namespace) -> int:
     state = bag_map.mapper.state()
     summary = {"bag": str(args.bag), "scan_topic": args.scan_topic, "pose_source": data.pose_source,
                "fixed_frame": data.fixed_frame, "scans": bag_map.scans_used, "scans_without_pose": bag_map.scans_skipped,
-               "poses_skipped": bag_map.poses_skipped,
+               "poses_skipped": bag_map.poses_skipped, "scans_bad_geometry": data.scans_bad_geometry,
                "resolution_m": args.resolution, "cells": list(state.shape),
                "occupied_cells": int((state > 0).sum()), "free_cells": int((state == 0).sum()),
                "plan_to": list(goal) if goal else None, "path_found": None if goal is None else path is not None,
@@ -112,6 +113,8 @@ def cmd_map(args: argparse.Namespace) -> int:
           f"of {args.resolution:g} m")
     if bag_map.poses_skipped:
         print(f"{bag_map.poses_skipped} of the bag's poses have a NaN or infinite value: dropped")
+    if data.scans_bad_geometry:
+        print(f"{data.scans_bad_geometry} scans have a NaN or infinite angle_min or angle_increment: dropped")
     if goal:
         print(f"A* to ({goal[0]:g}, {goal[1]:g}): " + (f"{summary['path_length_m']:.2f} m" if path else "no path"))
     if args.out:
@@ -135,7 +138,11 @@ def _map_out(args: argparse.Namespace) -> str | list[str] | None:
             raise ConfigError(f"--out {exc} (or pass --format ros for a map_server map)") from None
         refuse_existing_files(args, "out")
         return args.out
-    stem = args.out[:-4] if args.out.lower().endswith((".pgm", ".yml")) else args.out
+    lower = args.out.lower()
+    if lower.endswith((".png", ".jpg", ".jpeg", ".ppm", ".pbm")):
+        raise ConfigError(f"--out {args.out}: --format ros writes STEM.yaml + STEM.pgm (map_server's PGM): pass the "
+                          f"stem, e.g. --out {args.out.rsplit('.', 1)[0]}")
+    stem = args.out[:-4] if lower.endswith((".pgm", ".yml")) else args.out
     stem = stem[:-5] if stem.lower().endswith(".yaml") else stem
     out = [stem + ".yaml", stem + ".pgm"]
     for file in out:

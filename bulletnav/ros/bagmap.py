@@ -60,6 +60,9 @@ class BagData:
     base_frame: str = "base_link"
     fixed_frame: str = "odom"
     pose_source: str = "odometry"
+    scans_bad_geometry: int = 0
+    """Scans dropped for a NaN or infinite ``angle_min`` or ``angle_increment`` (no ray has a
+    direction then); the map is built from the others."""
 
 
 def _stamp_ns(header: Any) -> int:
@@ -119,6 +122,7 @@ def collect_bag(stream: Iterator[tuple[str, str, Any]], path: Path, scan_topic: 
     tf: dict[tuple[str, str], list[tuple[int, tuple[float, float, float]]]] = {}
     mounts: dict[tuple[str, str], tuple[float, float, float]] = {}
     types: dict[str, str] = {}
+    bad_geometry = 0
     for topic, typ, decode in stream:
         if not topic:  # a topic's announcement: (``""``, type, name)
             types[decode] = typ
@@ -127,6 +131,9 @@ def collect_bag(stream: Iterator[tuple[str, str, Any]], path: Path, scan_topic: 
             if typ != SCAN_TYPE:
                 raise BulletnavError(f"{path}: topic {scan_topic} holds {typ} messages, not {SCAN_TYPE}")
             msg = decode()
+            if not (math.isfinite(float(msg.angle_min)) and math.isfinite(float(msg.angle_increment))):
+                bad_geometry += 1  # no ray has a direction: dropped, and counted
+                continue
             n = len(msg.ranges)
             angles = float(msg.angle_min) + float(msg.angle_increment) * np.arange(n)
             scans.append(Scan(_stamp_ns(msg.header), msg.header.frame_id, angles, np.asarray(msg.ranges, dtype=np.float64),
@@ -148,6 +155,9 @@ def collect_bag(stream: Iterator[tuple[str, str, Any]], path: Path, scan_topic: 
                 else:
                     tf.setdefault(key, []).append((_stamp_ns(t.header), pose2d))
     have = ", ".join(f"{t} ({k})" for t, k in sorted(types.items())) or "none"
+    if not scans and bad_geometry:
+        raise BulletnavError(f"{path}: every one of the {bad_geometry} scans on {scan_topic} has a NaN or infinite "
+                             "angle_min or angle_increment: no ray has a direction")
     if not scans:
         raise BulletnavError(f"{path}: no {SCAN_TYPE} messages on {scan_topic} (topics: {have}); "
                              "name the scan topic with --scan-topic")
@@ -155,13 +165,13 @@ def collect_bag(stream: Iterator[tuple[str, str, Any]], path: Path, scan_topic: 
     if odom:
         fixed, base = odom_frames or ("odom", "base_link")
         sensor_mounts = {child: pose for (parent, child), pose in mounts.items() if parent == base}
-        return BagData(scans, sorted(odom), sensor_mounts, base, fixed, "odometry")
+        return BagData(scans, sorted(odom), sensor_mounts, base, fixed, "odometry", bad_geometry)
     poses = _tf_poses(tf, mounts, scans[0].frame)
     if poses is None:
         raise BulletnavError(f"{path}: no pose for the scans: no {ODOM_TYPE} on {odom_topic} and no /tf chain to the "
                              f"scan frame {scans[0].frame!r} (topics: {have}); name the odometry topic with --odom-topic")
     fixed, chain_poses = poses
-    return BagData(scans, chain_poses, {}, scans[0].frame, fixed, "tf")
+    return BagData(scans, chain_poses, {}, scans[0].frame, fixed, "tf", bad_geometry)
 
 
 
