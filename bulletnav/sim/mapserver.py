@@ -209,6 +209,8 @@ def read_image(meta: MapMeta, where: str) -> tuple[np.ndarray, float]:
             elif mode not in ("L", "LA", "RGB", "RGBA"):
                 img = img.convert("RGBA" if "A" in mode else "RGB")
             return np.asarray(img, dtype=np.uint8), 255.0
+    except LayoutError:  # the limit's own message, as it is
+        raise
     except (UnidentifiedImageError, OSError, ValueError, SyntaxError, Image.DecompressionBombError) as exc:
         raise LayoutError(f"{where}: field 'image' names {meta.image}, not a readable PGM or PNG image ({exc})") from None
 
