@@ -233,6 +233,8 @@ BAR = "=" * 60
 
 def barn_episode_line(r) -> str | None:
     """An episode's BARN figures as the benchmark's tables compute them (None off BARN-v0)."""
+    if r.barn_info is None:  # not a BARN episode: return before importing anything (an interrupt
+        return None          # between the episode's line and its count must find nothing in between)
     from bulletnav.benchmark.barn import episode_figures
 
     figures = episode_figures([r])
