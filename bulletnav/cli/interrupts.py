@@ -25,6 +25,7 @@ import os
 import shlex
 import signal
 import threading
+import time
 from collections.abc import Callable, Iterator, Sequence
 
 from bulletnav.stdio import exit_now
@@ -155,8 +156,18 @@ def _watch(read_end: int, handler: Callable) -> None:
             if not ours:
                 continue
             seen += 1
-            if seen >= 2 or not _taken.wait(GRACE_S):
+            if seen >= 2 or not _taken_within(GRACE_S):
                 _end_now(signum)
+
+
+def _taken_within(seconds: float) -> bool:
+    """Whether the main thread takes the signal within ``seconds``. After the wait the watcher
+    yields once more: a main thread that held the GIL through a long call (so that this thread
+    could not even time out until it returned) runs the handler as soon as it may."""
+    if _taken.wait(seconds):
+        return True
+    time.sleep(0.05)  # lets the main thread run its pending handler
+    return _taken.is_set()
 
 
 def _end_now(signum: int) -> None:
@@ -188,7 +199,8 @@ def deferred() -> Iterator[None]:
     def hold(signum, frame):
         held.append(signum)
 
-    old = {sig: signal.signal(sig, hold) for sig in (signal.SIGINT, signal.SIGTERM)}
+    old = {sig: signal.signal(sig, hold) for sig in (signal.SIGINT, signal.SIGTERM)
+           if signal.getsignal(sig) != signal.SIG_IGN}  # one the process ignores stays ignored
     _deferring = True
     try:
         yield
