@@ -84,7 +84,7 @@ def exit_now(status: int) -> None:
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
-        except (AttributeError, OSError, ValueError):
+        except Exception:  # noqa: BLE001 -- a closed stream, a reentrant flush from a signal handler: exit anyway
             pass
     flush_c_stdio()
     os._exit(status)

@@ -2,8 +2,9 @@
 bounded depth: the SDF worlds' and URDF robots' parser.
 
 Expat reads the file (it detects UTF-8, UTF-16 with or without a byte-order mark, and the
-encoding the XML declaration names) and hands each piece to handlers that build an
-:mod:`xml.etree.ElementTree` tree as ``ElementTree.fromstring`` does. A document type
+single-byte encodings an XML declaration may name; a multi-byte one such as Shift_JIS is
+refused) and hands each piece to handlers that build an :mod:`xml.etree.ElementTree` tree as
+``ElementTree.fromstring`` does. A document type
 declaration, an entity declaration (general or parameter, internal or external) or a reference
 to an external entity is refused by the handlers the moment Expat meets it, so nothing from the
 file is ever expanded, in any encoding. (A byte search for ``<!ENTITY`` missed a UTF-16 file.)
@@ -72,6 +73,8 @@ def parse_xml(data: bytes, max_depth: int = MAX_DEPTH) -> ET.Element:
     except expat.ExpatError as exc:
         raise XmlRefused(f"not well-formed XML ({expat.ErrorString(exc.code)}: line {exc.lineno}, "
                          f"column {exc.offset + 1})") from None
+    except (ValueError, LookupError) as exc:  # an encoding Expat cannot read (multi-byte ones such as Shift_JIS)
+        raise XmlRefused(f"an encoding bulletnav cannot read ({exc}); save it as UTF-8") from None
     return builder.close()
 
 

@@ -914,6 +914,7 @@ KINDS: dict[str, str] = {
     "test_file_typos.py::test_an_env_that_a_worker_cannot_build_is_one_line_not_a_connection_reset": "contract",
     "test_ros_bagmap.py::test_scans_without_a_ray_direction_are_dropped_and_counted_and_careless_map_options_refused":
         "contract",
+    "test_interrupts.py::test_a_forked_child_and_a_library_that_takes_ctrl_c_do_not_end_the_command": "contract",
 }
 
 

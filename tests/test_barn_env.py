@@ -156,7 +156,12 @@ def test_barn_refuses_keywords_that_change_its_rules_and_defaults_to_a_training_
     for key, value in (("num_obstacles", 10), ("world_size", 12.0), ("steps_per_goal", 100)):
         with pytest.raises(TypeError, match=f"runs BARN's worlds, start and goal: {key}="):
             gym.make("bulletnav/BARN-v0", **{key: value})
-    same = gym.make("bulletnav/BARN-v0", goal_radius=1, collision_terminates=True, forklifts=[0, 0])
+    from bulletnav.envs.warehouse import make_config
+
+    for config in (make_config(None, goals=3), make_config(None, forklifts=(1, 2))):  # a whole config keeps the rules too
+        with pytest.raises(TypeError, match="keeps BARN's rules"):
+            gym.make("bulletnav/BARN-v0", config=config)
+    same = gym.make("bulletnav/BARN-v0", goal_radius=1, collision_terminates=True, forklifts=0, workers=[0, 0])
     default = gym.make("bulletnav/BARN-v0")
     try:
         assert same.unwrapped.config.task.goal_radius == 1.0

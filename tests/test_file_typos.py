@@ -31,6 +31,8 @@ CASES = [
      ["policy_kwargs: unknown argument of ActorCriticPolicy 'net_arc' (did you mean 'net_arch'?)"]),
     ("hyperparameters: wrong type", "h.yml", HYPER.format("  n_steps: many"), "train",
      ["bulletnav/Warehouse-v0.n_steps must be a number, got 'many'"]),
+    ("hyperparameters: policy of a wrong type", "h.yml", HYPER.replace("policy: MlpPolicy", "policy: 5").format(
+        "  policy_kwargs: {net_arch: [64]}"), "train", ["bulletnav/Warehouse-v0.policy must name a policy class", "got 5"]),
     ("hyperparameters: wrong env keyword type", "h.yml", HYPER.format("  env_kwargs: {lidar_rays: lots}"), "train",
      ["env_kwargs", "lidar_rays"]),
     ("suite: misspelt key", "s.yaml", SUITE.format("episods: 3"), "benchmark", ["episods"]),

@@ -373,3 +373,59 @@ def test_a_signal_while_the_interrupted_line_is_printed_waits_for_it_then_ends_t
     with 143 (it was dropped before, and the command went on)."""
     status, err, _ = _signalled(HELD, [], tmp_path)
     assert status == 143 and err == "the line, whole\n", err
+
+
+FORKED = """
+import multiprocessing as mp, signal, time
+from bulletnav.cli import interrupts
+interrupts.start(["bench"], "bench")
+
+def child():
+    time.sleep(30)
+
+with interrupts.signals_as_interrupt():
+    p = mp.get_context("fork").Process(target=child)
+    p.start()
+    print("ready", flush=True)
+    time.sleep(0.3)
+    p.terminate()  # SIGTERM to the child alone: it must not reach the parent through the wakeup pipe
+    p.join()
+    time.sleep(2.0)
+    print("parent lived", flush=True)
+"""
+
+LIBRARY = """
+import signal, time
+from bulletnav.cli import interrupts
+interrupts.start(["sweep"], "sweep")
+with interrupts.signals_as_interrupt():
+    interrupts.library_handles_signals()
+    ours = signal.getsignal(signal.SIGINT)
+    def tune(signum, frame):  # Ray Tune's first Ctrl-C: take it, put the previous handler back
+        signal.signal(signal.SIGINT, ours)
+    signal.signal(signal.SIGINT, tune)
+    print("ready", flush=True)
+    t = time.monotonic()
+    while time.monotonic() - t < 2.5:
+        pass
+    print("library saved and ended", flush=True)
+"""
+
+
+def test_a_forked_child_and_a_library_that_takes_ctrl_c_do_not_end_the_command(tmp_path):
+    """A child forked inside a command gets its signal alone (it wrote into the parent's wakeup
+    pipe, and the parent ended itself); a library that takes Ctrl-C itself (Ray Tune: it puts our
+    handler back after its own) keeps it, and the command goes on."""
+    for code, sig, done in ((FORKED, None, "parent lived"), (LIBRARY, signal.SIGINT, "library saved and ended")):
+        out = tmp_path / "out"
+        with out.open("wb") as o:
+            proc = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, stdout=subprocess.PIPE, stderr=o,
+                                    preexec_fn=_as_in_a_terminal)
+            assert proc.stdout.readline().strip() == b"ready"
+            if sig is not None:
+                time.sleep(0.2)
+                proc.send_signal(sig)
+            rest = proc.stdout.read().decode()
+            status = proc.wait(timeout=HANG_S)
+        assert status == 0 and done in rest, (status, rest, out.read_text()[-2000:])
+        assert "interrupted at once" not in out.read_text()

@@ -183,6 +183,26 @@ def test_a_db3_whose_tables_are_views_is_refused_at_once(tmp_path):
     assert run.stderr.strip() == (f"bulletnav map: error: {endless}: not a ROS 2 sqlite3 bag: 'messages' is a view, "
                                   "not a plain table (bulletnav does not run a bag's own SQL)")
     assert time.monotonic() - t < 300  # a hang detector: it never ended before
+    generated = tmp_path / "generated.db3"  # a generated column: an expression of the author's on every read
+    db = sqlite3.connect(generated)
+    db.execute("CREATE TABLE topics (id INTEGER PRIMARY KEY, name TEXT, type TEXT, serialization_format TEXT)")
+    db.execute("CREATE TABLE messages (id INTEGER PRIMARY KEY, topic_id INTEGER, timestamp INTEGER, "
+               "data BLOB AS (zeroblob(1000000000)))")
+    db.commit()
+    db.close()
+    with pytest.raises(BulletnavError, match="generated.db3: not a ROS 2 sqlite3 bag: messages.data is a generated column"):
+        read_rosbag(generated)
+    virtual = tmp_path / "virtual.db3"  # a virtual table whose CREATE text is dressed up by a hand-edited schema
+    db = sqlite3.connect(virtual)
+    db.execute("CREATE TABLE topics (id INTEGER PRIMARY KEY, name TEXT, type TEXT, serialization_format TEXT)")
+    db.execute("CREATE VIRTUAL TABLE messages USING fts5(data)")
+    db.execute("PRAGMA writable_schema = ON")
+    db.execute("UPDATE sqlite_master SET sql = replace(sql, 'CREATE VIRTUAL', 'CREATE /*x*/ VIRTUAL') "
+               "WHERE name = 'messages'")
+    db.commit()
+    db.close()
+    with pytest.raises(BulletnavError, match="virtual.db3: not a ROS 2 sqlite3 bag: 'messages' is a virtual table"):
+        read_rosbag(virtual)
     missing = tmp_path / "missing.db3"
     db = sqlite3.connect(missing)
     db.execute("CREATE TABLE topics (id INTEGER, name TEXT, type TEXT)")

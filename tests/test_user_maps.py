@@ -370,6 +370,9 @@ def test_sdf_refusals_name_the_file_and_model(tmp_path):
     entity = tmp_path / "ent.sdf"  # an entity declaration outside a DTD is not XML at all
     entity.write_text("<sdf><!ENTITY x 'y'><world name='w'/></sdf>")
     _refused(entity, "not well-formed XML")
+    sjis = tmp_path / "sjis.world"  # a multi-byte encoding Expat cannot read: one line, not a ValueError's traceback
+    sjis.write_bytes(b"<?xml version='1.0' encoding='shift_jis'?><sdf><world name='w'/></sdf>")
+    _refused(sjis, "an encoding bulletnav cannot read", "save it as UTF-8")
     deep = tmp_path / "deep.world"  # 3,000 nested models: one line, not a RecursionError
     deep.write_text("<sdf><world name='w'>" + "<model name='m'>" * 3000 + "</model>" * 3000 + "</world></sdf>")
     _refused(deep, "elements nested more than 100 deep")
@@ -431,6 +434,9 @@ def test_hostile_map_server_maps_are_refused_in_one_line_before_the_work_grows(t
         messages.append(_refused(path, "field 'image' must name a file in the map YAML's folder or below it"))
     assert len({m.replace(m.split("got ")[-1], "") for m in messages}) == 1  # nothing says whether it exists
     _pgm(inner / "m.pgm", np.pad(np.full((38, 38), 254), 1))
+    absolute = inner / "abs.yaml"  # ROS 1's map_saver -f /abs/stem writes the image's absolute path: inside, so fine
+    absolute.write_text(f"image: {inner / 'm.pgm'}\n" + base)
+    assert load_layout(absolute).size == pytest.approx((4.0, 4.0))
     for text, needles in (("image: m.pgm\n" + base.replace("origin: [0, 0, 0]", "origin: [1.0e+300, 0, 0]"),
                            ("field 'origin'", "within 1e+06 m")),
                           ("image: m.pgm\n" + base + "height: 1.0e+300\n", ("field 'height'", "at most 100 m"))):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Sequence
 from typing import Any
 
@@ -57,13 +58,16 @@ def check_barn_kwargs(kwargs: dict[str, Any]) -> None:
 
 
 def _same(value: Any, rule: Any) -> bool:
-    """``value`` equals BARN's ``rule`` (a list for a tuple, an int for a float)."""
+    """``value`` equals BARN's ``rule`` as Warehouse-v0 would read it: a list for a tuple, one
+    number for a (min, max) pair of equal numbers, any real number (numpy's too) for a number."""
     if isinstance(rule, tuple):
+        if isinstance(value, numbers.Real) and not isinstance(value, bool):
+            return all(_same(value, r) for r in rule)
         return isinstance(value, (list, tuple)) and len(value) == len(rule) and all(_same(v, r) for v, r in zip(value, rule))
-    if isinstance(rule, bool) or isinstance(value, bool):
-        return value is rule
+    if isinstance(rule, bool) or isinstance(value, (bool, np.bool_)):
+        return isinstance(value, (bool, np.bool_)) and bool(value) is rule
     if isinstance(rule, (int, float)):
-        return isinstance(value, (int, float)) and value == rule
+        return isinstance(value, numbers.Real) and value == rule
     return value == rule
 
 
@@ -124,6 +128,11 @@ class BarnEnv(WarehouseEnv):
             index = self._pool[0]
         self._pool_rng: np.random.Generator | None = None
         super().__init__(render_mode, config, **{**BARN_KWARGS, **kwargs})
+        task, dynamic = self.config.task, self.config.dynamic
+        made = {"goal_radius": task.goal_radius, "collision_terminates": task.collision_terminates, "goals": task.goals,
+                "goal_order": task.goal_order, "forklifts": tuple(dynamic.forklifts), "workers": tuple(dynamic.workers),
+                "pallet_events_per_min": dynamic.pallet_events_per_min}
+        check_barn_kwargs(made)  # a config= given whole must keep BARN's rules too
         scene = self._scene
         scene.sim.world = scene.world = BarnPhysicsWorld(scene.cid, self.config.physics)
         self._use_world(index)

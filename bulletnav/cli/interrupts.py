@@ -44,6 +44,36 @@ received: list[int] = []
 """The signals this command has taken (SIGINT, SIGTERM), in order; the first sets the exit status."""
 _taken = threading.Event()
 _deferring = False
+_library_owned = False
+"""True while a library handles Ctrl-C itself (Ray Tune's first Ctrl-C saves and ends the
+sweep): the watcher then ends nothing (:func:`library_handles_signals`)."""
+_ending = threading.Lock()
+_main_pid = os.getpid()
+
+
+def library_handles_signals() -> None:
+    """From now on in this command, a library takes Ctrl-C and SIGTERM itself (it installs and
+    restores its own handlers, ours among them): the watcher ends nothing, and a second signal
+    is the library's too."""
+    global _library_owned
+    _library_owned = True
+
+
+def _in_forked_child() -> None:
+    """A child forked from a command (a fork-context worker) must not write its signals into
+    the parent's wakeup pipe, nor end itself through the parent's handler: both are reset."""
+    if os.getpid() == _main_pid:
+        return
+    try:
+        signal.set_wakeup_fd(-1)
+        for sig, default in ((signal.SIGINT, signal.default_int_handler), (signal.SIGTERM, signal.SIG_DFL)):
+            if getattr(signal.getsignal(sig), "__name__", "") == "interrupt":
+                signal.signal(sig, default)
+    except (ValueError, OSError):  # not the main thread of the child: nothing to reset there
+        pass
+
+
+os.register_at_fork(after_in_child=_in_forked_child)
 
 
 def exit_status() -> int:
@@ -54,8 +84,8 @@ def exit_status() -> int:
 def start(argv: Sequence[str], command: str = "") -> None:
     """A new command: its arguments (as typed after ``bulletnav``), its name, no note and no
     signal yet."""
-    global _argv, _note, _command
-    _argv, _note, _command = list(argv), None, command
+    global _argv, _note, _command, _library_owned
+    _argv, _note, _command, _library_owned = list(argv), None, command, False
     received.clear()
     _taken.clear()
 
@@ -98,7 +128,7 @@ def signals_as_interrupt() -> Iterator[None]:
 
     def interrupt(signum, frame):
         received.append(signum)
-        if len(received) > 1:  # asked twice: the cleanup of the first is not waited for
+        if len(received) > 1 and not _library_owned:  # asked twice: the cleanup of the first is not waited for
             _end_now(signum)
         _taken.set()
         raise KeyboardInterrupt(f"signal {signum}")
@@ -120,10 +150,10 @@ def signals_as_interrupt() -> Iterator[None]:
         read_end = write_end = -1
         old_fd = -1
     watcher = None
-    if read_end >= 0:
-        watcher = threading.Thread(target=_watch, args=(read_end, interrupt), name="bulletnav-signals", daemon=True)
-        watcher.start()
     try:
+        if read_end >= 0:
+            watcher = threading.Thread(target=_watch, args=(read_end, interrupt), name="bulletnav-signals", daemon=True)
+            watcher.start()
         yield
     finally:
         for sig, handler in old.items():
@@ -138,8 +168,9 @@ def signals_as_interrupt() -> Iterator[None]:
 
 def _watch(read_end: int, handler: Callable) -> None:
     """The watcher thread: every signal number the C handler writes to the pipe, as it comes.
-    Only signals whose Python handler is still ``handler`` count: within :func:`deferred`, or
-    where a library put its own handler (Ray Tune's first Ctrl-C), the signal is theirs."""
+    Only signals whose Python handler is still ``handler`` count, and none once a library has
+    said it handles them (:func:`library_handles_signals`): within :func:`deferred` the signal
+    is deferred's, and Ray Tune puts our handler back after taking its own first Ctrl-C."""
     seen = 0
     while True:
         try:
@@ -150,7 +181,7 @@ def _watch(read_end: int, handler: Callable) -> None:
             return
         for signum in data:
             try:
-                ours = signal.getsignal(signum) is handler
+                ours = signal.getsignal(signum) is handler and not _library_owned
             except ValueError:
                 ours = False
             if not ours:
@@ -174,6 +205,8 @@ def _end_now(signum: int) -> None:
     """End the process at once: the interrupted line (unless one is being printed), exit 128 +
     the first signal's number. Nothing is cleaned up: the caller asked twice, or the main
     thread is stuck in a C call."""
+    if not _ending.acquire(blocking=False):  # the other thread is ending it already: one line
+        return
     if signum not in received:
         received.append(signum)
     if not _deferring:

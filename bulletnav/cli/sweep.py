@@ -43,6 +43,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     # a second Ctrl-C, while Ray Tune was saving its state, or a SIGTERM: the trials' own checkpoints are kept
     interrupts.on_interrupt(lambda: f"interrupted; finished trials and checkpoints kept in {experiment}; "
                                     f"continue with: {interrupts.continue_command()}")
+    interrupts.library_handles_signals()  # Ray Tune takes Ctrl-C itself: its first one saves and ends the sweep
     record = run_sweep(spec, opts)
     if args.json:
         print_json(record)

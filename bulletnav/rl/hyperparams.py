@@ -142,6 +142,9 @@ def check_hyperparams(hp: dict[str, Any], algo: str, env_id: str, where: str) ->
         for key in normalize:
             if key not in VECNORMALIZE_KEYS:
                 raise _unknown(f"{block}.normalize", "VecNormalize key", key, VECNORMALIZE_KEYS)
+    policy = hp.get("policy", "MlpPolicy")
+    if not isinstance(policy, str):
+        raise ConfigError(f"{block}.policy must name a policy class (MlpPolicy or a dotted name), got {show(policy)}")
     policy_kwargs = hp.get("policy_kwargs")
     if isinstance(policy_kwargs, dict):
         policy = policy_class(hp)

@@ -154,8 +154,8 @@ def _why_no_env(fn: Callable[[], Any], env_id: str, lost: BaseException) -> Exce
     except Exception as exc:  # noqa: BLE001 -- a TypeError or ValueError of the env's keywords
         return ConfigError(f"{env_id}: its env cannot be made: {' '.join(str(exc).split())}")
     env.close()
-    return RuntimeError(f"{env_id}: an env worker process ended while starting ({type(lost).__name__}), though the "
-                        "env builds in this process: out of memory or processes?")
+    return BulletnavError(f"{env_id}: an env worker process ended while starting ({type(lost).__name__}), though the "
+                          "env builds in this process: out of memory or processes?")
 
 
 def stop_workers(venv: Any) -> None:

@@ -79,15 +79,23 @@ def _sqlite(path: Path, wanted: tuple[str, ...]) -> Iterator[tuple[str, str, Any
         db.execute("PRAGMA trusted_schema = OFF")
         db.execute("PRAGMA query_only = ON")
         db.set_progress_handler(_let_signals_in, 100_000)
-        kinds = {name: (kind, sql or "") for name, kind, sql in
-                 db.execute("SELECT name, type, sql FROM sqlite_master WHERE name IN (?, ?)", BAG_TABLES)}
+        # SQLite's own account of each table (PRAGMA table_list: table, view, virtual or shadow),
+        # not the text of its CREATE statement, which a hand-edited schema can dress up
+        kinds = {name: kind for _schema, name, kind, *_rest in db.execute("PRAGMA main.table_list")
+                 if name in BAG_TABLES}
         for table in BAG_TABLES:
-            kind, sql = kinds.get(table, ("", ""))
+            kind = kinds.get(table, "")
             if not kind:
                 raise BulletnavError(f"{path}: not a ROS 2 sqlite3 bag: it has no {table!r} table")
-            if kind != "table" or sql.lstrip().upper().startswith("CREATE VIRTUAL"):
-                what = "a virtual table" if kind == "table" else f"a {kind}"
+            if kind != "table":
+                what = "a virtual table" if kind == "virtual" else f"a {kind}"
                 raise BulletnavError(f"{path}: not a ROS 2 sqlite3 bag: {table!r} is {what}, not a plain table "
+                                     "(bulletnav does not run a bag's own SQL)")
+            # a generated column (hidden 2 or 3) is an expression of the file's author, run on every read
+            generated = [col for _cid, col, *_mid, hidden in db.execute(f"PRAGMA main.table_xinfo({table})")
+                         if hidden in (2, 3)]
+            if generated:
+                raise BulletnavError(f"{path}: not a ROS 2 sqlite3 bag: {table}.{generated[0]} is a generated column "
                                      "(bulletnav does not run a bag's own SQL)")
         topics = {tid: (name, typ) for tid, name, typ in db.execute("SELECT id, name, type FROM topics")}
         yield from (("", typ, name) for name, typ in topics.values())

@@ -128,19 +128,19 @@ def read_meta(data: Any, where: str) -> MapMeta:
 
 
 def _inside_folder(image: str, where: str) -> Path:
-    """The image a map YAML names, which must lie in the YAML's folder or below it: an absolute
-    path or one that climbs out with ``..`` (or a link out) is refused with the same message
+    """The image a map YAML names, which must lie in the YAML's folder or below it: a path that
+    leads elsewhere (absolute, climbing out with ``..``, or a link out) is refused with the same message
     whether or not the file exists, so a map file cannot read, nor tell whether there is, a
     file elsewhere on the reader's machine."""
     folder = Path(where).parent
     path = Path(image)
-    try:
-        inside = not path.is_absolute() and (folder / path).resolve().is_relative_to(folder.resolve())
+    try:  # an absolute path is fine where it points into the folder (ROS 1's map_saver -f /abs/stem writes one)
+        inside = (folder / path).resolve().is_relative_to(folder.resolve())
     except (OSError, RuntimeError, ValueError):  # a link loop, a NUL byte
         inside = False
     if not inside:
-        raise LayoutError(f"{where}: field 'image' must name a file in the map YAML's folder or below it "
-                          f"(a relative path that stays inside), got {show(image)}")
+        raise LayoutError(f"{where}: field 'image' must name a file in the map YAML's folder or below it, "
+                          f"got {show(image)}")
     return folder / path
 
 
@@ -175,7 +175,7 @@ def cell_values(rgb: np.ndarray, alpha: np.ndarray | None, meta: MapMeta) -> np.
 
 
 def read_image(meta: MapMeta, where: str) -> tuple[np.ndarray, float]:
-    """The image's pixels as stored (uint8, or uint16 for a 16-bit grey image): ``(H, W)`` grey,
+    """The image's pixels as stored (uint8; uint16 for a 16-bit grey image, int64 for a 32-bit one): ``(H, W)`` grey,
     or ``(H, W, C)`` with C = 2 (grey, alpha), 3 (RGB) or 4 (RGBA); and the value of full
     intensity (255 or 65535). :func:`read_grid` turns them into cell values a slice at a time.
 
@@ -275,7 +275,7 @@ def merge_boxes(occupied: np.ndarray, most: int | None = None) -> list[tuple[int
 
     Returns:
         ``(i0, j0, i1, j1)`` per rectangle: cells ``i0 <= ix < i1``, ``j0 <= iy < j1``; None
-        when ``most`` was passed.
+        when both covers need more than ``most``.
     """
     by_rows = _merge_runs(occupied.T, most)  # runs along x, stacked along y
     by_cols = _merge_runs(occupied, most)  # runs along y, stacked along x

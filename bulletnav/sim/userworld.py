@@ -52,9 +52,9 @@ from bulletnav.yamlfile import read_yaml, show
 
 SDF_SUFFIXES = (".world", ".sdf")
 OPTIONS = {"start", "goal", "unknown", "height", "margin", "name"}
+"""bulletnav's keys beside a map (in a wrapper, or in a map_server YAML)."""
 MAX_WALL_HEIGHT = 100.0
 """Tallest walls (m) a map_server map's ``height`` may ask for (the default is 2 m)."""
-"""bulletnav's keys beside a map (in a wrapper, or in a map_server YAML)."""
 WRAPPER_KEYS = OPTIONS | {"map"}
 DEFAULT_HEIGHT = 2.0
 """Height of the walls built from a map_server map's wall cells (m)."""
