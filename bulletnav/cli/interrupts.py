@@ -48,6 +48,8 @@ _library_owned = False
 """True while a library handles Ctrl-C itself (Ray Tune's first Ctrl-C saves and ends the
 sweep): the watcher then ends nothing (:func:`library_handles_signals`)."""
 _ending = threading.Lock()
+_handlers: list[Callable] = []
+"""The handlers :func:`signals_as_interrupt` has in force (a fork's child resets exactly these)."""
 _main_pid = os.getpid()
 
 
@@ -67,7 +69,7 @@ def _in_forked_child() -> None:
     try:
         signal.set_wakeup_fd(-1)
         for sig, default in ((signal.SIGINT, signal.default_int_handler), (signal.SIGTERM, signal.SIG_DFL)):
-            if getattr(signal.getsignal(sig), "__name__", "") == "interrupt":
+            if signal.getsignal(sig) in _handlers:
                 signal.signal(sig, default)
     except (ValueError, OSError):  # not the main thread of the child: nothing to reset there
         pass
@@ -150,12 +152,14 @@ def signals_as_interrupt() -> Iterator[None]:
         read_end = write_end = -1
         old_fd = -1
     watcher = None
+    _handlers.append(interrupt)
     try:
         if read_end >= 0:
             watcher = threading.Thread(target=_watch, args=(read_end, interrupt), name="bulletnav-signals", daemon=True)
             watcher.start()
         yield
     finally:
+        _handlers.remove(interrupt)
         for sig, handler in old.items():
             signal.signal(sig, handler)
         if write_end >= 0:

@@ -11,7 +11,8 @@ block instead of one value at a time).
 
 Every value of N bytes starts at a multiple of N counted from the end of the 4-byte
 encapsulation header; a string is its length with the closing NUL (uint32), its UTF-8 bytes and
-a NUL; a sequence is its length (uint32), then its items.
+a NUL; a sequence is its length (uint32), then its items. ``wstring`` is not written (none of
+bulletnav's messages has one): it is refused with a ValueError.
 """
 
 from __future__ import annotations
@@ -59,8 +60,8 @@ def _default(f: Field) -> Any:
 
 @functools.cache
 def _fields(kind: str) -> tuple[Field, ...]:
-    if kind == "wstring":
-        raise NotImplementedError("wstring fields are not written")
+    if kind == "wstring":  # no message bulletnav writes has one, and rmw implementations disagree on its width
+        raise ValueError("a wstring field: bulletnav writes none (its messages are in bulletnav.ros.msgdefs)")
     return tuple(fields(kind))
 
 
