@@ -907,6 +907,8 @@ KINDS: dict[str, str] = {
     "test_ros_bags.py::test_a_db3_whose_tables_are_views_is_refused_at_once": "contract",
     # the corner's point is placed from the wheel sweep (the code's), and checked by hand against the plain sweep
     "test_shield_memory.py::test_close_to_a_wall_a_back_up_out_of_a_turn_is_checked_along_the_turn_the_wheels_keep": "hand",
+    "test_shield_memory.py::test_the_jackal_stopping_out_of_a_fast_turn_brakes_at_its_rims_and_keeps_turning": "formula",
+    "test_shield_memory.py::test_a_fast_turn_is_refused_where_only_the_turn_held_through_a_hard_stop_comes_close": "hand",
     "test_shield_memory.py::test_the_jackal_shield_carries_its_memory_by_the_gyro_where_the_wheels_drift": "library",
     "test_user_maps.py::test_a_map_yamls_typos_are_map_typos_and_an_image_or_model_as_a_world_says_what_belongs": "contract",
     "test_user_maps.py::test_hostile_map_server_maps_are_refused_in_one_line_before_the_work_grows": "contract",

@@ -194,6 +194,81 @@ def test_close_to_a_wall_a_back_up_out_of_a_turn_is_checked_along_the_turn_the_w
     assert no_wheels.config.wheel_accel is None and no_wheels._close_clear(*args)[0]
 
 
+OPEN = """name: open
+size: [20.0, 20.0]
+start: [-6.0, 4.0, 0.0]
+goal: [8.0, 8.0]
+obstacles:
+  - {type: box, center: [8.0, -8.0], size: [0.5, 0.5, 1.0], yaw: 0.0, label: post}
+"""
+
+
+def test_the_jackal_stopping_out_of_a_fast_turn_brakes_at_its_rims_and_keeps_turning(tmp_path):
+    """Physics: the Jackal driving at 1.7 m/s turning at -1 rad/s, told to stop, rolls about
+    0.4 m and turns on by about 0.5 rad: both rims brake at 3.5 m/s^2, so the yaw rate holds
+    until the inner rim stops. The wheel sweep that brakes at the rims (``wheel_accel``) ends
+    where the robot does; the one braking at the shield's ``decel`` (1.5) rolls twice as far."""
+    world = tmp_path / "open.yaml"
+    world.write_text(OPEN)
+    env = gym.make("bulletnav/Warehouse-v0", robot="jackal", world=str(world))
+    try:
+        env.reset(seed=0)
+        scene = env.unwrapped.scene
+        for _ in range(30):
+            env.step(scene.action_for(1.7, -1.0))
+        v_now = float(scene.sensors.odometry.read()[3])
+        w_now = float(scene.sensors.imu.read()[5])
+        assert v_now == pytest.approx(1.7, abs=0.05) and w_now == pytest.approx(-1.0, abs=0.05)
+        x0, y0, yaw0 = scene.pose
+        for _ in range(20):
+            _, _, _, _, info = env.step(scene.action_for(0.0, 0.0))
+            assert not info["collision"]
+        assert float(scene.sensors.odometry.read()[3]) == pytest.approx(0.0, abs=0.01)
+        x1, y1, yaw1 = scene.pose
+        c, s = math.cos(yaw0), math.sin(yaw0)
+        real = np.array([c * (x1 - x0) + s * (y1 - y0), -s * (x1 - x0) + c * (y1 - y0), yaw1 - yaw0])
+        hb = scene.geometry.wheelbase / 2
+        ends = {}
+        for decel in (3.5, 1.5):
+            out, t = np.zeros((1, 12, 3)), np.zeros((1, 12))
+            wheel_sweep(np.zeros(1), np.zeros(1), v_now, w_now, scene.control_dt, 3.5, decel, hb, out, t)
+            ends[decel] = out[0, -1]
+        assert np.hypot(*(ends[3.5][:2] - real[:2])) < 0.02 and abs(ends[3.5][2] - real[2]) < 0.1
+        assert real[2] < -0.4  # it did keep turning
+        assert np.hypot(*ends[1.5][:2]) > np.hypot(*real[:2]) + 0.3
+    finally:
+        env.close()
+
+
+def test_a_fast_turn_is_refused_where_only_the_turn_held_through_a_hard_stop_comes_close():
+    """At 1.7 m/s turning at -0.6 rad/s, the command (1.7, -1.0): a point 2 cm off the right side
+    of the outline where the sweep that brakes at the rims (3.5 m/s^2, the turn held) ends. The
+    sweeps braking at 1.5 m/s^2 (the arc, the tightening spiral and the wheels' own) pass it
+    farther than the margin; the Jackal's shield refuses the command all the same (BARN world
+    231, random commands backing up: the one collision the shield let through, at 217d242), and
+    a shield without the wheels' model lets it pass."""
+    shield = _jackal_shield(wheel_accel=3.5)
+    hb = JACKAL.wheelbase / 2
+    v_now, w_now, v, w = 1.7, -0.6, 1.7, -1.0
+    hard, t = np.zeros((1, 12, 3)), np.zeros((1, 12))
+    wheel_sweep(np.array([v]), np.array([w]), v_now, w_now, DT, 3.5, 3.5, hb, hard, t)
+    soft = np.zeros((1, 12, 3))
+    wheel_sweep(np.array([v]), np.array([w]), v_now, w_now, DT, 3.5, 1.5, hb, soft, np.zeros((1, 12)))
+    x, y, yaw = hard[0, -1]
+    right = min(r.cy - r.half_y for r in JACKAL.rectangles)
+    bx, by = 0.15, right - 0.02
+    point = np.array([[x + math.cos(yaw) * bx - math.sin(yaw) * by, y + math.sin(yaw) * bx + math.cos(yaw) * by]])
+    margin = float(shield.margin(v))
+    arc, _ = shield.sweep(v, w, v_now, w_now)
+    spiral, _ = shield.sweep(v, w, v_now, w_now, tighten=True)
+    for poses in (arc, spiral, soft):
+        assert float(shield._clearance(poses, point)[0]) > margin
+    assert float(shield._clearance(hard, point)[0]) == pytest.approx(0.02, abs=1e-6)
+    assert not shield.check(v, w, v_now, point, w_now=w_now)[0]
+    no_wheels = Shield(JACKAL, ANGLES, 30.0, DT, 2.0, 4.0, ShieldConfig(), v_min=-0.5)
+    assert no_wheels.check(v, w, v_now, point, w_now=w_now)[0]
+
+
 def test_the_jackal_shield_carries_its_memory_by_the_gyro_where_the_wheels_drift():
     """Dithering turns in place (a new random yaw rate every 4 steps, for 600 steps): the
     shield's own dead-reckoned heading (the gyroscope's rate) stays within 0.05 rad of the

@@ -376,34 +376,49 @@ class Shield:
     def _lag_blocked(self, vv: np.ndarray, ww: np.ndarray, v_now: float, w_now: float | None, points: np.ndarray,
                      margin: np.ndarray, movers: list[Any] | None, pose: tuple[float, float, float],
                      skip: np.ndarray) -> np.ndarray:
-        """(C,) True where a command the wheels cannot reach in one control period (and not in
-        ``skip``) hits ``points`` or a mover along its sweep as the wheels can follow it: each rim
-        speed at ``wheel_accel``, then braking (:func:`wheel_sweep`). Measured on the Jackal: turning
-        in place at -1 rad/s and told to back up straight, the body turns on at -1 rad/s for two
-        periods and stops turning after five, as this sweep says. All False for a robot without
-        ``wheel_accel`` or without ``w_now``."""
+        """(C,) True where a command (not in ``skip``) hits ``points`` or a mover along one of its
+        sweeps as the wheels follow it (:func:`wheel_sweep`: each rim speed moves at ``wheel_accel``
+        for one control period):
+
+        - a command the wheels cannot reach in one period, then braking at ``decel``. Measured on
+          the Jackal: turning in place at -1 rad/s and told to back up straight, the body turns on
+          at -1 rad/s for two periods and stops turning after five, as this sweep says;
+        - a command that moves the robot while it turns (now or commanded), then braking at
+          ``wheel_accel``, as the Jackal's rims do: both rims brake alike, so the yaw rate holds
+          until the inner one stops and the robot ends pivoting on it. Measured on the Jackal:
+          stopped from 1.7 m/s turning at -1.0 rad/s, it rolled 0.46 m and turned 0.53 rad, as
+          this sweep says; the sweep braking at ``decel`` rolls twice as far with the same turn,
+          a gentler curve that passes beside what the real one turns into (BARN world 231).
+
+        All False for a robot without ``wheel_accel`` or without ``w_now``."""
         out = np.zeros(vv.shape, dtype=bool)
         if w_now is None or self.config.wheel_accel is None:
             return out
-        hb, reach = self._half_base, self.config.wheel_accel * self.dt
+        accel = self.config.wheel_accel
+        hb, reach = self._half_base, accel * self.dt
         slow = ((np.abs((vv - ww * hb) - (v_now - w_now * hb)) > reach)
                 | (np.abs((vv + ww * hb) - (v_now + w_now * hb)) > reach)) & ~skip
-        if not slow.any():
-            return out
-        idx = np.flatnonzero(slow)
-        lag = np.zeros((len(idx), self.config.samples, 3))
-        lag_t = np.zeros((len(idx), self.config.samples))
-        wheel_sweep(np.ascontiguousarray(vv[idx]), np.ascontiguousarray(ww[idx]), float(v_now), float(w_now), self.dt,
-                    self.config.wheel_accel, self.config.decel, hb, lag, lag_t)
-        lag_pts = points
-        if len(points):
-            m = float(np.max(margin))
-            far = travel(lag) + float(np.hypot(self._outline_abs[:, 0] + m, self._outline_abs[:, 1] + m).max())
-            lag_pts = points[points[:, 0] ** 2 + points[:, 1] ** 2 <= far * far]
-        hit = self._blocked(lag, lag_pts, margin[idx])
-        if movers:
-            hit |= self._blocked(lag, self._mover_points(movers, lag_t, pose), margin[idx])
-        out[idx] = hit
+        moving = (vv != 0.0) | (v_now != 0.0)
+        turning = (ww != 0.0) | (w_now != 0.0)
+        hard = moving & turning & ~skip
+        for which, decel in ((slow, self.config.decel), (hard, accel)):
+            todo = which & ~out
+            if not todo.any():
+                continue
+            idx = np.flatnonzero(todo)
+            lag = np.zeros((len(idx), self.config.samples, 3))
+            lag_t = np.zeros((len(idx), self.config.samples))
+            wheel_sweep(np.ascontiguousarray(vv[idx]), np.ascontiguousarray(ww[idx]), float(v_now), float(w_now),
+                        self.dt, accel, decel, hb, lag, lag_t)
+            lag_pts = points
+            if len(points):
+                m = float(np.max(margin))
+                far = travel(lag) + float(np.hypot(self._outline_abs[:, 0] + m, self._outline_abs[:, 1] + m).max())
+                lag_pts = points[points[:, 0] ** 2 + points[:, 1] ** 2 <= far * far]
+            hit = self._blocked(lag, lag_pts, margin[idx])
+            if movers:
+                hit |= self._blocked(lag, self._mover_points(movers, lag_t, pose), margin[idx])
+            out[idx] |= hit
         return out
 
     def _touch_free(self, v_now: float, points: np.ndarray, movers: list[Any], pose: tuple[float, float, float],
