@@ -161,6 +161,10 @@ KINDS: dict[str, str] = {
     "test_benchmark.py::test_an_interrupted_run_resumes_without_rerunning": "golden",
     # the printed rows against the committed tiny-suite rows
     "test_benchmark.py::test_cli_prints_the_headline_and_writes_the_report": "golden",
+    "test_benchmark.py::test_an_out_folder_with_results_is_refused_and_force_starts_afresh": "golden",
+    "test_benchmark.py::test_compare_puts_a_rerun_beside_the_committed_rows": "golden",
+    "test_benchmark.py::test_compare_counts_and_intervals_by_hand": "hand",
+    "test_benchmark.py::test_compare_refuses_a_file_that_is_not_results_in_one_line": "contract",
     "test_benchmark.py::test_build_results_orders_rows_and_keeps_one_per_episode": "hand",
     "test_benchmark.py::test_tiny_suite_through_a_ray_cluster_gives_the_committed_rows": "golden",
     "test_benchmark.py::test_an_address_with_no_cluster_is_one_clear_error": "contract",
@@ -681,6 +685,8 @@ KINDS: dict[str, str] = {
     # the wall-time bookkeeping to its 0.1 s rounding (the 2 s timing tolerances of 052a810 removed)
     "test_rl.py::test_resume_continues_from_the_checkpoint": "contract",
     "test_rl.py::test_init_from_starts_a_new_run_from_a_models_weights": "contract",
+    "test_rl.py::test_the_evaluation_period_is_a_fifth_of_a_short_run_and_25000_steps_of_a_long_one": "hand",
+    "test_rl.py::test_a_run_shorter_than_the_evaluation_period_draws_a_curve_of_five_points": "hand",
     "test_rl.py::test_stop_at_success_stops_when_an_evaluation_reaches_the_rate": "hand",
     "test_rl.py::test_bad_model_files_give_clear_errors": "contract",
     "test_rl.py::test_interrupted_checkpoint_write_leaves_the_old_model_intact": "contract",

@@ -3,6 +3,7 @@ the same at 1 and 2 workers and equal to the committed tiny results, resuming, t
 
 from __future__ import annotations
 
+import gzip
 import json
 import math
 import shutil
@@ -11,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bulletnav.benchmark.compare import compare_results, comparison_lines, load_results
 from bulletnav.benchmark.metrics import (
     INTIMATE_M,
     EpisodeTrace,
@@ -252,6 +254,109 @@ def test_cli_prints_the_headline_and_writes_the_report(tiny_one, tmp_path, capsy
     failures = [r for r in results["episodes"] if not r["success"]]
     for row in failures:
         assert row["replay"].startswith("bulletnav ") and f"--seed {row['seed']}" in row["replay"]
+
+
+@pytest.mark.slow
+def test_an_out_folder_with_results_is_refused_and_force_starts_afresh(tiny_one, tmp_path, capsys):
+    """A folder that holds results and no run (the committed docs/benchmark/) is refused without
+    --force, in one line with exit status 2, and left as it was; --force starts afresh over an
+    earlier run (a stale row is gone, the committed rows are back); --resume with --force is refused."""
+    _, done = tiny_one
+    held = tmp_path / "held"
+    held.mkdir()
+    shutil.copy(done / "results.json", held / "results.json")
+    before = (held / "results.json").read_bytes()
+    assert main(["benchmark", str(TINY), "--out", str(held)]) == 2
+    err = capsys.readouterr().err
+    assert "holds results (results.json) and no run to resume: pass --force" in err and len(err.strip().splitlines()) == 1
+    assert (held / "results.json").read_bytes() == before and not (held / "episodes.jsonl").exists()
+    with pytest.raises(BulletnavError, match="choose one"):
+        run_suite(load_suite(str(TINY)), held, workers=1, resume=True, force=True)
+    earlier = tmp_path / "earlier"
+    shutil.copytree(done, earlier)
+    rows = (earlier / "episodes.jsonl").read_text().splitlines()
+    stale = json.loads(rows[0])
+    stale["success"] = 1 - stale["success"]
+    (earlier / "episodes.jsonl").write_text("\n".join([json.dumps(stale)] + rows[1:]) + "\n")
+    assert main(["benchmark", str(TINY), "--out", str(earlier)]) == 2
+    assert "--force to start afresh" in capsys.readouterr().err
+    assert main(["benchmark", str(TINY), "--out", str(earlier), "--force", "--json"]) == 0
+    capsys.readouterr()
+    assert json.loads((earlier / "results.json").read_text())["episodes"] == json.loads(GOLDEN.read_text())["episodes"]
+
+
+@pytest.mark.slow
+def test_compare_puts_a_rerun_beside_the_committed_rows(tiny_one, tmp_path, capsys):
+    """A rerun of the tiny suite beside its committed golden results (and a gzipped copy of them):
+    every episode ended the same way and every row is identical, no figure outside the committed
+    interval; a committed file with one episode's outcome flipped counts one episode fewer."""
+    _, done = tiny_one
+    out = tmp_path / "rerun"
+    shutil.copytree(done, out)
+    golden = json.loads(GOLDEN.read_text())
+    gz = tmp_path / "committed.json.gz"
+    gz.write_bytes(gzip.compress(GOLDEN.read_bytes()))
+    assert main(["benchmark", str(TINY), "--out", str(out), "--report-only", "--compare", str(gz), "--json"]) == 0
+    comparison = json.loads(capsys.readouterr().out)["comparison"]
+    assert comparison["episodes"] == {"compared": 8, "same_outcome": 8, "identical": 8}
+    assert comparison["outside"] == 0 and len(comparison["cells"]) == len(golden["cells"])
+    flipped = json.loads(GOLDEN.read_text())
+    row = flipped["episodes"][3]
+    row["success"], row["timeout"] = 1 - row["success"], row["success"]
+    (tmp_path / "flipped.json").write_text(json.dumps(flipped))
+    assert main(["benchmark", str(TINY), "--out", str(out), "--report-only", "--compare", str(tmp_path / "flipped.json")]) == 0
+    text = capsys.readouterr().out
+    assert "8 episodes in both: 7 ended the same way, 7 rows identical" in text
+    assert "| world | controller | success: here / committed [95 %]" in text
+    assert "comparison" not in json.loads((out / "results.json").read_text())  # the run's own record
+
+
+def test_compare_counts_and_intervals_by_hand(tmp_path):
+    """Two hand-made records: a cell whose success (0.8) lies above the other's interval
+    [0.25, 0.75] and whose SPL (0.5) lies inside [0.4, 0.6]; of two episodes in both, both ended
+    the same way and one row differs in its time; one episode and one cell only in the new run."""
+    def cell(world, s, s_lo, s_hi, spl):
+        return {"world": world, "controller": "PID", "summary": {
+            "success": {"mean": s, "lo": s_lo, "hi": s_hi, "n": 4}, "spl": {"mean": spl, "lo": 0.4, "hi": 0.6, "n": 4}}}
+
+    def row(k, t, success=1):
+        return {"world": "a", "controller": "PID", "episode": k, "seed": 10 + k, "success": success, "collision": 0,
+                "timeout": 1 - success, "time_s": t, "min_separation_m": float("nan")}
+
+    new = {"cells": [cell("a", 0.8, 0.5, 1.0, 0.5), cell("b", 1.0, 1.0, 1.0, 0.9)],
+           "episodes": [row(0, 5.0), row(1, 6.0, 0), row(2, 7.0)]}
+    old = {"cells": [cell("a", 0.5, 0.25, 0.75, 0.45)], "episodes": [row(0, 5.0), row(1, 6.5, 0)],
+           "provenance": {"git_commit": "abc123"}}
+    c = compare_results(new, old)
+    assert c["episodes"] == {"compared": 2, "same_outcome": 2, "identical": 1}
+    figures = c["cells"][0]["metrics"]
+    assert figures["success"] == {"new": 0.8, "old": 0.5, "old_lo": 0.25, "old_hi": 0.75, "inside": False}
+    assert figures["spl"]["inside"] and c["outside"] == 1
+    assert c["only_new"] == [["b", "PID"]] and c["only_old"] == [] and c["old_commit"] == "abc123"
+    lines = comparison_lines(c, "old.json")
+    assert lines[0].startswith("compared with old.json (abc123): 1 cells in both, 2 episodes in both: 2 ended the same way")
+    assert "| a | PID | ! 0.800 / 0.500 [0.250, 0.750] | 0.500 / 0.450 [0.400, 0.600] |" in lines
+
+
+@pytest.mark.parametrize("content, why", [
+    (b"not json", "not JSON"),
+    (b'{"cells": []}', "not a benchmark's results"),
+    (b"[1, 2]", "not a benchmark's results"),
+])
+def test_compare_refuses_a_file_that_is_not_results_in_one_line(tmp_path, capsys, content, why):
+    bad = tmp_path / "other.json"
+    bad.write_bytes(content)
+    with pytest.raises(BulletnavError, match=why):
+        load_results(bad)
+    assert main(["benchmark", str(TINY), "--out", str(tmp_path / "x"), "--compare", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert why in err and len(err.strip().splitlines()) == 1 and not (tmp_path / "x").exists()
+    gz = tmp_path / "cut.json.gz"
+    gz.write_bytes(gzip.compress(b'{"cells": [], "episodes": []}')[:-6])
+    with pytest.raises(BulletnavError, match="cannot read it"):
+        load_results(gz)
+    with pytest.raises(BulletnavError, match="no such results file"):
+        load_results(tmp_path / "missing.json")
 
 
 def test_build_results_orders_rows_and_keeps_one_per_episode():

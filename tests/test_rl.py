@@ -35,6 +35,7 @@ from bulletnav.rl.envs import EVAL_SEED_BASE, evaluation_env_kwargs, make_env_fn
 from bulletnav.rl.hyperparams import load_hyperparams, upgrade_hyperparams
 from bulletnav.rl.io import atomic_save_model, load_model
 from bulletnav.rl.policy import SB3Policy
+from bulletnav.rl.train import auto_eval_freq
 from rollouts import episode_rows
 
 ENV_ID = "bulletnav/Warehouse-v0"
@@ -138,6 +139,24 @@ def _check_final_evaluation(out: Path, capsys) -> None:
     assert final["mean_reward"] == pytest.approx(statistics.fmean(r["reward"] for r in rows), rel=1e-9)
     assert final["std_reward"] == pytest.approx(statistics.pstdev(r["reward"] for r in rows), rel=1e-6, abs=1e-9)
     assert final["mean_length"] == pytest.approx(statistics.fmean(r["steps"] for r in rows), rel=1e-12)
+
+
+def test_the_evaluation_period_is_a_fifth_of_a_short_run_and_25000_steps_of_a_long_one():
+    assert [auto_eval_freq(t) for t in (1, 4, 8_000, 8_001, 124_999, 125_000, 500_000)] == [
+        1, 1, 1_600, 1_601, 25_000, 25_000, 25_000]
+
+
+@pytest.mark.slow
+def test_a_run_shorter_than_the_evaluation_period_draws_a_curve_of_five_points(tmp_path):
+    """1,024 steps with no --eval-freq: evaluated every 205 steps (a fifth), the end included, so
+    the learning curve has five points; run.json says the period it used."""
+    out = tmp_path / "short"
+    assert main(["train", "--algo", "ppo", "--timesteps", "1024", "--n-envs", "2", "--vec-env", "dummy", "--out", str(out),
+                 "--eval-episodes", "1", "--checkpoint-freq", "512", "--no-progress"]) == 0
+    record = json.loads((out / "run.json").read_text())
+    steps = [row["timesteps"] for row in json.loads((out / "eval_history.json").read_text())]
+    assert record["eval_freq"] == 205 and len(steps) >= 5 and steps[-1] == record["total_timesteps"] == 1024
+    assert [s // 205 for s in steps[:-1]] == [1, 2, 3, 4] and (out / "learning_curve.png").is_file()  # (2 envs: even counts)
 
 
 @pytest.mark.slow  # uses the module's smoke PPO training (14 s), or trains itself

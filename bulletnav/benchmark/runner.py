@@ -217,18 +217,22 @@ def plan_chunks(suite: Suite, done: set[str], workers: int) -> list[tuple[int, i
 
 def run_suite(suite: Suite, out: Path, workers: int = 1, address: str | None = None, resume: bool = False,
               progress: Callable[[int, int], None] | None = None, root: Path = PROJECT_ROOT,
-              controllers: Sequence[str] | None = None) -> dict[str, Any]:
+              controllers: Sequence[str] | None = None, force: bool = False) -> dict[str, Any]:
     """Run ``suite`` into ``out`` (``episodes.jsonl`` as it goes, then ``results.json``) and
     return the results record. ``progress(done, total)`` is called after every chunk.
 
     Args:
         controllers: run only the suite's controllers of these names this time (``--controllers``);
             the others' episodes are left for a later run with ``resume`` (their cells stay empty).
+        force: start afresh in an ``out`` that holds an earlier run or its results (its rows,
+            ``results.json`` and report are replaced).
 
     Raises:
-        BulletnavError: ``out`` holds an earlier run of another suite, or holds one and
-            ``resume`` is off; a controller or model that cannot be loaded; a name in
-            ``controllers`` that is not the suite's.
+        BulletnavError: ``out`` holds an earlier run of another suite; holds an earlier run, and
+            neither ``resume`` nor ``force`` is on; holds results (``results.json`` or the
+            report) with no run to resume, and ``force`` is off; both ``resume`` and ``force``;
+            a controller or model that cannot be loaded; a name in ``controllers`` that is not
+            the suite's.
     """
     if workers < 1:
         raise BulletnavError(f"workers must be >= 1, got {workers}")
@@ -241,9 +245,17 @@ def run_suite(suite: Suite, out: Path, workers: int = 1, address: str | None = N
         log_path, meta_path, results_path = (inside(out, name) for name in ("episodes.jsonl", "suite.json", "results.json"))
     except ValueError as exc:
         raise BulletnavError(f"--out {out}: {exc}") from None
-    if log_path.exists() and not resume:
+    if resume and force:
+        raise BulletnavError("--resume goes on with the run in --out, --force starts it afresh: choose one")
+    held = [name for name in ("results.json", "results.json.gz", "report.html") if (out / name).exists()]
+    if log_path.exists() and not (resume or force):
         raise BulletnavError(f"{out} holds an earlier run ({log_path.name}): pass --resume to go on with it, "
-                             "or choose another --out")
+                             "--force to start afresh over it, or choose another --out")
+    if held and not log_path.exists() and not force:  # results (committed ones, say) and no run to go on with
+        raise BulletnavError(f"{out} holds results ({', '.join(held)}) and no run to resume: pass --force to replace "
+                             "them, or choose another --out (the default is runs/benchmark/<suite name>)")
+    if force and log_path.exists():
+        log_path.unlink()
     if resume and meta_path.is_file():
         earlier = json.loads(meta_path.read_text()).get("sha256")
         if earlier != suite.sha256:

@@ -23,6 +23,13 @@ def register(sub) -> None:
     bm.add_argument("--workers", type=COUNT, default=1, help="local worker processes (default 1); rows are the same for any count")
     bm.add_argument("--address", metavar="HOST:PORT", help="run the episodes as tasks on this Ray cluster")
     bm.add_argument("--resume", action="store_true", help="go on with an interrupted run in DIR (finished episodes are kept)")
+    bm.add_argument("--force", action="store_true",
+                    help="start afresh in a DIR that holds an earlier run or results (they are replaced); without it "
+                         "such a DIR is refused")
+    bm.add_argument("--compare", metavar="RESULTS",
+                    help="print this run's figures beside another run's results (a results.json, or .json.gz, such as the "
+                         "committed docs/benchmark/results.json): episodes that ended the same way, rows identical, each "
+                         "cell's figures against that run's 95 %% intervals")
     bm.add_argument("--controllers", nargs="+", metavar="NAME",
                     help="run only these of the suite's controllers this time (names as in the suite); the others' "
                          "episodes are left for a later --resume")
@@ -42,23 +49,41 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
     """Every controller of a suite on the same seeded episodes of every world: results.json + report.html."""
     from pathlib import Path
 
+    from bulletnav.benchmark.compare import load_results
     from bulletnav.benchmark.suite import load_suite
 
     suite = load_suite(args.suite, trust_code=args.trust_code)
     out = Path(args.out) if args.out else suite.out_dir("runs/benchmark")
+    other = load_results(args.compare) if args.compare else None  # a bad file is refused before anything runs
     if args.report_only:  # the report (and screenshots) again from DIR/results.json
-        return _report_only(args, out)
+        return _report_only(args, out, other)
     earlier: list[int] = []  # the episodes an earlier run had finished (the progress's first count)
     results, report = _run(args, suite, out, earlier)
     if args.json:
-        print_json(results)
+        print_json(_with_comparison(results, other))
     else:
         _print_table(args, suite, results, out, report, earlier[0] if earlier else 0)
+        _print_comparison(args, results, other)
     _screenshots(args, report, out)
     return 0
 
 
-def _report_only(args: argparse.Namespace, out) -> int:
+def _with_comparison(results: dict, other: dict | None) -> dict:
+    """``results`` with ``comparison`` (:func:`~bulletnav.benchmark.compare.compare_results`) when
+    ``--compare`` gave another run (only printed: results.json stays the run's own)."""
+    from bulletnav.benchmark.compare import compare_results
+
+    return results if other is None else {**results, "comparison": compare_results(results, other)}
+
+
+def _print_comparison(args: argparse.Namespace, results: dict, other: dict | None) -> None:
+    from bulletnav.benchmark.compare import compare_results, comparison_lines
+
+    if other is not None:
+        print("\n" + "\n".join(comparison_lines(compare_results(results, other), args.compare)))
+
+
+def _report_only(args: argparse.Namespace, out, other: dict | None = None) -> int:
     from bulletnav.benchmark.report import write_report
     from bulletnav.viz.plots import draw_layout
 
@@ -68,9 +93,10 @@ def _report_only(args: argparse.Namespace, out) -> int:
     results = json.loads(results_file.read_text())
     report = write_report(results, out / "report.html", draw_layout)
     if args.json:
-        print_json(results)
+        print_json(_with_comparison(results, other))
     else:
         print(f"report:  {report}")
+        _print_comparison(args, results, other)
     _screenshots(args, report, out)
     return 0
 
@@ -112,7 +138,7 @@ def _run(args: argparse.Namespace, suite, out, earlier: list[int]):
             bar.update(done, total)
 
         results = run_suite(suite, out, workers=args.workers, address=args.address, resume=args.resume, progress=progress,
-                            controllers=args.controllers)
+                            controllers=args.controllers, force=args.force)
     return results, write_report(results, out / "report.html", draw_layout)
 
 

@@ -41,7 +41,9 @@ def register(sub) -> None:
                     help="train into an --out DIR that holds another run, replacing its files (default: refuse)")
     tr.add_argument("--init-from", metavar="MODEL",
                     help="fine-tune: start from this model's weights with this run's settings (steps count from 0)")
-    tr.add_argument("--eval-freq", type=COUNT, default=25_000, help="evaluate every N timesteps (default 25000)")
+    tr.add_argument("--eval-freq", type=COUNT, default=None,
+                    help="evaluate every N timesteps (default 25000, or a fifth of --timesteps when that is under 125000: "
+                         "at least five points on the learning curve); the end of training is always evaluated")
     tr.add_argument("--eval-episodes", type=COUNT, default=20, help="unseen episodes per evaluation (default 20)")
     tr.add_argument("--checkpoint-freq", type=COUNT, default=25_000, help="checkpoint every N timesteps (default 25000)")
     tr.add_argument("--stop-at-success", type=FRACTION, default=None, metavar="RATE",

@@ -39,6 +39,17 @@ from bulletnav.rl.sidecar import read_sidecar, sidecar_path, vecnormalize_path
 log = logging.getLogger(__name__)
 
 
+EVAL_FREQ = 25_000
+"""In-training evaluations' default period (timesteps) for a run of at least 5 times as many steps."""
+
+
+def auto_eval_freq(timesteps: int) -> int:
+    """The evaluation period (timesteps) when none is given: :data:`EVAL_FREQ`, or a fifth of a
+    run shorter than 5 times that (rounded up), so its learning curve has at least five points
+    (the last at the end of training)."""
+    return EVAL_FREQ if timesteps >= 5 * EVAL_FREQ else max(1, -(-int(timesteps) // 5))
+
+
 @dataclass(frozen=True)
 class TrainConfig:
     algo: str
@@ -50,8 +61,9 @@ class TrainConfig:
     n_envs: int | None = None
     """Parallel envs (SubprocVecEnv); None takes the hyperparameter file's value."""
     resume: bool = False
-    eval_freq: int = 25_000
-    """Evaluate every this many timesteps (summed over envs)."""
+    eval_freq: int | None = None
+    """Evaluate every this many timesteps (summed over envs); the end of training is evaluated
+    too. None: :func:`auto_eval_freq` (every 25,000, or a fifth of a shorter run)."""
     eval_episodes: int = 20
     checkpoint_freq: int = 25_000
     progress_bar: bool = True
@@ -249,7 +261,8 @@ def train(cfg: TrainConfig, plot_curve: PlotCurve | None = None) -> dict[str, An
     # the training's wall clock runs on across resumes: from the checkpoint's record, or (older
     # checkpoints) from the last in-training evaluation's
     prior = _prior_wall_time(ckpt, history) if cfg.resume else 0.0
-    evaluation = EvaluationCallback(cfg.out, cfg.eval_freq, cfg.eval_episodes, env_kwargs, history, env_id=cfg.env_id,
+    eval_freq = cfg.eval_freq if cfg.eval_freq is not None else auto_eval_freq(timesteps)
+    evaluation = EvaluationCallback(cfg.out, eval_freq, cfg.eval_episodes, env_kwargs, history, env_id=cfg.env_id,
                                     shield=shield, started=time.time() - prior, on_row=cfg.on_evaluation,
                                     stop_at_success=cfg.stop_at_success)
     throughput = ThroughputCallback(_timer(venv), evaluation)
@@ -266,7 +279,7 @@ def train(cfg: TrainConfig, plot_curve: PlotCurve | None = None) -> dict[str, An
     record: dict[str, Any] = {
         "command": cfg.command, "algo": cfg.algo, "env_id": cfg.env_id, "seed": cfg.seed, "timesteps": timesteps,
         "n_envs": n_envs, "vec_env": resolve_vec_env(cfg.vec_env, n_envs), "hyperparams": hp,
-        "env_kwargs": env_kwargs, "shield": shield,
+        "env_kwargs": env_kwargs, "shield": shield, "eval_freq": eval_freq,
         "git_commit": git_commit(), "machine": machine(), "torch_threads": torch.get_num_threads(),
         "resumed_from": start_steps or None,
         "init_from": str(cfg.init_from) if cfg.init_from is not None else None,
