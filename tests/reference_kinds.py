@@ -918,6 +918,8 @@ KINDS: dict[str, str] = {
     "test_shield_memory.py::test_the_jackal_shield_carries_its_memory_by_the_gyro_where_the_wheels_drift": "library",
     "test_user_maps.py::test_a_map_yamls_typos_are_map_typos_and_an_image_or_model_as_a_world_says_what_belongs": "contract",
     "test_user_maps.py::test_hostile_map_server_maps_are_refused_in_one_line_before_the_work_grows": "contract",
+    "test_file_typos.py::test_a_file_given_where_another_kind_belongs_is_named_for_what_it_is": "contract",
+    "test_file_typos.py::test_each_kind_is_told_by_its_bytes_and_a_misspelt_file_of_a_kind_stays_its_kind": "hand",
     "test_file_typos.py::test_a_misspelt_key_or_a_wrong_type_is_one_line_and_exit_2": "contract",
     "test_file_typos.py::test_an_env_that_a_worker_cannot_build_is_one_line_not_a_connection_reset": "contract",
     "test_ros_bagmap.py::test_scans_without_a_ray_direction_are_dropped_and_counted_and_careless_map_options_refused":

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from bulletnav.cli import main
+from bulletnav.filekinds import HEAD, KINDS, sniff, wrong_kind
 
 HYPER = "bulletnav/Warehouse-v0:\n  policy: MlpPolicy\n  n_envs: 2\n{}\n"
 SUITE = ("name: t\nepisodes: 1\nseed: 1\nworlds:\n  - {{env: bulletnav/Warehouse-v0}}\n"
@@ -86,3 +87,75 @@ def test_an_env_that_a_worker_cannot_build_is_one_line_not_a_connection_reset(tm
     errors = [line for line in run.stderr.splitlines() if "error" in line]
     assert errors == [f"bulletnav train: error: {tmp_path / 'nothere.yaml'}: cannot read layout file "
                       "(No such file or directory)"], run.stderr
+
+
+# every kind of file, as it would be written, for the wrong-option matrix below
+KIND_FILES = {
+    "layout": ("l.yaml", LAYOUT.format("")),
+    "map": ("m.yaml", MAP.format("")),
+    "gazebo": ("w.world", SDF.format("<box><size>1 1 1</size></box>")),
+    "suite": ("s.yaml", SUITE.format("")),
+    "hyperparams": ("h.yml", HYPER.format("")),
+    "model": ("m.zip", None),
+    "image": ("m.pgm", None),
+    "recording": ("r.mcap", None),
+}
+WANTED = {  # the option each command takes a file at, and what its line says the file is not
+    "world": (["navigate", "--world", "{}", "--episodes", "1"], "not a world"),
+    "suite": (["benchmark", "{}", "--out", "bench"], "not a benchmark suite"),
+    "hyperparams": (["train", "--algo", "ppo", "--hyperparams", "{}", "--timesteps", "256", "--out", "run"],
+                    "not a hyperparameter file"),
+    "model": (["evaluate", "--model", "{}", "--episodes", "1"], "not a model"),
+}
+WORLDS = {"layout", "map", "gazebo"}
+WRONG = [(kind, wanted) for kind in KIND_FILES for wanted in WANTED
+         if not (kind == wanted or (wanted == "world" and kind in WORLDS) or (wanted == "world" and kind in ("model", "image")))]
+
+
+def _write_kind(tmp_path: Path, kind: str) -> str:
+    import zipfile
+
+    (tmp_path / "m.pgm").write_bytes(b"P5\n40 40\n255\n" + np.pad(np.full((38, 38), 254, np.uint8), 1).tobytes())
+    name, text = KIND_FILES[kind]
+    if kind == "model":
+        with zipfile.ZipFile(tmp_path / name, "w") as zf:
+            zf.writestr("data", "{}")
+    elif kind == "recording":
+        (tmp_path / name).write_bytes(b"\x89MCAP0\r\n" + bytes(64))
+    elif text is not None:
+        (tmp_path / name).write_text(text)
+    return name
+
+
+@pytest.mark.parametrize("kind, wanted", WRONG, ids=[f"{k} as {w}" for k, w in WRONG])
+def test_a_file_given_where_another_kind_belongs_is_named_for_what_it_is(kind, wanted, tmp_path, capsys, monkeypatch):
+    """A world given as a suite, a suite as hyperparameters, hyperparameters as a model, ...:
+    one line that says what the file is and where it goes, exit status 2, nothing started.
+    (A model or an image given as a world has its own line: tests/test_userworld.py.)"""
+    monkeypatch.chdir(tmp_path)
+    name = _write_kind(tmp_path, kind)
+    template, not_what = WANTED[wanted]
+    command = template[0]
+    code = main([a.format(name) for a in template])
+    err = capsys.readouterr().err.strip()
+    assert code == 2, (kind, wanted, err)
+    what = KINDS[kind][0]
+    assert err == f"bulletnav {command}: error: {name}: {what}, {not_what}: {KINDS[kind][1]}", err
+    assert not Path(tmp_path / "run").exists() and not Path(tmp_path / "bench").exists()
+
+
+def test_each_kind_is_told_by_its_bytes_and_a_misspelt_file_of_a_kind_stays_its_kind(tmp_path):
+    for kind in KIND_FILES:
+        assert sniff(tmp_path / _write_kind(tmp_path, kind)) == kind, kind
+    rl_zoo = tmp_path / "zoo.yml"
+    rl_zoo.write_text("CartPole-v1:\n  n_timesteps: 1000\n  policy: MlpPolicy\n")
+    assert sniff(rl_zoo) == "hyperparams"
+    wrapper = tmp_path / "site.yaml"
+    wrapper.write_text("map: m.yaml\nstart: [1, 1, 0]\ngoal: [2, 2]\n")
+    assert sniff(wrapper) == "map" and wrong_kind(wrapper, "world") is None
+    typo = tmp_path / "typo.yaml"  # 'world' for 'worlds': no kind for sure; the suite reader names the field
+    typo.write_text(SUITE.replace("worlds:", "world:").format(""))
+    assert sniff(typo) is None
+    big = tmp_path / "big.yaml"  # longer than the head read: not decoded
+    big.write_text(LAYOUT.format("#" + "x" * (HEAD + 10)))
+    assert sniff(big) is None

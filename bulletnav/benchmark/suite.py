@@ -58,6 +58,7 @@ from typing import Any
 
 from bulletnav import AISLES_ENV_ID, BARN_ENV_ID, DYNAMIC_ENV_ID, ENV_ID, MISSION_ENV_ID, limits
 from bulletnav.errors import ConfigError, LayoutError, LimitError
+from bulletnav.filekinds import wrong_kind
 from bulletnav.rl.hyperparams import IMPORTABLE as HYPERPARAM_IMPORTABLE
 from bulletnav.yamlfile import read_yaml, show
 
@@ -211,6 +212,9 @@ def load_suite(name_or_path: str, trust_code: bool = False) -> Suite:
         SuiteError: the file is missing, not YAML, or a field is wrong (named in the message).
     """
     path = resolve_suite(name_or_path)
+    other = wrong_kind(path, "suite")  # a world, a map or hyperparameters given as a suite
+    if other:
+        raise SuiteError(other)
     try:
         data = path.read_bytes()
     except OSError as exc:

@@ -15,6 +15,7 @@ import numpy as np
 
 from bulletnav import ENV_ID
 from bulletnav.errors import ConfigError
+from bulletnav.filekinds import wrong_kind
 from bulletnav.yamlfile import read_yaml, show
 
 log = logging.getLogger(__name__)
@@ -38,6 +39,9 @@ def load_hyperparams(algo: str, env_id: str = ENV_ID, path: str | Path | None = 
     """
     if path is None:
         path = Path(str(resources.files("bulletnav").joinpath("rl", "hyperparams", f"{algo}.yml")))
+    other = wrong_kind(path, "hyperparams")  # a world, a suite or a model given as hyperparameters
+    if other:
+        raise ConfigError(other)
     data = read_yaml(path, "hyperparameter file", ConfigError)
     if not isinstance(data, dict) or env_id not in data:
         raise ConfigError(f"{path}: no hyperparameters for env id {show(env_id)}")

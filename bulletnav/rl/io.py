@@ -11,6 +11,7 @@ import zipfile
 from pathlib import Path
 
 from bulletnav.errors import ModelError
+from bulletnav.filekinds import wrong_kind
 from bulletnav.files import write_bytes, write_json
 from bulletnav.rl import safe
 from bulletnav.rl.algos import algo_class
@@ -79,7 +80,8 @@ def load_model(path: str | Path, algo: str | None = None, trust_pickle: bool = F
         model = safe.load_safe(path, meta)
         return model, meta, safe.normalizer(safe.load_stats(path, meta))
     if not zipfile.is_zipfile(path):
-        raise ModelError(f"{path}: not a model archive (not a zip file; truncated or another kind of file?)")
+        raise ModelError(wrong_kind(path, "model")
+                         or f"{path}: not a model archive (not a zip file; truncated or another kind of file?)")
     try:
         with zipfile.ZipFile(path) as zf:
             names = set(zf.namelist())

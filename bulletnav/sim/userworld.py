@@ -45,6 +45,7 @@ import numpy as np
 
 from bulletnav import limits
 from bulletnav.errors import LayoutError, LimitError
+from bulletnav.filekinds import wrong_kind
 from bulletnav.sim import mapserver, sdf
 from bulletnav.sim.mapserver import finite
 from bulletnav.sim.specs import Obstacle
@@ -106,6 +107,9 @@ def refuse_wrong_kind(path: Path) -> None:
     if head.startswith(MODEL_MAGIC):
         raise LayoutError(f"{path}: a zip archive (a saved model?), not a world: a model goes to --model; "
                           "a world is a layout or map YAML or a Gazebo .world/.sdf file")
+    other = wrong_kind(path, "world")  # a suite, hyperparameters, a recording or a bag given as a world
+    if other:
+        raise LayoutError(other)
 
 
 def _yaml_naming(image: Path) -> Path | None:
