@@ -549,6 +549,10 @@ KINDS: dict[str, str] = {
     "test_messages.py::test_navigate_says_its_shortest_path_runs_to_the_goal_centre": "formula",  # the straight line
     "test_messages.py::test_frame_at_means_simulated_seconds_in_every_command": "contract",
     "test_messages.py::test_the_command_recorded_is_the_one_typed": "hand",
+    # ---- test_map_frame.py
+    "test_map_frame.py::test_a_map_far_off_the_origin_drives_and_records_in_its_own_frame": "hand",
+    "test_map_frame.py::test_a_gazebo_world_off_the_origin_keeps_its_coordinates": "hand",
+    "test_map_frame.py::test_a_layout_with_a_corner_round_trips_and_a_far_corner_is_refused": "hand",
     # ---- test_mission.py
     "test_mission.py::test_a_drive_through_three_goals_earns_two_subgoals_then_the_goal": "hand",
     "test_mission.py::test_free_order_heads_for_the_nearest_goal_and_fixed_for_the_first": "hand",
@@ -859,7 +863,9 @@ KINDS: dict[str, str] = {
     "test_user_maps.py::test_image_rows_run_from_the_top": "hand",
     "test_user_maps.py::test_merged_boxes_cover_exactly_the_occupied_cells": "formula",  # boxes rasterised in the test
     "test_user_maps.py::test_walls_merge_into_few_boxes": "hand",
-    "test_user_maps.py::test_map_layout_frame_and_boxes": "hand",  # frame by hand; walls from the pixel values in the test
+    # walls from the pixel values in the test
+    "test_user_maps.py::test_a_map_lives_in_its_own_frame_its_boxes_on_its_wall_cells": "hand",
+    "test_user_maps.py::test_a_turned_map_is_resampled_in_the_map_frame": "formula",
     "test_user_maps.py::test_hand_made_map_driven_by_pid_astar": "hand",  # a PGM and YAML written by hand; the goal by hand
     "test_user_maps.py::test_sdf_poses_compose": "hand",
     "test_user_maps.py::test_sdf_state_is_applied_as_gazebo_loads_it": "hand",

@@ -264,7 +264,6 @@ def test_format_ros_is_what_map_server_reads(bags, tmp_path, capsys):
 
 def test_format_ros_round_trips_through_the_world_reader(bags, tmp_path, capsys):
     from bulletnav.sim.layout import load_layout
-    from bulletnav.sim.userworld import to_map_frame
 
     stem = tmp_path / "room"
     assert main(["map", str(bags["ros2"]), "--format", "ros", "--out", str(stem)]) == 0
@@ -276,12 +275,10 @@ def test_format_ros_round_trips_through_the_world_reader(bags, tmp_path, capsys)
     # the layout's walls, rasterised at the map's cell centres, are exactly the occupied and unknown cells
     walls = layout.occupancy(0.1)
     assert np.array_equal(walls, state != 0)
-    # and the layout's frame puts its cells back where the map's are
-    assert to_map_frame(layout, -layout.size[0] / 2, -layout.size[1] / 2) == pytest.approx((m.x0, m.y0))
+    # the world is in the map's frame: its floor starts where the map's cells do
+    assert layout.corner == pytest.approx((m.x0, m.y0), abs=1e-12)
     # the room's middle (map frame) is free in the layout, a point in its wall is not
-    from bulletnav.sim.userworld import from_map_frame
-
-    inside, wall = from_map_frame(layout, 0.0, 0.0), from_map_frame(layout, ROOM[2] + 0.05, 0.0)
+    inside, wall = (0.0, 0.0), (ROOM[2] + 0.05, 0.0)
     assert layout.clearance(np.array(inside[0]), np.array(inside[1])) > 1.0
     assert layout.clearance(np.array(wall[0]), np.array(wall[1])) <= 0.0
 

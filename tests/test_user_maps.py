@@ -24,7 +24,6 @@ from bulletnav.errors import LayoutError
 from bulletnav.evaluation import run_episodes
 from bulletnav.sim.layout import load_layout
 from bulletnav.sim.mapserver import cell_values, merge_boxes, read_meta
-from bulletnav.sim.userworld import from_map_frame, to_map_frame
 
 META = "resolution: 0.1\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
 
@@ -156,31 +155,73 @@ def site(tmp_path) -> Path:
     return tmp_path / "site.yaml"
 
 
-def test_map_layout_frame_and_boxes(site):
-    layout = load_layout(site)
-    assert layout.size == pytest.approx((W * RES, H * RES))
-    # start and goal given in the map frame land at the site's own points (centred floor: -5..5, -3.5..3.5)
-    assert layout.start == pytest.approx((2.0 - 5.0, 1.5 - 3.5, 0.3))
-    assert layout.goal == pytest.approx((8.0 - 5.0, 1.5 - 3.5))
-    assert to_map_frame(layout, *layout.goal) == pytest.approx(_map_point(8.0, 1.5))
-    assert from_map_frame(layout, *_map_point(0.0, 0.0)) == pytest.approx((-5.0, -3.5))
-    # the boxes cover exactly the wall cells: occupied (0) and unknown (205) pixels, rasterised here at cell centres
+def _site_yaml(tmp_path: Path, origin: tuple[float, float, float]) -> Path:
+    """The site's map with ``origin``, start and goal given in the map's frame."""
+    _pgm(tmp_path / "flat.pgm", _site_pixels())
+    (tmp_path / "flat.yaml").write_text(
+        f"image: flat.pgm\nmode: trinary\norigin: [{origin[0]!r}, {origin[1]!r}, {origin[2]!r}]\n" + META +
+        f"start: [{origin[0] + 2.0!r}, {origin[1] + 1.5!r}, 0.3]\ngoal: [{origin[0] + 8.0!r}, {origin[1] + 1.5!r}]\n")
+    return tmp_path / "flat.yaml"
+
+
+def test_a_map_lives_in_its_own_frame_its_boxes_on_its_wall_cells(tmp_path):
+    """An unturned map far off the origin (as a SLAM run saves one): the floor's corner is the
+    YAML's origin to the bit, start and goal are where the YAML puts them, and the boxes cover
+    exactly the wall cells (occupied and unknown pixels), rasterised here at the cells' centres
+    in the map's coordinates."""
+    origin = (-53.7, 12.3, 0.0)
+    layout = load_layout(_site_yaml(tmp_path, origin))
+    assert layout.corner == (-53.7, 12.3) and layout.size == pytest.approx((W * RES, H * RES))
+    assert layout.bounds[:2] == (-53.7, 12.3) and layout.bounds[2:] == pytest.approx((-43.7, 19.3))
+    assert layout.start == (-53.7 + 2.0, 12.3 + 1.5, 0.3) and layout.goal == (-53.7 + 8.0, 12.3 + 1.5)
     walls = (_site_pixels()[::-1].T != 254)
-    xs = -5.0 + RES * (np.arange(W) + 0.5)
-    ys = -3.5 + RES * (np.arange(H) + 0.5)
+    xs = -53.7 + RES * (np.arange(W) + 0.5)
+    ys = 12.3 + RES * (np.arange(H) + 0.5)
     covered = np.zeros((W, H), dtype=int)
     for o in layout.obstacles:
         assert o.kind == "box" and o.yaw == 0.0 and o.size[2] == 2.0
         inside = (np.abs(xs[:, None] - o.center[0]) < o.size[0] / 2) & (np.abs(ys[None, :] - o.center[1]) < o.size[1] / 2)
         covered += inside
     assert np.array_equal(covered, walls.astype(int))
+    assert np.array_equal(layout.occupancy(RES), walls)  # the layout's own grid: the map's cells, cell for cell
     assert len(layout.obstacles) == 6  # the border (4), the wall (1) and the unknown corner (1)
     # unknown: free keeps only the occupied cells
-    text = site.read_text() + "unknown: free\n"
-    site.write_text(text)
-    free = load_layout(site)
+    path = tmp_path / "flat.yaml"
+    path.write_text(path.read_text() + "unknown: free\n")
+    free = load_layout(path)
     assert sum(o.size[0] * o.size[1] for o in free.obstacles) == pytest.approx(
         RES * RES * int((_site_pixels() == 0).sum()))
+
+
+def test_a_turned_map_is_resampled_in_the_map_frame(site):
+    """The site's origin (3, -2) is turned by 0.5 rad: the floor is the rectangle that bounds the
+    turned image (its corners worked by hand), start and goal stay where the YAML gives them, the
+    centre of every wall pixel (map frame, by the origin's rotation) is inside a wall and a point
+    two cells clear of every wall pixel is free; outside the image is wall."""
+    layout = load_layout(site)
+    corners = [_map_point(lx, ly) for lx in (0.0, W * RES) for ly in (0.0, H * RES)]
+    x0, y0 = min(c[0] for c in corners), min(c[1] for c in corners)
+    x1, y1 = max(c[0] for c in corners), max(c[1] for c in corners)
+    assert layout.corner == pytest.approx((x0, y0), abs=1e-9)
+    assert layout.size == pytest.approx((math.ceil((x1 - x0) / RES - 1e-9) * RES, math.ceil((y1 - y0) / RES - 1e-9) * RES))
+    assert layout.start[:2] == pytest.approx(_map_point(2.0, 1.5)) and layout.start[2] == pytest.approx(ORIGIN[2] + 0.3)
+    assert layout.goal == pytest.approx(_map_point(8.0, 1.5))
+    cells = _site_pixels()[::-1].T  # [ix, iy]
+    walls = cells != 254
+    from scipy import ndimage
+
+    clear = ndimage.distance_transform_edt(~walls) >= 2.5  # two cells and more from any wall pixel
+    for ix, iy in np.argwhere(walls):  # the wall, the borders, the unknown corner
+        px, py = _map_point((ix + 0.5) * RES, (iy + 0.5) * RES)
+        assert float(layout.clearance(np.array(px), np.array(py))) <= 0.0, (ix, iy)
+    rng = np.random.default_rng(0)
+    free = np.argwhere(clear)
+    for ix, iy in free[rng.choice(len(free), 200, replace=False)]:
+        px, py = _map_point((ix + 0.5) * RES, (iy + 0.5) * RES)
+        assert float(layout.clearance(np.array(px), np.array(py))) > 0.0, (ix, iy)
+    # beyond the image's edge (map frame) but inside the bounding floor: wall
+    px, py = _map_point(-0.3, 3.5)
+    assert layout.on_floor(px, py) and float(layout.clearance(np.array(px), np.array(py))) <= 0.0
 
 
 def test_hand_made_map_driven_by_pid_astar(site):
@@ -192,7 +233,7 @@ def test_hand_made_map_driven_by_pid_astar(site):
     finally:
         env.close()
     assert results[0].success and not results[0].collision
-    assert tuple(goals[0]) == pytest.approx((3.0, -2.0))
+    assert tuple(goals[0]) == pytest.approx(_map_point(8.0, 1.5))  # the goal the YAML gives, in its frame
     # round the wall (x = 4.8-5.2 m from the corner, up to y = 4.5 m): far longer than the straight 6 m
     assert results[0].shortest_path > 8.0
 
@@ -240,8 +281,8 @@ def test_sdf_poses_compose(tmp_path):
     layout = load_layout(path)
     # the shapes' extent: x 4.9..15.1 (the west/east walls 0.2 thick), y 16.4..23.6; grown 1 m each side
     assert layout.size == pytest.approx((10.2 + 2, 7.2 + 2))
-    assert layout.frame == pytest.approx((10.0, 20.0, 0.0))
-    by = {(o.label, round(o.center[0] + 10, 6), round(o.center[1] + 20, 6)): o for o in layout.obstacles}
+    assert layout.corner == pytest.approx((4.9 - 1.0, 16.4 - 1.0))  # the world's own frame
+    by = {(o.label, round(o.center[0], 6), round(o.center[1], 6)): o for o in layout.obstacles}
     assert len(layout.obstacles) == 7
     west, east = by[("walls", 5.0, 20.0)], by[("walls", 15.0, 20.0)]  # 1.570796326795 rad and 90 degrees
     assert east.yaw == pytest.approx(math.pi / 2) and west.yaw == pytest.approx(math.pi / 2)
@@ -268,7 +309,7 @@ def test_sdf_state_is_applied_as_gazebo_loads_it(tmp_path):
                             f"<insertions><model name='added'><pose>1 3 0 0 0 0</pose>{cyl}</model></insertions>"
                             "<deletions><name>gone</name></deletions></state>")
     layout = load_layout(path)
-    placed = {o.label: (to_map_frame(layout, *o.center), o.yaw) for o in layout.obstacles}
+    placed = {o.label: (o.center, o.yaw) for o in layout.obstacles}
     assert sorted(placed) == ["added", "moved"]
     assert placed["moved"][0] == pytest.approx((4.0, 1.0)) and placed["moved"][1] == pytest.approx(0.3)
     assert placed["added"][0] == pytest.approx((1.0, 3.0))
@@ -278,7 +319,7 @@ def test_hand_written_world_driven_by_pid_astar(tmp_path):
     (tmp_path / "hand.world").write_text(WORLD)
     (tmp_path / "run.yaml").write_text("map: hand.world\nstart: [7.0, 18.0, 0.0]\ngoal: [12.5, 18.0]\nmargin: 0.5\n")
     layout = load_layout(tmp_path / "run.yaml")
-    assert layout.start == pytest.approx((-3.0, -2.0, 0.0)) and layout.goal == pytest.approx((2.5, -2.0))
+    assert layout.start == (7.0, 18.0, 0.0) and layout.goal == (12.5, 18.0)  # the world's frame, as given
     env = gym.make("bulletnav/Warehouse-v0", world=str(tmp_path / "run.yaml"))
     try:
         results = run_episodes(env, Navigator(env.unwrapped.scene, NavigatorConfig(planner="astar")), 1, seed=3)
@@ -290,9 +331,9 @@ def test_hand_written_world_driven_by_pid_astar(tmp_path):
 
 
 def test_fleet_runs_in_a_hand_made_map_with_stations_in_its_frame(site, tmp_path):
-    """``fleet --world`` takes a user's map: stations given in the map's frame (as start and goal are),
-    converted to the layout's by the map's origin (3, -2, yaw 0.5) worked here by hand; a Gazebo
-    world, which has no racks and no place for stations, is refused naming what to add."""
+    """``fleet --world`` takes a user's map: stations given in the map's frame (as start and goal are)
+    stay where they are given (the world is in the map's frame); a Gazebo world, which has no racks
+    and no place for stations, is refused naming what to add."""
     from bulletnav.errors import ConfigError
     from bulletnav.fleet import fleet_v0
 
@@ -303,9 +344,7 @@ def test_fleet_runs_in_a_hand_made_map_with_stations_in_its_frame(site, tmp_path
     try:
         obs, infos = env.reset(seed=4)
         stations = env.unwrapped.stations
-        # the layout is centred: the 10 x 7 m map's corner point (lx, ly) is (lx - 5, ly - 3.5) in it
-        assert list(stations.pick) == [pytest.approx((-3.0, 2.0))]
-        assert list(stations.drop) == [pytest.approx((3.0, -2.0))]
+        assert list(stations.pick) == [pytest.approx(pick)] and list(stations.drop) == [pytest.approx(drop)]
         for _ in range(5):
             obs, _, _, _, infos = env.step({a: np.zeros(2, dtype=np.float32) for a in env.agents})
         assert len(obs) == 2

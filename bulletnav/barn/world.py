@@ -1,8 +1,7 @@
 """BARN worlds as bulletnav layouts, and their build in PyBullet.
 
 A BARN world keeps BARN's own frame: cylinders at the world file's (x, y), start (-2.25, 3),
-goal (-2.25, 13). A bulletnav :class:`~bulletnav.sim.layout.Layout` is centred on the origin,
-so the floor is :data:`FLOOR_SIZE` = 10 x 30 m (x in [-5, 5], y in [-15, 15]): BARN's field
+goal (-2.25, 13). The floor is centred on BARN's origin, :data:`FLOOR_SIZE` = 10 x 30 m (x in [-5, 5], y in [-15, 15]): BARN's field
 (x in [-4.5, 0], y in [0, 9.6], the goal 3.4 m above it) lies inside with room to spare. BARN
 has no enclosing walls; ours stand 0.5 m beyond BARN's side rows of cylinders and 2 m beyond
 the goal.

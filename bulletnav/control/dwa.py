@@ -217,9 +217,9 @@ class MoveBaseDWA:
         else:
             start = self.scene.start
             ox, oy = start[0] + c.origin_x, start[1] + c.origin_y
-            hx, hy = self.scene.layout.half_extents
-            x0, y0 = max(0, math.floor((-hx - ox) / res)), max(0, math.floor((-hy - oy) / res))
-            x1, y1 = min(size_x, math.ceil((hx - ox) / res)), min(size_y, math.ceil((hy - oy) / res))
+            fx0, fy0, fx1, fy1 = self.scene.layout.bounds
+            x0, y0 = max(0, math.floor((fx0 - ox) / res)), max(0, math.floor((fy0 - oy) / res))
+            x1, y1 = min(size_x, math.ceil((fx1 - ox) / res)), min(size_y, math.ceil((fy1 - oy) / res))
             if x1 > x0 and y1 > y0:  # the floor inside the window: keep only those cells (ROS's grid)
                 ox, oy, size_x, size_y = ox + x0 * res, oy + y0 * res, x1 - x0, y1 - y0
         footprint = np.asarray(c.footprint, dtype=np.float64) if c.footprint else footprint_from_radius(c.robot_radius)

@@ -424,8 +424,7 @@ class Navigator:
         self.lidar_offset = geometry.lidar_offset
         self.inflation = geometry.radius if self.config.inflation is None else self.config.inflation
         self.dt = scene.control_dt
-        hx, hy = scene.layout.half_extents
-        self.mapper = LidarMapper((-hx, -hy, hx, hy), self.config.resolution)
+        self.mapper = LidarMapper(scene.layout.bounds, self.config.resolution)
         self.controller = GoToGoal(self.config.controller, self.angles, geometry)
         self.goal = (float(info["goal"][0]), float(info["goal"][1]))
         x, y, yaw = (float(v) for v in info["pose"])

@@ -89,7 +89,7 @@ def load_world(path: str | Path) -> tuple[Layout, dict[str, tuple[Point, ...]]]:
             named[key] = points_arg(points, f"{path}: field 'stations.{key}'", LayoutError)
     if userworld.is_user_map(data):  # stations in the map's frame, as its start and goal
         layout = Layout(**userworld.load_user_map(path, data))
-        return layout, {k: tuple(userworld.from_map_frame(layout, x, y) for x, y in pts) for k, pts in named.items()}
+        return layout, named
     return parse_layout(data, str(path)), named
 
 
@@ -128,16 +128,18 @@ def rack_faces(layout: Layout, offset: float, spacing: float) -> list[Point]:
 def wall_points(layout: Layout, wall: str, offset: float, spacing: float) -> list[Point]:
     """Candidate drop points along one wall, ``offset`` m from it."""
     hx, hy = layout.half_extents
+    x0, y0, x1, y1 = layout.bounds
+    cx, cy = layout.centre
     length = 2 * (hx if wall in ("south", "north") else hy)
     count = max(1, int(length // spacing))
     along = [(k + 0.5) * length / count - length / 2 for k in range(count)]
     if wall == "south":
-        return [(a, -hy + offset) for a in along]
+        return [(cx + a, y0 + offset) for a in along]
     if wall == "north":
-        return [(a, hy - offset) for a in along]
+        return [(cx + a, y1 - offset) for a in along]
     if wall == "west":
-        return [(-hx + offset, a) for a in along]
-    return [(hx - offset, a) for a in along]
+        return [(x0 + offset, cy + a) for a in along]
+    return [(x1 - offset, cy + a) for a in along]
 
 
 def _keep(points: list[Point], layout: Layout, free: FreeSpace, clearance: float) -> list[tuple[Point, int]]:

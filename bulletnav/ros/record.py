@@ -167,7 +167,11 @@ def robot_messages(write: Callable[[str, dict[str, Any], int], None], robot: Any
 def truth_map_message(ns: int, view: Any) -> dict[str, Any]:
     """``/map_truth``: the scene's true static map (``view.occupancy``) at :data:`MAP_RESOLUTION`."""
     truth = view.occupancy(MAP_RESOLUTION)
-    corner = (truth.origin[0] - MAP_RESOLUTION / 2, truth.origin[1] - MAP_RESOLUTION / 2)
+    layout = getattr(view, "layout", None)
+    if layout is not None and layout.corner is not None:  # a user's map: its own origin, to the bit
+        corner = layout.corner
+    else:
+        corner = (truth.origin[0] - MAP_RESOLUTION / 2, truth.origin[1] - MAP_RESOLUTION / 2)
     return occupancy_message(ns, "map", np.where(truth.occupied, 100, 0), MAP_RESOLUTION, corner)
 
 
@@ -270,8 +274,7 @@ class McapRecorder(gym.Wrapper):
         config = getattr(self.env.unwrapped, "config", None)
         self._camera_in_obs = bool(config is not None and config.camera_obs)  # the env renders it every step anyway
         self._lidar = scene.sensors.lidar
-        sx, sy = scene.layout.size  # the floor is centred on the origin
-        self._bounds = (-sx / 2, -sy / 2, sx / 2, sy / 2)
+        self._bounds = scene.layout.bounds  # a user's map: in its own frame
         from bulletnav.planning.mapping import LidarMapper
 
         self._mapper = LidarMapper(self._bounds, MAP_RESOLUTION)

@@ -39,10 +39,10 @@ class ClearanceMap:
         self.clearance = ndimage.distance_transform_edt(~occ) * resolution
         xs, ys = layout.grid_axes(resolution)
         self.xs, self.ys = xs, ys
-        hx, hy = layout.half_extents
+        x0, y0, x1, y1 = layout.bounds
         # walls: cells near the border are no further from a wall than from their border distance
         gx, gy = xs[:, None], ys[None, :]
-        self.clearance = np.minimum(self.clearance, np.minimum(hx - np.abs(gx), hy - np.abs(gy)))
+        self.clearance = np.minimum(self.clearance, np.minimum(np.minimum(x1 - gx, gx - x0), np.minimum(y1 - gy, gy - y0)))
         self._graphs: dict[float, tuple] = {}
         self._cells: dict[float, np.ndarray] = {}
 
@@ -53,10 +53,10 @@ class ClearanceMap:
         return self._cells[need]
 
     def cell(self, xy) -> tuple[int, int]:
-        hx, hy = self.layout.half_extents
+        x0, y0, _, _ = self.layout.bounds
         nx, ny = self.clearance.shape
-        return (min(max(int((xy[0] + hx) / self.resolution), 0), nx - 1),
-                min(max(int((xy[1] + hy) / self.resolution), 0), ny - 1))
+        return (min(max(int((xy[0] - x0) / self.resolution), 0), nx - 1),
+                min(max(int((xy[1] - y0) / self.resolution), 0), ny - 1))
 
     def point(self, cell) -> tuple[float, float]:
         return float(self.xs[cell[0]]), float(self.ys[cell[1]])
@@ -65,8 +65,8 @@ class ClearanceMap:
         """True when every sample of segment ``a``-``b`` (every half cell) lies in a cell with
         clearance >= ``need`` (m)."""
         n = max(2, int(math.dist(a, b) / (self.resolution / 2)) + 1)
-        hx, hy = self.layout.half_extents
-        return line_clear(self.clearance, float(a[0]), float(a[1]), float(b[0]), float(b[1]), n, need, hx, hy,
+        x0, y0, _, _ = self.layout.bounds
+        return line_clear(self.clearance, float(a[0]), float(a[1]), float(b[0]), float(b[1]), n, need, -x0, -y0,
                           self.resolution)
 
     def graph(self, need: float):

@@ -168,10 +168,10 @@ class Events:
         p.resetBasePositionAndOrientation(body, [0.0, 0.0, PARK_Z], [0, 0, 0, 1], physicsClientId=self.cid)
 
     def _draw_pallet(self, robot_xy, goals, robot_radius, movers, tries: int = 20) -> Obstacle | None:
-        hx, hy = self._layout.half_extents
+        bx0, by0, bx1, by1 = self._layout.bounds
         r = PALLET.bounding_radius()
         for _ in range(tries):
-            x, y = self._rng.uniform(-hx + r, hx - r), self._rng.uniform(-hy + r, hy - r)
+            x, y = self._rng.uniform(bx0 + r, bx1 - r), self._rng.uniform(by0 + r, by1 - r)
             yaw = float(self._rng.choice([0.0, math.pi / 2]))
             o = Obstacle("box", (float(x), float(y)), size=PALLET.size, yaw=yaw, label="pallet")
             if self._fits(o, robot_xy, goals, robot_radius, movers):
@@ -208,19 +208,19 @@ class Events:
         return here != 0 and all(labels[self._cell(g)] == here for g in goals)
 
     def _cell(self, xy) -> tuple[int, int]:
-        hx, hy = self._layout.half_extents
+        x0, y0, _, _ = self._layout.bounds
         nx, ny = self._inflated.shape
-        return (min(max(int((xy[0] + hx) / self.resolution), 0), nx - 1),
-                min(max(int((xy[1] + hy) / self.resolution), 0), ny - 1))
+        return (min(max(int((xy[0] - x0) / self.resolution), 0), nx - 1),
+                min(max(int((xy[1] - y0) / self.resolution), 0), ny - 1))
 
     def _mark(self, occ: np.ndarray, o: Obstacle, inflate: float) -> None:
         res = self.resolution
-        hx, hy = self._layout.half_extents
+        x0, y0, _, _ = self._layout.bounds
         r = o.bounding_radius() + inflate
         i0, i1 = self._cell((o.center[0] - r, 0))[0], self._cell((o.center[0] + r, 0))[0] + 1
         j0, j1 = self._cell((0, o.center[1] - r))[1], self._cell((0, o.center[1] + r))[1] + 1
-        xs = -hx + res * (np.arange(i0, i1) + 0.5)
-        ys = -hy + res * (np.arange(j0, j1) + 0.5)
+        xs = x0 + res * (np.arange(i0, i1) + 0.5)
+        ys = y0 + res * (np.arange(j0, j1) + 0.5)
         gx, gy = np.meshgrid(xs, ys, indexing="ij")
         occ[i0:i1, j0:j1] |= o.distance(gx, gy) <= inflate
 

@@ -79,7 +79,8 @@ def line_clear(clearance: np.ndarray, ax: float, ay: float, bx: float, by: float
                hy: float, resolution: float) -> bool:
     """``ClearanceMap.line_clear`` for ``n`` samples (the caller computes ``n`` with Python's
     ``math.dist``, as that method does): the points of ``np.linspace(0, 1, n)`` along the
-    segment, each sample's cell (truncated, clipped to the grid) with clearance >= ``need``."""
+    segment, each sample's cell (truncated, clipped to the grid) with clearance >= ``need``.
+    ``hx``, ``hy``: minus the grid's lower-left corner (the floor's half size when it is centred)."""
     step = 1.0 / (n - 1)
     nx, ny = clearance.shape
     for k in range(n):

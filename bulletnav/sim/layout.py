@@ -61,18 +61,42 @@ class Layout:
     """Obstacles that appear or vanish at given times in every episode on this layout."""
     goals: tuple[tuple[float, float], ...] = ()
     """Mission goals (``goals:`` list), used by the mission task instead of sampled ones."""
-    frame: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    """Pose (x m, y m, yaw rad) of this layout's frame in the frame of the map it was read from
-    (a map_server map or a Gazebo world, :mod:`bulletnav.sim.userworld`); zero for layouts."""
+    corner: tuple[float, float] | None = None
+    """The floor's lower-left corner (x, y m) in the world frame. None: the floor is centred on
+    the origin (layout files and procedural worlds). A map_server map or a Gazebo world
+    (:mod:`bulletnav.sim.userworld`) lives in the file's own frame: its corner is the map's
+    ``origin`` (or the Gazebo shapes' extent less the margin), and every pose, path and map is
+    in that frame."""
 
     @property
     def half_extents(self) -> tuple[float, float]:
         return self.size[0] / 2, self.size[1] / 2
 
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """The floor's extent in the world frame (m): ``(x_min, y_min, x_max, y_max)``."""
+        if self.corner is None:
+            hx, hy = self.size[0] / 2, self.size[1] / 2
+            return -hx, -hy, hx, hy
+        x0, y0 = self.corner
+        return x0, y0, x0 + self.size[0], y0 + self.size[1]
+
+    @property
+    def centre(self) -> tuple[float, float]:
+        """The floor's centre in the world frame (m): (0, 0) unless it has a ``corner``."""
+        if self.corner is None:
+            return 0.0, 0.0
+        return self.corner[0] + self.size[0] / 2, self.corner[1] + self.size[1] / 2
+
+    def on_floor(self, x: float, y: float) -> bool:
+        """Whether (x, y) lies strictly inside the floor's extent."""
+        x0, y0, x1, y1 = self.bounds
+        return x0 < x < x1 and y0 < y < y1
+
     def clearance(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Distance from points to the nearest obstacle or wall (m); <= 0 outside the floor."""
-        hx, hy = self.half_extents
-        d = np.minimum(np.minimum(hx - x, hx + x), np.minimum(hy - y, hy + y))
+        x0, y0, x1, y1 = self.bounds
+        d = np.minimum(np.minimum(x1 - x, x - x0), np.minimum(y1 - y, y - y0))
         for obs in self.obstacles:
             d = np.minimum(d, obs.distance(x, y))
         return d
@@ -81,16 +105,16 @@ class Layout:
         """Cell-centre coordinates along x and y for a grid covering the floor."""
         nx = int(math.ceil(self.size[0] / resolution - 1e-9))
         ny = int(math.ceil(self.size[1] / resolution - 1e-9))
-        hx, hy = self.half_extents
-        xs = -hx + resolution * (np.arange(nx) + 0.5)
-        ys = -hy + resolution * (np.arange(ny) + 0.5)
+        x0, y0, _, _ = self.bounds
+        xs = x0 + resolution * (np.arange(nx) + 0.5)
+        ys = y0 + resolution * (np.arange(ny) + 0.5)
         return xs, ys
 
     def occupancy(self, resolution: float, inflate: float = 0.0) -> np.ndarray:
         """Boolean grid ``[ix, iy]`` over the floor: True where a cell centre lies within
         ``inflate`` metres of an obstacle or wall (or inside one).
 
-        Cell (0, 0) is centred at ``(-size_x/2 + res/2, -size_y/2 + res/2)``.
+        Cell (0, 0) is centred at ``(x_min + res/2, y_min + res/2)`` (:attr:`bounds`).
         """
         xs, ys = self.grid_axes(resolution)
         return self.within(xs, ys, inflate)
@@ -110,13 +134,13 @@ class Layout:
         a cell's margin cannot be within it), so the cost follows the obstacles' area, not floor
         area times obstacle count.
         """
-        hx, hy = self.half_extents
+        x0, y0, x1, y1 = self.bounds
         xs = np.ascontiguousarray(xs, dtype=np.float64)
         ys = np.ascontiguousarray(ys, dtype=np.float64)
         levels = np.asarray(distances, dtype=np.float64)
         gx = xs[:, None]
         gy = ys[None, :]
-        walls = np.minimum(np.minimum(hx - gx, hx + gx), np.minimum(hy - gy, hy + gy))
+        walls = np.minimum(np.minimum(x1 - gx, gx - x0), np.minimum(y1 - gy, gy - y0))
         out = walls[None, :, :] <= levels[:, None, None]
         if not self.obstacles:
             return out
@@ -188,8 +212,8 @@ def parse_layout(data: Any, where: str = "<layout>") -> Layout:
     """
     if not isinstance(data, dict):
         raise LayoutError(f"{where}: top level must be a mapping with 'size' and 'obstacles', got {type(data).__name__}")
-    unknown = sorted(set(data) - {"name", "size", "wall_height", "obstacles", "start", "goal", "goals", "dynamic",
-                                  "events"}, key=str)
+    unknown = sorted(set(data) - {"name", "size", "corner", "wall_height", "obstacles", "start", "goal", "goals",
+                                  "dynamic", "events"}, key=str)
     if unknown:
         raise LayoutError(f"{where}: unknown top-level field(s) {unknown}")
     if "size" not in data:
@@ -210,22 +234,10 @@ def parse_layout(data: Any, where: str = "<layout>") -> Layout:
         if isinstance(data.get(key), list):
             _limit(name, len(data[key]), where, f"{key} (entries)")
     obstacles = tuple(_parse_obstacle(o, where, i) for i, o in enumerate(raw_obstacles))
-    hx, hy = size[0] / 2, size[1] / 2
-    for i, obs in enumerate(obstacles):
-        r = obs.bounding_radius() if obs.kind == "cylinder" else None
-        if obs.kind == "cylinder":
-            inside = abs(obs.center[0]) + r <= hx + 1e-9 and abs(obs.center[1]) + r <= hy + 1e-9  # type: ignore[operator]
-        else:
-            c, s = math.cos(obs.yaw), math.sin(obs.yaw)
-            ex = abs(c) * obs.size[0] / 2 + abs(s) * obs.size[1] / 2
-            ey = abs(s) * obs.size[0] / 2 + abs(c) * obs.size[1] / 2
-            inside = abs(obs.center[0]) + ex <= hx + 1e-9 and abs(obs.center[1]) + ey <= hy + 1e-9
-        if not inside:
-            raise LayoutError(
-                f"{where}: obstacles[{i}] at center {list(obs.center)} extends outside the floor "
-                f"(x in [{-hx}, {hx}], y in [{-hy}, {hy}])"
-            )
-    layout = Layout(size, obstacles, wall_height, str(data.get("name", "")), source=where)  # type: ignore[arg-type]
+    corner = _parse_corner(data.get("corner"), where)
+    _check_on_floor(Layout(size, (), corner=corner), obstacles, where)  # type: ignore[arg-type]
+    layout = Layout(size, obstacles, wall_height, str(data.get("name", "")), source=where,  # type: ignore[arg-type]
+                    corner=corner)
     start = goal = None
     if data.get("start") is not None:
         start = _vec(data["start"], 3, where, "start")
@@ -245,7 +257,41 @@ def parse_layout(data: Any, where: str = "<layout>") -> Layout:
         for i, g in enumerate(goals):
             _check_free(layout, g, where, f"goals[{i}]")
     return Layout(size, obstacles, wall_height, layout.name, start, goal, where, dynamic, events,  # type: ignore[arg-type]
-                  goals)  # type: ignore[arg-type]
+                  goals, corner=corner)  # type: ignore[arg-type]
+
+
+def _parse_corner(value: Any, where: str) -> tuple[float, float] | None:
+    """A layout's ``corner`` (the floor's lower-left corner, m) or None (a centred floor)."""
+    if value is None:
+        return None
+    from bulletnav.sim.mapserver import MAX_ORIGIN
+
+    corner = _vec(value, 2, where, "corner")
+    if max(abs(corner[0]), abs(corner[1])) > MAX_ORIGIN:
+        raise LayoutError(f"{where}: field 'corner' must be within {MAX_ORIGIN:g} m of the origin, got {list(corner)}")
+    return corner  # type: ignore[return-value]
+
+
+def _check_on_floor(floor: Layout, obstacles: tuple[Obstacle, ...], where: str) -> None:
+    """Every obstacle's footprint within ``floor``'s extent (1 nm of slack)."""
+    x0, y0, x1, y1 = floor.bounds
+    cx, cy = floor.centre
+    hx, hy = floor.half_extents
+    for i, obs in enumerate(obstacles):
+        r = obs.bounding_radius() if obs.kind == "cylinder" else None
+        dx, dy = obs.center[0] - cx, obs.center[1] - cy
+        if obs.kind == "cylinder":
+            inside = abs(dx) + r <= hx + 1e-9 and abs(dy) + r <= hy + 1e-9  # type: ignore[operator]
+        else:
+            c, s = math.cos(obs.yaw), math.sin(obs.yaw)
+            ex = abs(c) * obs.size[0] / 2 + abs(s) * obs.size[1] / 2
+            ey = abs(s) * obs.size[0] / 2 + abs(c) * obs.size[1] / 2
+            inside = abs(dx) + ex <= hx + 1e-9 and abs(dy) + ey <= hy + 1e-9
+        if not inside:
+            raise LayoutError(
+                f"{where}: obstacles[{i}] at center {list(obs.center)} extends outside the floor "
+                f"(x in [{x0}, {x1}], y in [{y0}, {y1}])"
+            )
 
 
 def _points(value: Any, where: str, field_name: str, layout: Layout) -> tuple[tuple[float, float], ...]:
@@ -330,8 +376,7 @@ def _parse_events(raw: Any, layout: Layout, where: str) -> tuple[EventSpec, ...]
             raise LayoutError(f"{where}: {tag} needs exactly one of 'add' (an obstacle entry) or 'remove' (a label)")
         if "add" in entry:
             o = _parse_obstacle(entry["add"], where, i, tag=f"{tag}.add")
-            hx, hy = layout.half_extents
-            if not (abs(o.center[0]) < hx and abs(o.center[1]) < hy):
+            if not layout.on_floor(o.center[0], o.center[1]):
                 raise LayoutError(f"{where}: field '{tag}.add.center' {list(o.center)} lies outside the floor")
             labels.add(o.label)
             out.append(EventSpec(at, add=o))
@@ -353,8 +398,7 @@ def _limit(name: str, value: float, where: str, field_name: str) -> None:
 
 
 def _check_free(layout: Layout, xy: tuple[float, ...], where: str, field_name: str) -> None:
-    hx, hy = layout.half_extents
-    if not (abs(xy[0]) < hx and abs(xy[1]) < hy):
+    if not layout.on_floor(xy[0], xy[1]):
         raise LayoutError(f"{where}: field '{field_name}' {list(xy)} lies outside the floor")
     for i, obs in enumerate(layout.obstacles):
         if float(obs.distance(np.array(xy[0]), np.array(xy[1]))) <= 0.0:
@@ -383,6 +427,8 @@ def load_layout(path: str | Path) -> Layout:
 def layout_to_dict(layout: Layout) -> dict[str, Any]:
     """The YAML-ready form of a layout (inverse of :func:`parse_layout`)."""
     out: dict[str, Any] = {"name": layout.name, "size": list(layout.size), "wall_height": layout.wall_height}
+    if layout.corner is not None:
+        out["corner"] = list(layout.corner)
     out["obstacles"] = [_obstacle_to_dict(o) for o in layout.obstacles]
     if layout.start is not None:
         out["start"] = list(layout.start)

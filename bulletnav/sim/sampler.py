@@ -56,9 +56,9 @@ class FreeSpace:
         return cls(layout, config.grid_resolution, xs, ys, clear, component)
 
     def cell(self, xy: tuple[float, float] | np.ndarray) -> tuple[int, int]:
-        hx, hy = self.layout.half_extents
-        ix = int(np.clip((xy[0] + hx) // self.resolution, 0, len(self.xs) - 1))
-        iy = int(np.clip((xy[1] + hy) // self.resolution, 0, len(self.ys) - 1))
+        x0, y0, _, _ = self.layout.bounds
+        ix = int(np.clip((xy[0] - x0) // self.resolution, 0, len(self.xs) - 1))
+        iy = int(np.clip((xy[1] - y0) // self.resolution, 0, len(self.ys) - 1))
         return ix, iy
 
     def reachable(self, a: tuple[float, float], b: tuple[float, float]) -> bool:

@@ -18,16 +18,22 @@ not import the layout module that imports it)::
     name: my-site
 
 The same keys (all but ``map``) may stand in the map_server YAML itself: ``map_server`` reads only
-its own keys. A :class:`~bulletnav.sim.layout.Layout` is centred on the origin, so the map is
-translated (and, for a map whose ``origin`` has a yaw, turned): ``Layout.frame`` is the pose of the
-layout's frame in the map's, and :func:`to_map_frame` / :func:`from_map_frame` convert. Start and
-goal are given, and errors report them, in the map's frame.
+its own keys. The world lives in the file's own frame: the floor's lower-left corner
+(``Layout.corner``) is the map's ``origin`` (a Gazebo world: its shapes' extent less the margin),
+so the PyBullet bodies, every pose and path the env reports, the lidar map and a recording's
+``/tf`` and ``/map`` are all in the map's coordinates, and start and goal are given in them.
 
 A map_server map: each cell's value as Nav2 reads it (:mod:`bulletnav.sim.mapserver`); walls where
 it is 100 (occupied) and, unless ``unknown: free``, -1 (unknown); values 1-99 (scale and raw modes)
 are free, as Nav2's static costmap layer takes them by default (``trinary_costmap: true``,
 ``lethal_cost_threshold: 100``). The wall cells are merged into few boxes
-(:func:`~bulletnav.sim.mapserver.merge_boxes`); the floor is the image's extent.
+(:func:`~bulletnav.sim.mapserver.merge_boxes`); the floor is the image's extent. A map whose
+``origin`` has a yaw is turned into the map frame: its image is resampled at its own resolution
+onto the cells of the axis-aligned rectangle that bounds it, and the cells outside the image are
+walls (the edge of the map, as an unturned map's floor ends there). A cell is a wall where any of
+nine points over it (its centre, corners and edge midpoints) falls on a wall pixel or off the
+image, so every point of a wall pixel within half a cell of its centre stays in a wall: walls grow
+by up to a cell's diagonal, never shrink.
 
 A Gazebo world: its box and cylinder collisions (:mod:`bulletnav.sim.sdf`); the floor is their
 extent grown by ``margin`` on every side (a stock ground plane is 100 m wide: taking its size
@@ -134,21 +140,6 @@ def _yaml_naming(image: Path) -> Path | None:
     return None
 
 
-def to_map_frame(layout: Any, x: float, y: float) -> tuple[float, float]:
-    """A layout point (m) in the frame of the map it came from (``layout.frame``)."""
-    fx, fy, fyaw = layout.frame
-    c, s = math.cos(fyaw), math.sin(fyaw)
-    return fx + c * x - s * y, fy + s * x + c * y
-
-
-def from_map_frame(layout: Any, x: float, y: float) -> tuple[float, float]:
-    """A point of the map's frame (m) in the layout's frame (inverse of :func:`to_map_frame`)."""
-    fx, fy, fyaw = layout.frame
-    c, s = math.cos(fyaw), math.sin(fyaw)
-    dx, dy = x - fx, y - fy
-    return c * dx + s * dy, -s * dx + c * dy
-
-
 # --------------------------------------------------------------------------- loading
 
 
@@ -165,19 +156,18 @@ def load_sdf(path: str | Path, options: dict[str, Any] | None = None, where: str
     _limit("obstacles", len(shapes), where, "shapes (box and cylinder collisions)")
     points = np.vstack([s.corners() for s in shapes])
     lo, hi = points.min(axis=0), points.max(axis=0)
-    centre = (lo + hi) / 2
     size = (float(hi[0] - lo[0] + 2 * margin), float(hi[1] - lo[1] + 2 * margin))
     _floor(size, where)
     obstacles = []
     for s in shapes:
-        xy = (s.center[0] - float(centre[0]), s.center[1] - float(centre[1]))
+        xy = (float(s.center[0]), float(s.center[1]))
         if s.kind == "box":
             obstacles.append(Obstacle("box", xy, size=(s.size[0], s.size[1], s.top), yaw=s.yaw, label=s.model))
         else:
             obstacles.append(Obstacle("cylinder", xy, radius=s.size[0] / 2, height=s.top, label=s.model))
     name = options.get("name", world_name or path.stem)
     layout = {"size": size, "obstacles": tuple(obstacles), "name": str(name), "source": where,
-              "frame": (float(centre[0]), float(centre[1]), 0.0)}
+              "corner": (float(lo[0]) - margin, float(lo[1]) - margin)}
     return _place(layout, options, where, None)
 
 
@@ -204,6 +194,11 @@ def load_map_yaml(path: Path, data: dict[str, Any], options: dict[str, Any] | No
         raise LayoutError(f"{where}: field 'height' must be at most {MAX_WALL_HEIGHT:g} m (the walls' height), "
                           f"got {show(options['height'])}")
     meta, grid = mapserver.read_grid(data, str(path))
+    ox, oy, oyaw = meta.origin
+    res = meta.resolution
+    corner = (ox, oy)
+    if oyaw != 0.0:  # turned into the map frame: resampled onto the cells of its bounding rectangle
+        corner, grid = _turned(grid, res, meta.origin)
     walls = grid == mapserver.OCCUPIED
     if unknown == "occupied":
         walls |= grid == mapserver.UNKNOWN
@@ -216,20 +211,58 @@ def load_map_yaml(path: Path, data: dict[str, Any], options: dict[str, Any] | No
         raise LayoutError(f"{where}: the map's walls need more than {most} boxes (merged wall cells), past the limit "
                           f"obstacles = {most} (raise it with {limits.env_var('obstacles')})")
     _limit("obstacles", len(boxes), where, "boxes (merged wall cells)")
-    res = meta.resolution
     nx, ny = grid.shape
     size = (nx * res, ny * res)
     _floor(size, where)
-    hx, hy = size[0] / 2, size[1] / 2
-    obstacles = tuple(Obstacle("box", (-hx + (i0 + i1) * res / 2, -hy + (j0 + j1) * res / 2),
+    x0, y0 = corner
+    obstacles = tuple(Obstacle("box", (x0 + (i0 + i1) * res / 2, y0 + (j0 + j1) * res / 2),
                                size=((i1 - i0) * res, (j1 - j0) * res, height), label="map")
                       for i0, j0, i1, j1 in boxes)
-    ox, oy, oyaw = meta.origin
-    c, s = math.cos(oyaw), math.sin(oyaw)
-    frame = (ox + c * hx - s * hy, oy + s * hx + c * hy, oyaw)
     layout = {"size": size, "obstacles": obstacles, "wall_height": max(height, 0.5),
-              "name": str(options.get("name", path.stem)), "source": where, "frame": frame}
+              "name": str(options.get("name", path.stem)), "source": where, "corner": (float(x0), float(y0))}
     return _place(layout, options, where, (grid, res))
+
+
+OUTSIDE = mapserver.OCCUPIED
+"""The value of a turned map's cells outside its image (walls: the edge of the map)."""
+
+
+def _turned(grid: np.ndarray, res: float, origin: tuple[float, float, float]) -> tuple[tuple[float, float], np.ndarray]:
+    """A map whose origin has a yaw, in the map frame: the lower-left corner of the axis-aligned
+    rectangle that bounds its image, and the grid over that rectangle at the same resolution. Each
+    cell is looked at in nine points (centre, corners, edge midpoints): occupied (:data:`OUTSIDE`
+    off the image) where any is, else unknown where any is, else the value under its centre."""
+    ox, oy, yaw = origin
+    nx, ny = grid.shape
+    c, s = math.cos(yaw), math.sin(yaw)
+    ex, ey = np.array([0.0, nx * res, 0.0, nx * res]), np.array([0.0, 0.0, ny * res, ny * res])
+    xs, ys = ox + c * ex - s * ey, oy + s * ex + c * ey  # the image's corners in the map frame
+    x0, y0 = float(xs.min()), float(ys.min())
+    mx = max(1, int(math.ceil((float(xs.max()) - x0) / res - 1e-9)))
+    my = max(1, int(math.ceil((float(ys.max()) - y0) / res - 1e-9)))
+    try:
+        limits.check("map_cells", mx * my, "cells of the turned map")
+    except LimitError as exc:
+        raise LayoutError(str(exc)) from None
+    occupied = np.zeros((mx, my), dtype=bool)
+    unknown = np.zeros((mx, my), dtype=bool)
+    centre = np.full((mx, my), OUTSIDE, dtype=grid.dtype)
+    for fx in (0.5, 0.0, 1.0):
+        for fy in (0.5, 0.0, 1.0):
+            cx = x0 + res * (np.arange(mx) + fx) - ox
+            cy = y0 + res * (np.arange(my) + fy) - oy
+            u = (c * cx[:, None] + s * cy[None, :]) / res  # the points in pixel units of the image
+            v = (-s * cx[:, None] + c * cy[None, :]) / res
+            i, j = np.floor(u).astype(np.int64), np.floor(v).astype(np.int64)
+            on = (i >= 0) & (i < nx) & (j >= 0) & (j < ny)
+            value = np.full((mx, my), OUTSIDE, dtype=grid.dtype)
+            value[on] = grid[i[on], j[on]]
+            occupied |= value == mapserver.OCCUPIED
+            unknown |= value == mapserver.UNKNOWN
+            if fx == fy == 0.5:
+                centre = value
+    out = np.where(occupied, mapserver.OCCUPIED, np.where(unknown, mapserver.UNKNOWN, centre)).astype(grid.dtype)
+    return (x0, y0), out
 
 
 def load_user_map(path: Path, data: dict[str, Any]) -> dict[str, Any]:
@@ -297,45 +330,39 @@ def _point(value: Any, n: int, where: str, field_name: str) -> tuple[float, ...]
     return tuple(float(v) for v in value)
 
 
-class _Frame:
-    def __init__(self, frame: tuple[float, float, float]) -> None:
-        self.frame = frame
-
-
 def _place(layout: dict[str, Any], options: dict[str, Any], where: str,
            grid: tuple[np.ndarray, float] | None) -> dict[str, Any]:
-    """``layout``'s fields with the start and goal the options give in the map's frame, checked free."""
+    """``layout``'s fields with the start and goal the options give (in the map's frame, the
+    world's), checked free."""
     start = goal = None
-    frame = _Frame(layout["frame"])
     if options.get("start") is not None:
         sx, sy, syaw = _point(options["start"], 3, where, "start")
-        lx, ly = from_map_frame(frame, sx, sy)
-        _check_free(layout, (lx, ly), (sx, sy), where, "start", grid)
-        start = (lx, ly, math.remainder(syaw - frame.frame[2], 2 * math.pi))
+        _check_free(layout, (sx, sy), where, "start", grid)
+        start = (sx, sy, math.remainder(syaw, 2 * math.pi))
     if options.get("goal") is not None:
         gx, gy = _point(options["goal"], 2, where, "goal")
-        lx, ly = from_map_frame(frame, gx, gy)
-        _check_free(layout, (lx, ly), (gx, gy), where, "goal", grid)
-        goal = (lx, ly)
+        _check_free(layout, (gx, gy), where, "goal", grid)
+        goal = (gx, gy)
     return {**layout, "start": start, "goal": goal}
 
 
-def _check_free(layout: dict[str, Any], xy: tuple[float, float], given: tuple[float, float], where: str, field_name: str,
+def _check_free(layout: dict[str, Any], xy: tuple[float, float], where: str, field_name: str,
                 grid: tuple[np.ndarray, float] | None) -> None:
-    hx, hy = layout["size"][0] / 2, layout["size"][1] / 2
-    at = f"field '{field_name}' [{given[0]:g}, {given[1]:g}] (map frame)"
-    if not (abs(xy[0]) < hx and abs(xy[1]) < hy):
-        raise LayoutError(f"{where}: {at} lies outside the map")
+    x0, y0 = layout["corner"]
+    sx, sy = layout["size"]
+    at = f"field '{field_name}' [{xy[0]:g}, {xy[1]:g}] (map frame)"
+    if not (x0 < xy[0] < x0 + sx and y0 < xy[1] < y0 + sy):
+        raise LayoutError(f"{where}: {at} lies outside the map (x in [{x0:g}, {x0 + sx:g}], y in [{y0:g}, {y0 + sy:g}])")
     for o in layout["obstacles"]:
         if float(o.distance(np.array(xy[0]), np.array(xy[1]))) <= 0.0:
             what = f"model {o.label!r}"
             if grid is not None:
                 values, res = grid
-                ix = min(max(int((xy[0] + hx) / res), 0), values.shape[0] - 1)
-                iy = min(max(int((xy[1] + hy) / res), 0), values.shape[1] - 1)
+                ix = min(max(int((xy[0] - x0) / res), 0), values.shape[0] - 1)
+                iy = min(max(int((xy[1] - y0) / res), 0), values.shape[1] - 1)
                 what = ("an unknown cell (a wall unless 'unknown: free')" if values[ix, iy] == mapserver.UNKNOWN
                         else "a wall (occupied cells)")
             raise LayoutError(f"{where}: {at} lies on or inside {what}")
 
 
-__all__ = ["from_map_frame", "is_sdf", "is_user_map", "load_map_yaml", "load_sdf", "load_user_map", "to_map_frame"]
+__all__ = ["is_sdf", "is_user_map", "load_map_yaml", "load_sdf", "load_user_map"]

@@ -94,20 +94,21 @@ class World:
         self.labels = {}
         self.primitives = [Primitive("plane", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))]
         hx, hy = layout.half_extents
+        cx, cy = layout.centre  # (0, 0) but for a user's map, which stays in its own frame
         margin = WALL_THICKNESS
         floor_col = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid)
         floor_vis = p.createVisualShape(
             p.GEOM_BOX, halfExtents=[hx + margin, hy + margin, 0.005], visualFramePosition=[0, 0, -0.005],
             rgbaColor=COLOURS["floor"], physicsClientId=cid,
         )
-        self.floor_id = p.createMultiBody(0.0, floor_col, floor_vis, [0, 0, 0], physicsClientId=cid)
+        self.floor_id = p.createMultiBody(0.0, floor_col, floor_vis, [cx, cy, 0], physicsClientId=cid)
         p.changeDynamics(self.floor_id, -1, lateralFriction=FLOOR_FRICTION, physicsClientId=cid)
         self.labels[self.floor_id] = "floor"
         h = layout.wall_height
         t = WALL_THICKNESS
         walls = (
-            ((0.0, hy + t / 2), (hx + t, t / 2)), ((0.0, -hy - t / 2), (hx + t, t / 2)),
-            ((hx + t / 2, 0.0), (t / 2, hy)), ((-hx - t / 2, 0.0), (t / 2, hy)),
+            ((cx, cy + (hy + t / 2)), (hx + t, t / 2)), ((cx, cy + (-hy - t / 2)), (hx + t, t / 2)),
+            ((cx + (hx + t / 2), cy), (t / 2, hy)), ((cx + (-hx - t / 2), cy), (t / 2, hy)),
         )
         self.wall_ids = [self._box(c, (e[0], e[1], h / 2), 0.0, COLOURS["wall"], "wall") for c, e in walls]
         self.obstacle_ids = [self._obstacle(o) for o in layout.obstacles]

@@ -99,10 +99,10 @@ class MissionTask(NavigationTask):
         if len(goals) != self.k:
             raise ValueError(f"options['goals'] has {len(goals)} goals but the env was made with goals={self.k}")
         layout = scene.layout
-        hx, hy = layout.half_extents
+        x0, y0, x1, y1 = layout.bounds
         for g in goals:
-            if not (abs(g[0]) < hx and abs(g[1]) < hy):
-                raise ValueError(f"options['goals']: {list(g)} lies outside the floor (x in [{-hx}, {hx}], y in [{-hy}, {hy}])")
+            if not layout.on_floor(g[0], g[1]):
+                raise ValueError(f"options['goals']: {list(g)} lies outside the floor (x in [{x0}, {x1}], y in [{y0}, {y1}])")
             for i, o in enumerate(layout.obstacles):
                 if float(o.distance(np.array(g[0]), np.array(g[1]))) <= 0.0:
                     raise ValueError(f"options['goals']: {list(g)} lies inside obstacle {i} ({o.label or o.kind})")

@@ -472,8 +472,8 @@ class Dashboard:
 
     def _overview(self) -> None:
         hx, hy = self.scene.layout.half_extents
-        p.resetDebugVisualizerCamera(1.2 * max(hx, hy) + 2.0, 0.0, -89.0, [0.0, 0.0, 0.0],
-                                     physicsClientId=self.cid)
+        cx, cy = self.scene.layout.centre
+        p.resetDebugVisualizerCamera(1.2 * max(hx, hy) + 2.0, 0.0, -89.0, [cx, cy, 0.0], physicsClientId=self.cid)
 
 
 def simplify_path(path: Sequence[tuple[float, float]], max_segments: int) -> list[tuple[float, float]]:

@@ -63,7 +63,8 @@ class FleetDashboard:
         self.steps = 0
         self._draw(infos, lines=True)
         hx, hy = fleet.layout.half_extents
-        p.resetDebugVisualizerCamera(1.2 * max(hx, hy) + 2.0, 0.0, -89.0, [0.0, 0.0, 0.0], physicsClientId=self.cid)
+        cx, cy = fleet.layout.centre
+        p.resetDebugVisualizerCamera(1.2 * max(hx, hy) + 2.0, 0.0, -89.0, [cx, cy, 0.0], physicsClientId=self.cid)
 
     def on_step(self, infos: dict[str, Any]) -> None:
         self.steps += 1

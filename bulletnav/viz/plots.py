@@ -323,10 +323,11 @@ def draw_layout(ax: Any, layout: Layout, obstacle: Any = None, wall: Any = None)
     from matplotlib.patches import Circle, Polygon, Rectangle
 
     hx, hy = layout.half_extents
+    x0, y0, x1, y1 = layout.bounds  # the world's frame: a user's map in its own coordinates
     t = WALL_THICKNESS
-    ax.add_patch(Rectangle((-hx - t, -hy - t), 2 * (hx + t), 2 * (hy + t), color=COLOURS["wall"][:3] if wall is None else wall,
+    ax.add_patch(Rectangle((x0 - t, y0 - t), 2 * (hx + t), 2 * (hy + t), color=COLOURS["wall"][:3] if wall is None else wall,
                            zorder=0))
-    ax.add_patch(Rectangle((-hx, -hy), 2 * hx, 2 * hy, color=(0.93, 0.93, 0.94), zorder=0))
+    ax.add_patch(Rectangle((x0, y0), 2 * hx, 2 * hy, color=(0.93, 0.93, 0.94), zorder=0))
     for o in layout.obstacles:
         colour = COLOURS.get(o.label, COLOURS["box"])[:3] if obstacle is None else obstacle
         if o.kind == "cylinder":
@@ -334,8 +335,8 @@ def draw_layout(ax: Any, layout: Layout, obstacle: Any = None, wall: Any = None)
         else:
             patch = Polygon(box_corners(o), closed=True, facecolor=colour, edgecolor="0.3", lw=0.5)
         ax.add_patch(patch)
-    ax.set_xlim(-hx - t, hx + t)
-    ax.set_ylim(-hy - t, hy + t)
+    ax.set_xlim(x0 - t, x1 + t)
+    ax.set_ylim(y0 - t, y1 + t)
     ax.set_aspect("equal")
 
 

@@ -196,7 +196,8 @@ class MapView:
         pts = np.atleast_2d(np.asarray(xy, dtype=np.float64))
         c = self.size / 2 * scale
         s = self.scale * scale
-        return list(zip((c + s * pts[:, 0]).tolist(), (c - s * pts[:, 1]).tolist()))
+        cx, cy = self.layout.centre  # the floor's centre is the picture's (a user's map: off the origin)
+        return list(zip((c + s * (pts[:, 0] - cx)).tolist(), (c - s * (pts[:, 1] - cy)).tolist()))
 
     def metres(self, d: float, scale: float = 1.0) -> float:
         return d * self.scale * scale
@@ -206,15 +207,15 @@ class MapView:
         k = _SUPERSAMPLE
         img = Image.new("RGB", (self.size * k, self.size * k), BACKGROUND)
         draw = ImageDraw.Draw(img)
-        hx, hy = self.layout.half_extents
+        x0, y0, x1, y1 = self.layout.bounds
         t = WALL_THICKNESS
-        draw.rectangle(self._rect(-hx - t, -hy - t, hx + t, hy + t, k), fill=category_rgb("wall"))
-        draw.rectangle(self._rect(-hx, -hy, hx, hy, k), fill=category_rgb("floor"))
+        draw.rectangle(self._rect(x0 - t, y0 - t, x1 + t, y1 + t, k), fill=category_rgb("wall"))
+        draw.rectangle(self._rect(x0, y0, x1, y1, k), fill=category_rgb("floor"))
         grid = tuple(min(c + 14, 255) for c in category_rgb("floor"))
-        for gx in range(math.ceil(-hx), math.floor(hx) + 1):  # 1 m grid: gives the viewer a scale
-            draw.line(self.to_px([(gx, -hy), (gx, hy)], k), fill=grid, width=1)
-        for gy in range(math.ceil(-hy), math.floor(hy) + 1):
-            draw.line(self.to_px([(-hx, gy), (hx, gy)], k), fill=grid, width=1)
+        for gx in range(math.ceil(x0), math.floor(x1) + 1):  # 1 m grid (whole metres of the world's frame): a scale
+            draw.line(self.to_px([(gx, y0), (gx, y1)], k), fill=grid, width=1)
+        for gy in range(math.ceil(y0), math.floor(y1) + 1):
+            draw.line(self.to_px([(x0, gy), (x1, gy)], k), fill=grid, width=1)
         for o in self.layout.obstacles:
             colour = category_rgb(o.label if o.label in COLOURS else "box")
             edge = tuple(int(c * 0.6) for c in colour)
