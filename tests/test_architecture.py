@@ -332,6 +332,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("config",),
     ("xmlfile",),                                   # XML read with DTDs and entities refused
     ("geometry", "yamlfile", "provenance", "files", "runs"),  # runs: the row log, pool and strict JSON of a run
+    ("filekinds",),                                 # what kind of file a path holds (reads with yamlfile's safe loader)
     ("sim",),
     ("sensors",),
     ("planning",),
