@@ -21,6 +21,10 @@ def asset_path(*parts: str) -> Path:
     return Path(str(resources.files("bulletnav").joinpath("assets", *parts)))
 
 
+PHYSICS_BACKENDS = ("bullet", "kinematic")
+"""The simulations a scene can run on (``PhysicsConfig.backend``)."""
+
+
 @dataclass(frozen=True)
 class PhysicsConfig:
     """Physics engine rate and solver settings."""
@@ -37,8 +41,15 @@ class PhysicsConfig:
     """Implicit friction cone (True, PyBullet's default) or the cheaper pyramid approximation."""
     gravity: float = 9.81
     """Magnitude of gravity (m/s^2), pointing down -z."""
+    backend: str = "bullet"
+    """What simulates the scene: ``"bullet"`` (PyBullet) or ``"kinematic"`` (no physics engine:
+    the robot follows its commands through its motors' limits, the lidar and contacts are
+    closed-form against the world's shapes; :mod:`bulletnav.sim.kinematic`). The kinematic
+    backend uses ``physics_hz`` as its integration rate and ignores the solver settings."""
 
     def __post_init__(self) -> None:
+        if self.backend not in PHYSICS_BACKENDS:
+            raise ValueError(f"physics backend must be one of {', '.join(PHYSICS_BACKENDS)}, got {self.backend!r}")
         if self.physics_hz <= 0 or self.control_hz <= 0:
             raise ValueError(
                 f"physics_hz and control_hz must be positive, got {self.physics_hz} and {self.control_hz}"
@@ -69,6 +80,7 @@ class PhysicsConfig:
 PHYSICS_PROFILES: MappingProxyType[str, PhysicsConfig] = MappingProxyType({
     "default": PhysicsConfig(),
     "fast": PhysicsConfig(physics_hz=96),
+    "kinematic": PhysicsConfig(backend="kinematic"),
 })
 """Named physics settings, chosen with the env keyword ``physics`` (``--physics`` on the CLI).
 
@@ -76,7 +88,11 @@ PHYSICS_PROFILES: MappingProxyType[str, PhysicsConfig] = MappingProxyType({
 ``"fast"``: 96 Hz physics, 4 substeps per control step, solver otherwise unchanged: the
 lowest rate of ``bulletnav bench physics`` (240 / 120 / 96 / 48 Hz) whose driving stays within
 1 % of 240 Hz and on which the shipped PPO stays within 2 points of its 240 Hz success and
-collision rates; 48 Hz misses the driving bound (docs/performance/physics.md has the table)."""
+collision rates; 48 Hz misses the driving bound (docs/performance/physics.md has the table).
+``"kinematic"``: no physics engine (:mod:`bulletnav.sim.kinematic`): the robot's wheels follow
+the command at the accelerations its URDF's masses and motor torque allow, integrated at 240 Hz,
+never slipping; lidar and contacts closed-form against the world's boxes and cylinders; no
+camera and no GUI (docs/env.md)."""
 
 
 def physics_profile(name: str) -> PhysicsConfig:

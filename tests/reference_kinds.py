@@ -415,6 +415,15 @@ KINDS: dict[str, str] = {
     "test_fleet_viz.py::test_marks_are_told_apart_and_the_legend_shows_each": "hand",  # a 3 px gap between words
     "test_fleet_viz.py::test_fleet_table_leaves_out_the_rate_of_a_run_too_short": "hand",  # 4 errands in 120 s: 120.0/h
     "test_fleet_viz.py::test_comparison_table_leaves_out_the_rate_of_a_run_too_short": "hand",
+    # ---- test_kinematic.py (PyBullet's full physics, physics="default", is the reference)
+    "test_kinematic.py::test_scans_match_pybullet_in_every_world_source": "library",
+    "test_kinematic.py::test_straight_drive_and_turn_in_place_end_where_pybullet_ends": "library",
+    "test_kinematic.py::test_full_speed_contact_is_reported_at_pybullets_step": "library",
+    "test_kinematic.py::test_env_checkers_pass": "library",
+    # the default profile's set-up drawn by the same sampler code: agreement, not an independent value
+    "test_kinematic.py::test_seeded_resets_give_pybullets_world_start_goal_and_movers": "self",
+    "test_kinematic.py::test_refusals_are_one_line_naming_the_profile_that_serves": "contract",
+    "test_kinematic.py::test_cli_refuses_the_gui_in_one_line": "contract",
     # ---- test_barn_passage.py
     "test_barn_passage.py::test_one_gap_in_a_row_of_touching_cylinders": "hand",
     "test_barn_passage.py::test_closed_row_and_open_room": "hand",
@@ -920,6 +929,7 @@ KINDS: dict[str, str] = {
     # the corner's point is placed from the wheel sweep (the code's), and checked by hand against the plain sweep
     "test_shield_memory.py::test_close_to_a_wall_a_back_up_out_of_a_turn_is_checked_along_the_turn_the_wheels_keep": "hand",
     "test_shield_memory.py::test_the_jackal_stopping_out_of_a_fast_turn_brakes_at_its_rims_and_keeps_turning": "formula",
+    "test_shield_memory.py::test_a_remembered_cylinder_whose_near_side_was_never_seen_still_stops_a_turn": "hand",
     "test_shield_memory.py::test_a_fast_turn_is_refused_where_only_the_turn_held_through_a_hard_stop_comes_close": "hand",
     "test_shield_memory.py::test_the_jackal_shield_carries_its_memory_by_the_gyro_where_the_wheels_drift": "library",
     "test_user_maps.py::test_a_map_yamls_typos_are_map_typos_and_an_image_or_model_as_a_world_says_what_belongs": "contract",

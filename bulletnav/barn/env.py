@@ -134,7 +134,8 @@ class BarnEnv(WarehouseEnv):
                 "pallet_events_per_min": dynamic.pallet_events_per_min}
         check_barn_kwargs(made)  # a config= given whole must keep BARN's rules too
         scene = self._scene
-        scene.sim.world = scene.world = BarnPhysicsWorld(scene.cid, self.config.physics)
+        if scene.sim.backend == "bullet":  # the kinematic profile's world holds cylinders as they come
+            scene.sim.world = scene.world = BarnPhysicsWorld(scene.cid, self.config.physics)
         self._use_world(index)
 
     @property

@@ -268,3 +268,47 @@ def bench_env_pair(env_id: str, reference_id: str, steps: int = 6000, block: int
         "reset_ms_mean": round(resets[env_id][1] / max(resets[env_id][0], 1) * 1e3, 2),
         "reference_reset_ms_mean": round(resets[reference_id][1] / max(resets[reference_id][0], 1) * 1e3, 2),
     }
+
+
+def bench_profile(physics: str, env_id: str = "bulletnav/Warehouse-v0", steps: int = 6000, block: int = 500,
+                  seed: int = 0, reference: str = "default") -> dict[str, Any]:
+    """Steps per second of ``env_id`` made by ``gym.make`` (its default wrappers and kwargs: a new
+    world at every reset where the id draws one) with ``physics=physics``, beside the same id with
+    ``physics=reference`` in the same run. Uniform random actions from a seeded action space;
+    episodes end by the env's own rules and the reset that follows is timed with the steps.
+    The two envs run alternating blocks of ``block`` steps, so load from other processes hits
+    both alike; ``ratio`` is the median over block pairs of (profile steps/s / reference steps/s).
+    """
+    import bulletnav  # noqa: F401  (registers the env)
+
+    envs = {name: gym.make(env_id, physics=name) for name in (physics, reference)}
+    timing: dict[str, list[float]] = {name: [] for name in envs}
+    episodes = dict.fromkeys(envs, 0)
+    try:
+        for env in envs.values():
+            env.action_space.seed(seed)
+            env.reset(seed=seed)
+        rounds = max(1, steps // block)
+        for _ in range(rounds):
+            for name, env in envs.items():
+                sample, step, reset = env.action_space.sample, env.step, env.reset
+                t0 = time.perf_counter()
+                for _ in range(block):
+                    _, _, terminated, truncated, _ = step(sample())
+                    if terminated or truncated:
+                        reset()
+                        episodes[name] += 1
+                timing[name].append(time.perf_counter() - t0)
+    finally:
+        for env in envs.values():
+            env.close()
+    rates = {name: [block / t for t in ts] for name, ts in timing.items()}
+    ratios = [a / b for a, b in zip(rates[physics], rates[reference])]
+    return {
+        "benchmark": "env_profile", "env_id": env_id, "physics": physics, "reference": reference,
+        "steps": rounds * block, "block": block, "seed": seed,
+        "steps_per_s": float(np.median(rates[physics])), "reference_steps_per_s": float(np.median(rates[reference])),
+        "episodes": episodes[physics], "reference_episodes": episodes[reference],
+        "ratio": float(np.median(ratios)),
+        "note": "resets included; uniform random actions; episodes ended by the env's own rules; medians over blocks",
+    }

@@ -8,7 +8,7 @@ A suite is a YAML file (shipped: ``quick`` and ``standard`` in ``bulletnav/bench
     worlds:
       - name: scattered           # optional; default: the id's short name
         env: bulletnav/Warehouse-v0
-        kwargs: {num_obstacles: 40}    # optional: num_obstacles, world, perturb, goals, goal_order
+        kwargs: {num_obstacles: 40}    # optional: num_obstacles, world, perturb, goals, goal_order, physics
         episodes: 10              # optional: this world's own count
       - env: bulletnav/WarehouseAisles-v0
       - name: barn                # BARN's worlds: one world per index, each with `episodes` runs
@@ -57,6 +57,7 @@ from pathlib import Path
 from typing import Any
 
 from bulletnav import AISLES_ENV_ID, BARN_ENV_ID, DYNAMIC_ENV_ID, ENV_ID, MISSION_ENV_ID, limits
+from bulletnav.config import PHYSICS_PROFILES
 from bulletnav.errors import ConfigError, LayoutError, LimitError
 from bulletnav.filekinds import wrong_kind
 from bulletnav.rl.hyperparams import IMPORTABLE as HYPERPARAM_IMPORTABLE
@@ -77,7 +78,7 @@ world's is the dynamic policy, trained on the same aisle warehouses with movers)
 to the project root."""
 
 WORLD_KWARGS = {"num_obstacles": "--obstacles", "world": "--world", "perturb": "--perturb", "goals": "--goals",
-                "goal_order": "--order", "world_idx": "--world-idx"}
+                "goal_order": "--order", "world_idx": "--world-idx", "physics": "--physics"}
 """World kwargs a suite may set, with the CLI flag that replays them."""
 
 CONTROLLER_ENV_KWARGS = {"min_speed": "--min-speed", "lidar_rays": "--lidar-rays"}
@@ -308,6 +309,9 @@ def _parse_world(w: Any, where: str, tag: str) -> list[WorldSpec]:
         if key in kwargs:
             count = _int(kwargs[key], where, f"{tag}.kwargs.{key}", 0 if key == "num_obstacles" else 1, 2**31)
             _limit(where, limit, count, f"field '{tag}.kwargs.{key}'")
+    if "physics" in kwargs and kwargs["physics"] not in PHYSICS_PROFILES:
+        raise SuiteError(f"{where}: field '{tag}.kwargs.physics' must be one of {', '.join(PHYSICS_PROFILES)}, "
+                         f"got {show(kwargs['physics'])}")
     if "world" in kwargs:
         world_file = Path(_str(kwargs["world"], where, f"{tag}.kwargs.world"))
         if not world_file.is_absolute():  # relative to the suite file, as written in it

@@ -8,6 +8,7 @@ import argparse
 from bulletnav.cli.args import COUNT, DEFAULT_ENV_ID, NON_NEGATIVE, SEED, add_command, hz_list
 from bulletnav.cli.envs import check_env_id
 from bulletnav.cli.output import print_json
+from bulletnav.config import PHYSICS_PROFILES
 
 
 def _env_against(args: argparse.Namespace) -> tuple[dict, list[str]]:
@@ -60,6 +61,21 @@ def _env_step_lines(result: dict) -> list[str]:
     ]
 
 
+def _env_profile(args: argparse.Namespace) -> tuple[dict, list[str]]:
+    """``env --physics NAME``: steps/s of the profile against the default profile, resets included."""
+    from bulletnav.bench.env_bench import bench_profile
+
+    env_id = args.env_id or DEFAULT_ENV_ID
+    check_env_id(env_id)
+    r = bench_profile(args.physics, env_id=env_id, steps=args.steps or 6000, seed=args.seed)
+    lines = [f"{env_id}: steps/s with resets (gym.make, random actions, episodes ended by the env), median of "
+             f"{r['steps'] // r['block']} blocks of {r['block']}",
+             f"  physics={r['physics']:10s} {r['steps_per_s']:10.1f} steps/s  ({r['episodes']} episodes)",
+             f"  physics={r['reference']:10s} {r['reference_steps_per_s']:10.1f} steps/s  ({r['reference_episodes']} episodes)",
+             f"  ratio {r['ratio']:.2f}"]
+    return r, lines
+
+
 def _env(args: argparse.Namespace) -> tuple[dict, list[str]]:
     """``env``: the env's step cost against raw PyBullet (or its reference id), then resets per id;
     ``--against`` and ``--vec`` pick the other env benchmarks."""
@@ -67,6 +83,8 @@ def _env(args: argparse.Namespace) -> tuple[dict, list[str]]:
         return _env_against(args)
     if args.vec:
         return _env_vec(args)
+    if args.physics is not None:
+        return _env_profile(args)
     from bulletnav.bench.env_bench import STATIC_REFERENCE, bench_env
     from bulletnav.bench.reset_bench import REGISTERED, bench_ids
 
@@ -254,6 +272,9 @@ def register(sub) -> None:
                             "checkout's in one run (before/after)")
     bench.add_argument("--rounds", type=COUNT, default=None,
                        help="env --against: rounds of both sides (default 3); live: rounds of the three variants (default 5)")
+    bench.add_argument("--physics", choices=list(PHYSICS_PROFILES), default=None,
+                       help="env: steps/s of this physics profile (resets included) beside the default profile's in "
+                            "the same run (their ratio)")
     bench.add_argument("--vec", action="store_true",
                        help="env: vectorised steps/s at 1, 2 and 4 envs (make_vec sync/async, SB3 Dummy/SubprocVecEnv)")
     bench.add_argument("--driver", choices=["ram", "navigator", "policy"], default="ram",

@@ -31,6 +31,7 @@ from bulletnav.sim.client import Clock
 from bulletnav.sim.dynamic import RESOLUTION as CLEARANCE_RESOLUTION
 from bulletnav.sim.dynamic import ClearanceMap, draw_movers
 from bulletnav.sim.events import Events
+from bulletnav.sim.kinematic import KinematicSimulation
 from bulletnav.sim.layout import Layout
 from bulletnav.sim.movers import Movers, MoverView
 from bulletnav.sim.robot import RobotState
@@ -190,16 +191,19 @@ class Scene(SceneCore):
 
     def __init__(self, config: EnvConfig, gui: bool = False) -> None:
         super().__init__(config)
-        self.sim = Simulation(config.physics, config.robot, gui=gui)
+        self.sim = make_simulation(config, gui)
         self.world = self.sim.world
         self.robot = self.sim.robot
         self.clock = self.sim.clock
-        self.sensors = SensorSuite.build(config.sensors, self.robot, self.clock, config.physics.gravity)
+        sensors = config.sensors
+        if self.sim.backend != "bullet" and sensors.camera.enabled:  # no renderer: the camera is refused by the env
+            sensors = replace(sensors, camera=replace(sensors.camera, enabled=False))
+        self.sensors = SensorSuite.build(sensors, self.robot, self.clock, config.physics.gravity)
         self.start: tuple[float, float, float] = (0.0, 0.0, 0.0)
         """Where the robot was placed this episode (x m, y m, yaw rad)."""
         # moving obstacles and events (inactive, and never touching PyBullet, in static worlds)
-        self.movers = Movers(self.sim.cid)
-        self.events = Events(self.sim.cid)
+        self.movers = self.sim.make_movers()
+        self.events = self.sim.make_events()
         self.dynamic = False
         """True when this episode's world has movers or events (set at :meth:`place_robot`)."""
         self.goals: tuple[tuple[float, float], ...] = ()
@@ -236,7 +240,7 @@ class Scene(SceneCore):
         self._rebuild = False
         lidar = self.sensors.lidar
         if lidar is not None and self.sim.rebuilds != builds:
-            lidar.use_world(self.sim.world.primitives)
+            self.sim.attach_lidar(lidar)
         if self._shifted or not self.shift.nominal:  # a nominal env never touches these
             self._apply_shift(self.shift)
         self.sensors.reset(rng)
@@ -246,7 +250,7 @@ class Scene(SceneCore):
         self.dynamic = dyn.active or bool(layout.dynamic) or bool(layout.events)
         if not self.dynamic:
             return
-        if lidar is not None and lidar.config.caster == "exact":
+        if lidar is not None and not lidar.sees_movers:
             raise ConfigError(f"lidar caster 'exact' sees only the static world, and {layout.name or layout.source or 'this world'} "
                               "has movers or events: use caster 'bullet'")
         self._start_dynamic(layout, rng, (self.start[:2], *self.goals), self.shift.mover_speed_scale)
@@ -482,6 +486,19 @@ class SceneView(SceneReader):
     def steps(self) -> int:
         """Env steps since the last reset."""
         return self._scene.clock.tick // self._scene.clock.control_ticks
+
+
+def make_simulation(config: EnvConfig, gui: bool = False) -> Simulation | KinematicSimulation:
+    """The simulation ``config.physics.backend`` names: PyBullet's, or the kinematic one.
+
+    Raises:
+        ConfigError: the GUI asked of the kinematic profile (one line naming the profile that has it).
+    """
+    if config.physics.backend == "kinematic":
+        if gui:
+            raise ConfigError("physics='kinematic' has no GUI (render_mode='human', view): use physics='default'")
+        return KinematicSimulation(config.physics, config.robot)
+    return Simulation(config.physics, config.robot, gui=gui)
 
 
 def convex_hull(points: list[tuple[float, float]]) -> list[tuple[float, float]]:

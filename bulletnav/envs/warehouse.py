@@ -21,6 +21,7 @@ from bulletnav.envs.randomization import STREAM as DR_STREAM
 from bulletnav.envs.randomization import Distribution, draw, draw_world, parse_randomize
 from bulletnav.envs.scene import Scene, SceneView
 from bulletnav.envs.shifts import describe, perturbation
+from bulletnav.errors import ConfigError
 from bulletnav.sim.generators import world_generator
 from bulletnav.sim.layout import Layout, load_layout
 from bulletnav.tasks import make_task
@@ -153,6 +154,21 @@ def _set(cfg: EnvConfig, key: str, value: Any) -> EnvConfig:
             value = (float(value), float(value)) if isinstance(value, (int, float)) else tuple(value)
         return _replace_at(cfg, path, name, value)
     raise TypeError(f"bulletnav/Warehouse-v0 got an unknown keyword argument {key!r}; known: {', '.join(known_kwargs())}")
+
+
+def _refuse_kinematic(cfg: EnvConfig, render_mode: str | None) -> None:
+    """What the kinematic profile cannot serve, refused in one line naming the profiles that can.
+
+    Raises:
+        ConfigError: the camera as an observation, or a rendered frame or window.
+    """
+    can = "use physics='default' (or 'fast')"
+    if cfg.camera_obs:
+        raise ConfigError(f"physics='kinematic' has no camera (camera_obs=True): {can}")
+    if render_mode == "human":
+        raise ConfigError(f"physics='kinematic' has no GUI (render_mode='human'): {can}")
+    if render_mode == "rgb_array":
+        raise ConfigError(f"physics='kinematic' renders no frames (render_mode='rgb_array'): {can}")
 
 
 def known_kwargs() -> list[str]:
@@ -369,6 +385,8 @@ class WarehouseEnv(gym.Env):
         self.metadata = {**self.metadata, "render_fps": cfg.physics.control_hz}
         self._generate = world_generator(cfg.world.style)
         self._fixed_layout: Layout | None = load_layout(cfg.layout_file) if cfg.layout_file else None
+        if cfg.physics.backend == "kinematic":
+            _refuse_kinematic(cfg, render_mode)
         self._scene = Scene(cfg, gui=render_mode == "human")
         try:
             self.task = make_task(cfg, self._scene)

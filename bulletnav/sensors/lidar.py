@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import math
+from typing import Protocol
 
 import numpy as np
 import pybullet as p
@@ -15,6 +16,23 @@ from bulletnav.sensors.raycast import ExactCaster
 from bulletnav.sim.client import Clock
 from bulletnav.sim.robot import Robot
 from bulletnav.sim.world import STATIC_GROUP, Primitive
+
+
+class ShapeSource(Protocol):
+    """What a lidar casts against in the kinematic profile (:class:`~bulletnav.sim.kinematic.KinematicWorld`)."""
+
+    @property
+    def shape_versions(self) -> tuple[int, int]:
+        """Counters of the static and of the moving shapes: a changed one means new shapes."""
+
+    def static_primitives(self) -> list[Primitive]:
+        """The walls and the obstacles standing now."""
+
+    def moving_primitives(self) -> list[Primitive]:
+        """The movers and event bodies placed now."""
+
+    def lidar_pose(self) -> tuple[float, float, float, float]:
+        """The lidar's origin (x, y, z m) and heading (rad) now."""
 
 
 def ray_angles(num_rays: int, fov_deg: float) -> np.ndarray:
@@ -51,6 +69,9 @@ class Lidar(VectorSensor):
         self._ray_to = (directions * config.max_range).tolist()
         self._directions = directions
         self._caster: ExactCaster | None = None
+        self._shapes: ShapeSource | None = None  # a kinematic world: casts in closed form against what it holds now
+        self._casters: tuple[ExactCaster | None, ExactCaster | None] = (None, None)
+        self._versions = (-1, -1)
         self.extra_noise_std = 0.0
         """Extra range noise (m) of an evaluation shift or randomization, on top of the config's."""
         self.dropout = 0.0
@@ -66,8 +87,42 @@ class Lidar(VectorSensor):
         if self.config.caster == "exact":
             self._caster = ExactCaster(primitives)
 
+    def use_shapes(self, shapes: ShapeSource) -> None:
+        """Cast in closed form against everything ``shapes`` holds at each scan, its static
+        shapes and its movers and events (a kinematic world), whatever ``config.caster`` says."""
+        self._shapes = shapes
+        self._casters, self._versions = (None, None), (-1, -1)
+
+    @property
+    def sees_movers(self) -> bool:
+        """Whether the scans see movers and event bodies (PyBullet's rays, or a kinematic world's shapes)."""
+        return self._shapes is not None or self.config.caster == "bullet"
+
+    def _shape_fractions(self, shapes: ShapeSource) -> list[float]:
+        versions = shapes.shape_versions
+        if versions != self._versions:
+            static, moving = self._casters
+            if versions[0] != self._versions[0]:
+                static = ExactCaster(shapes.static_primitives())
+            if versions[1] != self._versions[1]:
+                prims = shapes.moving_primitives()
+                moving = ExactCaster(prims) if prims else None
+            self._casters, self._versions = (static, moving), versions
+        x, y, z, yaw = shapes.lidar_pose()
+        a = self.angles + yaw
+        directions = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=1)
+        origin = np.array([x, y, z])
+        max_range = self.config.max_range
+        static, moving = self._casters
+        t = static.cast(origin, directions, max_range)
+        if moving is not None:
+            t = np.minimum(t, moving.cast(origin, directions, max_range))
+        return np.minimum(t / max_range, 1.0).tolist()
+
     def _fractions(self) -> list[float]:
         """Hit fraction of each ray in [0, 1] (1 = nothing within ``max_range``)."""
+        if self._shapes is not None:
+            return self._shape_fractions(self._shapes)
         if self.config.caster == "bullet":
             return [r[2] for r in self._rays()]
         if self._caster is None:
@@ -111,6 +166,8 @@ class Lidar(VectorSensor):
 
     def origin(self) -> tuple[float, float, float]:
         """World position of the lidar (m), where its rays start."""
+        if self._shapes is not None:
+            return self._shapes.lidar_pose()[:3]
         return tuple(p.getLinkState(self.robot.body, self.robot.lidar_link, physicsClientId=self.robot.cid)[4])
 
     def hit_points(self, ranges: np.ndarray) -> np.ndarray:

@@ -77,13 +77,12 @@ class Events:
         """Begin an episode: park every pool body, bring back hidden layout obstacles,
         schedule the layout's events, and draw events at ``rate_per_min`` from ``rng``.
         ``inflated`` is the static map inflated by the robot's radius (cells of ``resolution``)."""
-        cid = self.cid
         layout = self._layout
         for i in self.hidden:
             o = layout.obstacles[i]
             self._put(self._obstacle_bodies[i], o)
         for k, body in enumerate(self.pool_bodies()):
-            p.resetBasePositionAndOrientation(body, [2.0 * k, 0.0, PARK_Z], [0, 0, 0, 1], physicsClientId=cid)
+            self._park(body, 2.0 * k)
         self._reset_state()
         scripted = iter(self.scripted_bodies)
         self._pending = [(next(scripted) if e.add is not None else -1, e) for e in layout.events]
@@ -164,8 +163,9 @@ class Events:
         p.resetBasePositionAndOrientation(body, [o.center[0], o.center[1], o.top / 2],
                                           [0.0, 0.0, math.sin(half), math.cos(half)], physicsClientId=self.cid)
 
-    def _park(self, body: int) -> None:
-        p.resetBasePositionAndOrientation(body, [0.0, 0.0, PARK_Z], [0, 0, 0, 1], physicsClientId=self.cid)
+    def _park(self, body: int, x: float = 0.0) -> None:
+        """Hide ``body`` under the floor (at ``x`` m along, keeping parked bodies apart)."""
+        p.resetBasePositionAndOrientation(body, [x, 0.0, PARK_Z], [0, 0, 0, 1], physicsClientId=self.cid)
 
     def _draw_pallet(self, robot_xy, goals, robot_radius, movers, tries: int = 20) -> Obstacle | None:
         bx0, by0, bx1, by1 = self._layout.bounds

@@ -241,19 +241,12 @@ class Movers:
         """Create the pool in a freshly built world (``labels``: the world's body labels)."""
         self.pool = {}
         self.active = []
-        cid = self.cid
         for shape, count in shapes.items():
             kind, dims = shape
             bodies = []
             for _ in range(count):
-                if kind == "box":
-                    body = static_body(cid, "box", (dims[0] / 2, dims[1] / 2, dims[2] / 2), FORKLIFT_COLOUR, (0.0, 0.0, PARK_Z))
-                    label = "forklift"
-                else:
-                    body = static_body(cid, "cylinder", dims, WORKER_COLOUR, (0.0, 0.0, PARK_Z))
-                    label = "worker"
-                p.setCollisionFilterGroupMask(body, -1, STATIC_GROUP, STATIC_MASK, physicsClientId=cid)
-                labels[body] = label
+                body = self._new_body(kind, dims)
+                labels[body] = "forklift" if kind == "box" else "worker"
                 bodies.append(body)
                 self.created += 1
             self.pool[shape] = bodies
@@ -268,12 +261,25 @@ class Movers:
             if not bodies:
                 raise ValueError(f"no pool body left for a {spec.kind} of shape {spec.shape}; pool {self.pool_summary()}")
             self.active.append(_Mover(spec, bodies.pop(0)))
-        cid = self.cid
         for bodies in free.values():
             for i, body in enumerate(bodies):
-                p.resetBasePositionAndOrientation(body, [3.0 * i, 0.0, PARK_Z], [0, 0, 0, 1], physicsClientId=cid)
+                self._park(body, i)
         for m in self.active:
             self._place(m, m.pose)
+
+    def _new_body(self, kind: str, dims: tuple[float, ...]) -> int:
+        """A parked pool body: a ``"box"`` of full size ``dims`` (l, w, h) or a ``"cylinder"`` of (radius, height)."""
+        cid = self.cid
+        if kind == "box":
+            body = static_body(cid, "box", (dims[0] / 2, dims[1] / 2, dims[2] / 2), FORKLIFT_COLOUR, (0.0, 0.0, PARK_Z))
+        else:
+            body = static_body(cid, "cylinder", dims, WORKER_COLOUR, (0.0, 0.0, PARK_Z))
+        p.setCollisionFilterGroupMask(body, -1, STATIC_GROUP, STATIC_MASK, physicsClientId=cid)
+        return body
+
+    def _park(self, body: int, slot: int) -> None:
+        """Put an unused pool body away (under the floor, ``slot`` keeping parked bodies apart)."""
+        p.resetBasePositionAndOrientation(body, [3.0 * slot, 0.0, PARK_Z], [0, 0, 0, 1], physicsClientId=self.cid)
 
     def pool_summary(self) -> dict[str, int]:
         return {f"{k}{list(d)}": len(v) for (k, d), v in self.pool.items()}

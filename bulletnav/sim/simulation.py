@@ -10,14 +10,27 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
+from typing import Any, Protocol
 
 import pybullet as p
 
 from bulletnav.config import PhysicsConfig, RobotConfig
 from bulletnav.sim.client import Clock, connect
+from bulletnav.sim.events import Events
 from bulletnav.sim.layout import Layout
+from bulletnav.sim.movers import Movers
 from bulletnav.sim.robot import Robot
-from bulletnav.sim.world import World
+from bulletnav.sim.world import Primitive, World
+
+
+class LidarMount(Protocol):
+    """What a simulation shows a lidar of the world it built (:class:`bulletnav.sensors.lidar.Lidar`)."""
+
+    def use_world(self, primitives: list[Primitive]) -> None:
+        """The static shapes, for a closed-form caster."""
+
+    def use_shapes(self, shapes: Any) -> None:
+        """A live source of every shape standing now (the kinematic profile's)."""
 
 log = logging.getLogger(__name__)
 
@@ -31,6 +44,10 @@ class Simulation:
         gui: open the PyBullet GUI instead of DIRECT (needs an X display).
     """
 
+    backend = "bullet"
+    """Which simulation runs the scene (``PhysicsConfig.backend``): PyBullet here,
+    ``"kinematic"`` for :class:`~bulletnav.sim.kinematic.KinematicSimulation`."""
+
     def __init__(self, physics: PhysicsConfig = PhysicsConfig(), robot: RobotConfig = RobotConfig(),
                  gui: bool = False) -> None:
         self.physics = physics
@@ -41,6 +58,18 @@ class Simulation:
         self.robot = Robot(self.cid, robot)
         self.rebuilds = 0
         """How many times the scene was rebuilt (layout changes), for diagnostics."""
+
+    def make_movers(self) -> Movers:
+        """The scene's (empty) movers, whose bodies live in this client."""
+        return Movers(self.cid)
+
+    def make_events(self) -> Events:
+        """The scene's (empty) events, whose bodies live in this client."""
+        return Events(self.cid)
+
+    def attach_lidar(self, lidar: LidarMount) -> None:
+        """Show ``lidar`` the world just built (its ``"exact"`` caster casts against the primitives)."""
+        lidar.use_world(self.world.primitives)
 
     # ------------------------------------------------------------------ episodes
     def reset(self, layout: Layout, start: tuple[float, float, float], rebuild: bool = False) -> None:

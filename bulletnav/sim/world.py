@@ -104,13 +104,7 @@ class World:
         self.floor_id = p.createMultiBody(0.0, floor_col, floor_vis, [cx, cy, 0], physicsClientId=cid)
         p.changeDynamics(self.floor_id, -1, lateralFriction=FLOOR_FRICTION, physicsClientId=cid)
         self.labels[self.floor_id] = "floor"
-        h = layout.wall_height
-        t = WALL_THICKNESS
-        walls = (
-            ((cx, cy + (hy + t / 2)), (hx + t, t / 2)), ((cx, cy + (-hy - t / 2)), (hx + t, t / 2)),
-            ((cx + (hx + t / 2), cy), (t / 2, hy)), ((cx + (-hx - t / 2), cy), (t / 2, hy)),
-        )
-        self.wall_ids = [self._box(c, (e[0], e[1], h / 2), 0.0, COLOURS["wall"], "wall") for c, e in walls]
+        self.wall_ids = [self._box(c, half, 0.0, COLOURS["wall"], "wall") for c, half in enclosure(layout)]
         self.obstacle_ids = [self._obstacle(o) for o in layout.obstacles]
         # Static bodies collide only with the robot group: otherwise Bullet tracks and
         # narrow-phases every floor-obstacle pair each step (70 us of a 100 us step here).
@@ -138,6 +132,19 @@ class World:
         self.labels[body] = label
         self.primitives.append(Primitive("box", (center[0], center[1], half[2]), half, yaw))
         return body
+
+
+def enclosure(layout: Layout) -> tuple[tuple[tuple[float, float], tuple[float, float, float]], ...]:
+    """The four walls around ``layout``'s floor, each as (centre (x, y), half extents (x, y, z)) (m)."""
+    hx, hy = layout.half_extents
+    cx, cy = layout.centre
+    h = layout.wall_height
+    t = WALL_THICKNESS
+    walls = (
+        ((cx, cy + (hy + t / 2)), (hx + t, t / 2)), ((cx, cy + (-hy - t / 2)), (hx + t, t / 2)),
+        ((cx + (hx + t / 2), cy), (t / 2, hy)), ((cx + (-hx - t / 2), cy), (t / 2, hy)),
+    )
+    return tuple((c, (e[0], e[1], h / 2)) for c, e in walls)
 
 
 def static_body(cid: int, kind: str, dims: tuple[float, ...], colour: tuple[float, ...],
