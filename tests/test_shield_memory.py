@@ -12,7 +12,7 @@ import pytest
 import bulletnav  # noqa: F401
 from bulletnav.config import EnvConfig, robot_preset
 from bulletnav.control.random_commands import RandomCommands
-from bulletnav.control.shield import Shield, ShieldConfig, ShieldWrapper
+from bulletnav.control.shield import Shield, ShieldConfig, ShieldWrapper, nearer
 from bulletnav.control.shield_kernels import wheel_sweep
 from bulletnav.control.shield_memory import ScanMemory, blind_sector
 from bulletnav.evaluation import run_episodes
@@ -267,6 +267,38 @@ def test_a_fast_turn_is_refused_where_only_the_turn_held_through_a_hard_stop_com
     assert not shield.check(v, w, v_now, point, w_now=w_now)[0]
     no_wheels = Shield(JACKAL, ANGLES, 30.0, DT, 2.0, 4.0, ShieldConfig(), v_min=-0.5)
     assert no_wheels.check(v, w, v_now, point, w_now=w_now)[0]
+
+
+def test_a_remembered_cylinder_whose_near_side_was_never_seen_still_stops_a_turn():
+    """BARN world 68 (random commands backing up, seed 8000000, at 185a5b5): a cylinder behind the
+    rear-right corner remembered only by the arcs the lidar saw from elsewhere (60-130 and
+    -35 to -20 degrees round it), its near side never seen. Turning in place at -0.5 rad/s, the
+    remembered points pass the outline by more than the close margin while the cylinder itself
+    (cast by hand) does not; moved ``memory_margin`` (3 cm) toward the body centre, they stop
+    the turn, as the cylinder does."""
+    shield = _jackal_shield(wheel_accel=3.5)
+    centre, radius = np.array([-0.322, -0.207]), 0.075
+
+    def arc(a0: float, a1: float, n: int) -> np.ndarray:
+        t = np.radians(np.linspace(a0, a1, n))
+        return np.stack([centre[0] + radius * np.cos(t), centre[1] + radius * np.sin(t)], axis=1)
+
+    remembered = np.concatenate([arc(56, 129, 30), arc(-34, -22, 30)])
+    cylinder = arc(0, 359, 360)
+    empty = np.full(len(ANGLES), 30.0)
+
+    def turn_clear(memory: np.ndarray) -> bool:
+        return bool(shield._close_clear(np.array([0.0]), np.array([-0.5]), 0.0, empty, [], (0.0, 0.0, 0.0), 0.0,
+                                        memory, math.inf)[0])
+
+    turn, _ = shield.sweep(0.0, -0.5, 0.0, 0.0)
+    assert float(shield._clearance(turn, remembered)[0]) > shield.config.close_margin
+    assert float(shield._clearance(turn, cylinder)[0]) < shield.config.close_margin
+    assert turn_clear(remembered) and not turn_clear(cylinder)
+    assert shield.config.memory_margin == 0.03
+    assert not turn_clear(nearer(remembered, shield.config.memory_margin))
+    moved = nearer(np.array([[0.3, 0.4], [0.01, 0.0]]), 0.03)
+    assert moved == pytest.approx(np.array([[0.282, 0.376], [0.0, 0.0]]))  # 3 cm along the radius; a nearer point to the centre
 
 
 def test_the_jackal_shield_carries_its_memory_by_the_gyro_where_the_wheels_drift():
