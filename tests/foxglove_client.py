@@ -13,6 +13,11 @@ What it does, as the spec says:
 - The client sends ``subscribe`` with ``subscriptions: [{id, channelId}]``, ids it chooses and never reuses.
 - The server sends each message as a binary frame: opcode ``0x01``, the subscription id (uint32 LE),
   the message's timestamp in ns (uint64 LE), then the payload.
+- Publishing (only to a server whose ``serverInfo`` lists the ``clientPublish`` capability, in one of
+  its ``supportedEncodings``): the client sends ``advertise`` with ``channels: [{id, topic, encoding,
+  schemaName, schema?, schemaEncoding?}]`` (ids it chooses), then each message as a binary frame:
+  opcode ``0x01``, the channel id (uint32 LE), the payload; ``unadvertise`` with ``channelIds``.
+- ``origin``: the HTTP ``Origin`` header of the handshake, as a browser sends the page's origin.
 
 It is strict: a frame the spec does not allow here (an unknown binary opcode, a message for a
 subscription never made, a malformed frame, a JSON message of an unknown ``op``, a status of level
@@ -119,7 +124,7 @@ class FoxgloveClient:
     """
 
     def __init__(self, url: str, subprotocols: Sequence[str] = SUBPROTOCOLS,
-                 timeout: float = DEFAULT_TIMEOUT_S) -> None:
+                 timeout: float = DEFAULT_TIMEOUT_S, origin: str | None = None) -> None:
         self.url = url
         self._cond = threading.Condition()
         self._channels: dict[int, ChannelInfo] = {}
@@ -137,8 +142,11 @@ class FoxgloveClient:
         """Frames that arrived for a subscription after this client unsubscribed it (allowed in flight)."""
         self._closing = False
         self._closed = False
+        self._next_channel = 1
+        self._advertised: dict[int, tuple[str, str]] = {}  # client channel id -> (topic, encoding)
         self._ws = connect(url, subprotocols=list(subprotocols), open_timeout=timeout, close_timeout=timeout,
-                           max_size=None, max_queue=4096, compression=None, proxy=None, legacy=True)
+                           max_size=None, max_queue=4096, compression=None, proxy=None, legacy=True,
+                           origin=origin)  # type: ignore[arg-type]
         self.subprotocol = self._ws.subprotocol
         """The subprotocol the server picked."""
         if self.subprotocol not in subprotocols:
@@ -356,6 +364,43 @@ class FoxgloveClient:
 
     def _send(self, msg: dict) -> None:
         self._ws.send(json.dumps(msg))
+
+    # ---- publishing
+    def advertise(self, topic: str, encoding: str, schema_name: str, schema: str | None = None,
+                  schema_encoding: str | None = None) -> int:
+        """Advertise a client channel (one ``advertise`` message); returns its id. ValueError unless the
+        server said it takes client messages (``clientPublish``) in ``encoding``."""
+        info = self.server_info or {}
+        if "clientPublish" not in info.get("capabilities", []):
+            raise ValueError(f"{self.url}: the server does not take client messages (capabilities {info.get('capabilities')})")
+        if encoding not in info.get("supportedEncodings", []):
+            raise ValueError(f"{self.url}: the server takes {info.get('supportedEncodings')}, not {encoding!r}")
+        with self._cond:
+            cid = self._next_channel
+            self._next_channel += 1
+            self._advertised[cid] = (topic, encoding)
+        channel: dict[str, Any] = {"id": cid, "topic": topic, "encoding": encoding, "schemaName": schema_name}
+        if schema is not None:
+            channel["schema"] = schema
+        if schema_encoding is not None:
+            channel["schemaEncoding"] = schema_encoding
+        self._send({"op": "advertise", "channels": [channel]})
+        return cid
+
+    def publish(self, channel_id: int, payload: bytes) -> None:
+        """Send one message on an advertised client channel (a binary ``0x01`` frame)."""
+        with self._cond:
+            if channel_id not in self._advertised:
+                raise KeyError(f"client channel {channel_id} is not advertised")
+        self._ws.send(struct.pack("<BI", OP_MESSAGE_DATA, channel_id) + bytes(payload))
+
+    def unadvertise(self, channel_ids: Iterable[int]) -> None:
+        """Withdraw client channels (one ``unadvertise`` message)."""
+        ids = list(channel_ids)
+        with self._cond:
+            for cid in ids:
+                del self._advertised[cid]
+        self._send({"op": "unadvertise", "channelIds": ids})
 
     # ---- reading what arrived
     @property

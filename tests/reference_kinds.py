@@ -448,6 +448,27 @@ KINDS: dict[str, str] = {
     "test_foxglove_client.py::test_two_clients_both_receive_everything_and_one_leaving_breaks_nothing": "library",
     # frames written byte by byte from the protocol spec (LE ids and stamps, CDR of 2.0)
     "test_foxglove_client.py::test_the_client_decodes_a_hand_made_frame_and_records_every_frame_the_protocol_forbids": "hand",
+    # the foxglove-sdk server's own listener receives the client's advertisements and messages as sent
+    "test_foxglove_client.py::test_the_client_publishes_what_a_foxglove_sdk_server_receives": "library",
+    # ---- test_live_control.py
+    # bulletnav's CDR decoder against mcap_ros2's serializer (and a big-endian Twist packed by hand)
+    "test_live_control.py::test_cdr_decoder_reads_what_mcap_ros2_writes": "library",
+    "test_live_control.py::test_cdr_decoder_refuses_malformed_twists": "contract",
+    "test_live_control.py::test_cdr_decoder_refuses_malformed_strings_and_lengths": "contract",
+    "test_live_control.py::test_goal_and_twist_readers_take_both_encodings_and_refuse_bad_ones": "hand",
+    "test_live_control.py::test_origin_policy": "hand",
+    "test_live_control.py::test_allow_origin_refuses_what_is_not_an_origin": "contract",
+    # the robot read back from /tf by the test client (mcap_ros2 decodes, the test composes); the recording by MCAP's reader
+    "test_live_control.py::test_a_client_publishes_goals_in_both_encodings_and_the_robot_gets_there": "library",
+    # one message holds for 0.5 s at 24 Hz: 12 steps of the command on the stream's /cmd_vel
+    "test_live_control.py::test_teleop_in_both_encodings_drives_the_robot_for_half_a_second_a_message": "hand",
+    # PyBullet's closest points between robot and wall; the same commands without the shield hit it
+    "test_live_control.py::test_a_teleop_burst_at_a_wall_passes_the_shield_without_touching_it": "library",
+    "test_live_control.py::test_a_bad_goal_gets_a_status_error_and_changes_nothing": "contract",
+    # refused by the websockets client's own handshake (HTTP 403); the robot read back from /tf
+    "test_live_control.py::test_a_client_with_a_foreign_origin_cannot_drive": "contract",
+    "test_live_control.py::test_cli_view_live_control_announces_drives_and_records": "contract",
+    "test_live_control.py::test_cli_view_live_control_refuses": "contract",
     # ---- test_fuzz.py
     "test_fuzz.py::test_layout_files": "contract",
     "test_fuzz.py::test_sweep_files": "contract",

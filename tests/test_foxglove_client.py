@@ -212,3 +212,55 @@ def test_the_client_decodes_a_hand_made_frame_and_records_every_frame_the_protoc
         assert text in error
     with pytest.raises(ValueError, match="cannot decode"):
         _ = Received("/j", 0, b"{}", ChannelInfo(1, "/j", "json", "J", "jsonschema", "{}"), 1).decoded
+
+
+class _Published:
+    """A foxglove-sdk server listener that keeps what clients advertise and publish."""
+
+    def __init__(self) -> None:
+        self.cond = threading.Condition()
+        self.channels: dict[tuple[int, int], tuple[str, str, str, str | None]] = {}
+        self.messages: list[tuple[str, bytes]] = []
+
+    def on_client_advertise(self, client: object, channel: foxglove.websocket.ClientChannel) -> None:
+        with self.cond:
+            schema = None if channel.schema is None else bytes(channel.schema).decode()
+            self.channels[(client.id, channel.id)] = (channel.topic, channel.encoding, channel.schema_name, schema)
+            self.cond.notify_all()
+
+    def on_message_data(self, client: object, client_channel_id: int, data: bytes) -> None:
+        with self.cond:
+            self.messages.append((self.channels[(client.id, client_channel_id)][0], bytes(data)))
+            self.cond.notify_all()
+
+
+def test_the_client_publishes_what_a_foxglove_sdk_server_receives():
+    """Advertised client channels and published messages arrive at a foxglove-sdk server as sent
+    (its own listener is the reference), in both encodings; the client refuses to advertise to a
+    server without ``clientPublish`` or in an encoding the server does not take."""
+    from foxglove.websocket import Capability
+
+    ctx = foxglove.Context()
+    got = _Published()
+    server = foxglove.start_server(host="127.0.0.1", port=0, context=ctx, server_listener=got,
+                                   capabilities=[Capability.ClientPublish], supported_encodings=["cdr", "json"])
+    try:
+        with FoxgloveClient(f"ws://127.0.0.1:{server.port}", timeout=HANG_S) as client:
+            value = _encode(FLOAT64, {"data": -1.25})
+            a = client.advertise("/value", "cdr", FLOAT64[0], FLOAT64[1], "ros2msg")
+            b = client.advertise("/note", "json", "Note")
+            client.publish(a, value)
+            client.publish(b, b'{"text": "hi"}')
+            with got.cond:
+                assert got.cond.wait_for(lambda: len(got.messages) == 2, HANG_S), got.messages
+            assert sorted(got.channels.values()) == [("/note", "json", "Note", None),
+                                                     ("/value", "cdr", FLOAT64[0], FLOAT64[1])]
+            assert got.messages == [("/value", value), ("/note", b'{"text": "hi"}')]
+            with pytest.raises(ValueError, match="not 'protobuf'"):
+                client.advertise("/x", "protobuf", "X")
+            assert client.errors == []
+    finally:
+        server.stop()
+    with _server() as (url, _, _), FoxgloveClient(url, timeout=HANG_S) as plain:
+        with pytest.raises(ValueError, match="does not take client messages"):
+            plain.advertise("/x", "json", "X")

@@ -178,6 +178,28 @@ def add_live_args(parser: argparse.ArgumentParser) -> None:
                         help="with --live: simulated seconds per wall-clock second (default 1, real time; 0: as fast as it goes)")
 
 
+def live_origin(text: str) -> str:
+    """``--live-allow-origin``: an origin as a browser sends it (checked before anything runs)."""
+    from bulletnav.ros.live_gate import normalize_origin
+
+    try:
+        return normalize_origin(text)
+    except BulletnavError as e:
+        raise argparse.ArgumentTypeError(f"{text!r}: {str(e).split(': ', 1)[1]}") from None
+
+
+def add_live_control_args(parser: argparse.ArgumentParser) -> None:
+    """``--live-control`` and ``--live-allow-origin ORIGIN`` (``view``): Foxglove drives the robot."""
+    parser.add_argument("--live-control", action="store_true",
+                        help="with --live: let Foxglove drive one robot that waits for goals: /goal_pose (the 3D panel's "
+                             "Publish pose) sets the goal, /cmd_vel (the Teleop panel) drives it for 0.5 s a message, "
+                             "always through the safety shield; web pages of other sites cannot connect (docs/ros.md)")
+    parser.add_argument("--live-allow-origin", type=live_origin, action="append", default=None, metavar="ORIGIN",
+                        help="with --live-control: also let web pages of ORIGIN (scheme://host[:port]) connect and drive "
+                             "(repeatable; allowed always: no Origin, i.e. Foxglove's desktop app and scripts, loopback "
+                             "pages and https://app.foxglove.dev)")
+
+
 def add_obstacles_arg(parser: argparse.ArgumentParser, default: str = "the env's; 31 on Warehouse-v0") -> None:
     parser.add_argument("--obstacles", type=NON_NEGATIVE, default=None, metavar="K",
                         help=f"obstacles in a procedural warehouse (default: {default})")

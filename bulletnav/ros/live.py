@@ -17,17 +17,29 @@ connects to ``ws://HOST:PORT``; so can any client of the Foxglove WebSocket prot
   changes nothing but the queue.
 - **Nobody watching costs little**: :meth:`LiveServer.wants` is false for a topic no client
   subscribes to, and the publisher then does not build its messages.
+- **Driving** (``control``, ``--live-control``): the server also takes messages clients publish
+  (the ``clientPublish`` capability, in the encodings of :data:`CONTROL_ENCODINGS`), which
+  :meth:`LiveServer.receive` hands to the run (:mod:`bulletnav.ros.live_control` reads goals and
+  teleop from them), and :meth:`LiveServer.status` answers. It then listens behind
+  :class:`~bulletnav.ros.live_gate.OriginGate`: a web page of another site cannot connect, and only
+  connections through the gate may publish.
 """
 
 from __future__ import annotations
 
 import functools
+import hmac
 import logging
+import queue
+import secrets
+import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from bulletnav.errors import BulletnavError
+from bulletnav.ros.live_gate import GATE_TOPIC_PREFIX, OriginGate, OriginPolicy
 from bulletnav.ros.msgdefs import base_topic, msgdef
 
 log = logging.getLogger(__name__)
@@ -43,6 +55,14 @@ LAYOUT = Path(__file__).resolve().parent.parent / "assets" / "foxglove_layout.js
 ``base_link`` with the maps, scan, plan, goal and movers; the camera image; plots of commanded and
 measured speeds, distance to goal, the shield's interventions and the reward. It serves a live
 stream and a recording alike (one robot's topics)."""
+
+CONTROL_ENCODINGS = ("cdr", "json")
+"""The message encodings a driving stream takes from clients, in Foxglove's order of preference
+(it publishes in the first of them it supports): ``cdr`` (ROS 2 messages), ``json``."""
+INBOX_LIMIT = 1024
+"""Client messages held for the run at most; more are dropped (the run takes them every step)."""
+STATUS_LEVELS = ("info", "warning", "error")
+"""The levels of :meth:`LiveServer.status`."""
 
 LATCHED = ("/tf_static", "/map_truth", "/map", "/goal_pose", "/plan")
 """Topics (and a fleet robot's ``/robot_<i>/...`` of them) whose last message a client that
@@ -79,9 +99,23 @@ def is_latched(topic: str) -> bool:
     return base_topic(topic, LATCHED) is not None
 
 
+@dataclass(frozen=True)
+class ClientMessage:
+    """One message a client published to a driving stream."""
+
+    client: int
+    """The server's id of the client's connection."""
+    topic: str
+    encoding: str
+    """The message encoding the client advertised (one of :data:`CONTROL_ENCODINGS`)."""
+    schema_name: str
+    """The type the client advertised (``geometry_msgs/msg/PoseStamped``, ...)."""
+    data: bytes
+
+
 class _Listener:
     """The server's callbacks (its own thread): a subscription to a latched topic gets its last
-    message again."""
+    message again; on a driving stream, client channels and messages go to the owner."""
 
     def __init__(self, owner: LiveServer) -> None:
         self.owner = owner
@@ -92,6 +126,15 @@ class _Listener:
     def on_unsubscribe(self, client: Any, channel: Any) -> None:
         pass
 
+    def on_client_advertise(self, client: Any, channel: Any) -> None:
+        self.owner._client_advertised(int(client.id), channel)
+
+    def on_client_unadvertise(self, client: Any, client_channel_id: int) -> None:
+        self.owner._client_unadvertised(int(client.id), int(client_channel_id))
+
+    def on_message_data(self, client: Any, client_channel_id: int, data: bytes) -> None:
+        self.owner._client_message(int(client.id), int(client_channel_id), data)
+
 
 class LiveServer:
     """A Foxglove WebSocket server for one run (see the module docstring).
@@ -100,13 +143,16 @@ class LiveServer:
         address: ``[HOST:]PORT`` (:func:`parse_address`).
         speed: simulated seconds per wall-clock second (1: real time); 0: unpaced.
         name: the server's name, shown by Foxglove.
+        control: who may drive (an :class:`~bulletnav.ros.live_gate.OriginPolicy`): clients may
+            then publish (see the module docstring); None: a stream to watch only.
 
     Raises:
         BulletnavError: the address is malformed, ``speed`` is negative, or the port cannot be
             bound (in use, or not this machine's address).
     """
 
-    def __init__(self, address: str = f"{DEFAULT_HOST}:8765", speed: float = 1.0, name: str = "bulletnav") -> None:
+    def __init__(self, address: str = f"{DEFAULT_HOST}:8765", speed: float = 1.0, name: str = "bulletnav",
+                 control: OriginPolicy | None = None) -> None:
         import foxglove
         from foxglove.websocket import Capability
 
@@ -115,19 +161,38 @@ class LiveServer:
                                  f"{SPEED_RANGE[1]:g} (1: real time)")
         self.host, port = parse_address(address)
         self.speed = float(speed)
+        self.control = control
+        """Who may drive, or None (a stream to watch only)."""
+        self.closed = False
         self._context = foxglove.Context()
+        self._token = secrets.token_hex(16)
+        self._lock = threading.Lock()
+        self._through_gate: set[int] = set()
+        self._client_channels: dict[tuple[int, int], tuple[str, str, str]] = {}
+        self._inbox: queue.SimpleQueue[ClientMessage] = queue.SimpleQueue()
+        self._warned: set[tuple[str, int]] = set()
+        self._gate: OriginGate | None = None
+        capabilities = [Capability.Time] if control is None else [Capability.Time, Capability.ClientPublish]
+        at = (self.host, port) if control is None else ("127.0.0.1", 0)  # behind the gate: a loopback port of its own
         try:
-            self._server = foxglove.start_server(name=name, host=self.host, port=port, context=self._context,
-                                                 server_listener=_Listener(self), capabilities=[Capability.Time])
+            self._server = foxglove.start_server(name=name, host=at[0], port=at[1], context=self._context,
+                                                 server_listener=_Listener(self), capabilities=capabilities,
+                                                 supported_encodings=None if control is None else list(CONTROL_ENCODINGS))
         except RuntimeError as e:
             reason = str(e).removeprefix("FoxgloveError: ")
-            raise BulletnavError(f"--live {address}: cannot listen on {self.host}:{port}: {reason}") from None
+            raise BulletnavError(f"--live {address}: cannot listen on {at[0]}:{at[1]}: {reason}") from None
         self.port = int(self._server.port)
         """The port listened on (the one asked for, or the free one port 0 found)."""
+        if control is not None:
+            try:
+                self._gate = OriginGate(self.host, port, self.port, control, self._token)
+            except OSError as e:
+                self._server.stop()
+                raise BulletnavError(f"--live {address}: cannot listen on {self.host}:{port}: {e.strerror or e}") from None
+            self.port = self._gate.port
         self._channels: dict[str, Any] = {}
         self._latched: dict[str, tuple[bytes, int]] = {}
         self._anchor: tuple[float, int] | None = None  # (wall s, simulated ns) pacing counts from
-        self.closed = False
         log.info("live: Foxglove WebSocket server on ws://%s:%d", self.host, self.port)
 
     @property
@@ -135,6 +200,67 @@ class LiveServer:
         """``ws://HOST:PORT`` (IPv6 hosts in brackets)."""
         host = f"[{self.host}]" if ":" in self.host else self.host
         return f"ws://{host}:{self.port}"
+
+    @property
+    def gate(self) -> OriginGate | None:
+        """The front that checks who may drive (a driving stream), else None."""
+        return self._gate
+
+    # ------------------------------------------------------------------ what clients publish
+    def _client_advertised(self, client: int, channel: Any) -> None:
+        topic = str(channel.topic)
+        if topic.startswith(GATE_TOPIC_PREFIX) and hmac.compare_digest(topic[len(GATE_TOPIC_PREFIX):], self._token):
+            with self._lock:
+                self._through_gate.add(client)
+            return
+        with self._lock:
+            self._client_channels[(client, int(channel.id))] = (topic, str(channel.encoding), str(channel.schema_name))
+
+    def _client_unadvertised(self, client: int, channel_id: int) -> None:
+        with self._lock:
+            self._client_channels.pop((client, channel_id), None)
+
+    def _client_message(self, client: int, channel_id: int, data: bytes) -> None:
+        with self._lock:
+            through = client in self._through_gate
+            channel = self._client_channels.get((client, channel_id))
+        if not through:
+            self._warn_once("gate", client, "live: dropped what client %d publishes: it did not connect through "
+                                            "the address announced (port %d)", client, self.port)
+            return
+        if channel is None or self.closed:
+            return
+        if self._inbox.qsize() >= INBOX_LIMIT:
+            self._warn_once("full", client, "live: client %d publishes faster than the run takes it in: "
+                                            "messages dropped", client)
+            return
+        self._inbox.put(ClientMessage(client, channel[0], channel[1], channel[2], bytes(data)))
+
+    def _warn_once(self, kind: str, client: int, message: str, *args: Any) -> None:
+        with self._lock:
+            first = (kind, client) not in self._warned
+            self._warned.add((kind, client))
+        (log.warning if first else log.debug)(message, *args)
+
+    def receive(self) -> list[ClientMessage]:
+        """The messages clients published since the last call, in order of arrival (a driving
+        stream's; always empty otherwise)."""
+        out = []
+        while True:
+            try:
+                out.append(self._inbox.get_nowait())
+            except queue.Empty:
+                return out
+
+    def status(self, message: str, level: str = "error") -> None:
+        """Tell every client ``message`` (a Foxglove ``status`` of ``level``, one of :data:`STATUS_LEVELS`)."""
+        from foxglove.websocket import StatusLevel
+
+        if level not in STATUS_LEVELS:
+            raise ValueError(f"status level must be one of {STATUS_LEVELS}, got {level!r}")
+        if not self.closed:
+            self._server.publish_status(message, {"info": StatusLevel.Info, "warning": StatusLevel.Warning,
+                                                  "error": StatusLevel.Error}[level])
 
     def _subscribed(self, topic: str) -> None:
         last = self._latched.get(topic)  # (one dict read: atomic beside the run's thread)
@@ -196,7 +322,9 @@ class LiveServer:
         """Stop the server (clients are disconnected)."""
         if not self.closed:
             self.closed = True
-            self._server.stop()
+            self._server.stop()  # first: its close frames reach the clients through the gate
+            if self._gate is not None:
+                self._gate.close()
 
     def __enter__(self) -> LiveServer:
         return self
@@ -205,4 +333,5 @@ class LiveServer:
         self.close()
 
 
-__all__ = ["DEFAULT_HOST", "LATCHED", "LAYOUT", "LiveServer", "is_latched", "parse_address"]
+__all__ = ["CONTROL_ENCODINGS", "DEFAULT_HOST", "LATCHED", "LAYOUT", "ClientMessage", "LiveServer", "OriginPolicy", "is_latched",
+           "parse_address"]
