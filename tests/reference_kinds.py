@@ -469,6 +469,9 @@ KINDS: dict[str, str] = {
     "test_live_control.py::test_a_client_with_a_foreign_origin_cannot_drive": "contract",
     "test_live_control.py::test_cli_view_live_control_announces_drives_and_records": "contract",
     "test_live_control.py::test_cli_view_live_control_refuses": "contract",
+    # ---- test_live_browser.py
+    # a real Chromium (Playwright) sends the pages' Origin itself; the session's goal is the verdict
+    "test_live_browser.py::test_a_page_of_another_site_cannot_drive_a_loopback_page_can": "library",
     # ---- test_fuzz.py
     "test_fuzz.py::test_layout_files": "contract",
     "test_fuzz.py::test_sweep_files": "contract",
