@@ -233,6 +233,7 @@ class LiveControl:
         overwrite: replace an existing ``record`` file.
         on_event: called with one line (simulated time first) for each goal taken, refused or
             reached, each teleop burst and each collision; the CLI prints them.
+        hold_s: seconds of simulated time one ``/cmd_vel`` message drives the robot.
 
     Raises:
         BulletnavError: ``live`` does not take client messages, or the env's task is not
