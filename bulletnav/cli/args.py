@@ -221,8 +221,9 @@ def add_physics_arg(parser: argparse.ArgumentParser) -> None:
     from bulletnav.config import PHYSICS_PROFILES
 
     parser.add_argument("--physics", choices=list(PHYSICS_PROFILES), default=None,
-                        help="physics profile: default (240 Hz) or fast (the measured cheaper rate, "
-                             "docs/performance/physics.md); default: the model's, else the env's")
+                        help="physics profile: default (240 Hz), fast (the measured cheaper rate, "
+                             "docs/performance/physics.md) or kinematic (no physics engine: exact kinematics and "
+                             "closed-form lidar and contacts, docs/env.md); default: the model's, else the env's")
 
 
 def add_world_args(parser: argparse.ArgumentParser) -> None:
