@@ -954,6 +954,8 @@ KINDS: dict[str, str] = {
     "test_shield_memory.py::test_close_to_a_wall_a_back_up_out_of_a_turn_is_checked_along_the_turn_the_wheels_keep": "hand",
     "test_shield_memory.py::test_the_jackal_stopping_out_of_a_fast_turn_brakes_at_its_rims_and_keeps_turning": "formula",
     "test_shield_memory.py::test_a_remembered_cylinder_whose_near_side_was_never_seen_still_stops_a_turn": "hand",
+    "test_shield_memory.py::test_driving_away_from_a_remembered_wall_is_not_refused_for_the_memory_margin": "hand",
+    "test_shield_memory.py::test_random_commands_backing_up_in_barn_world_68_stay_off_the_cylinder_their_memory_half_saw": "golden",
     "test_shield_memory.py::test_a_fast_turn_is_refused_where_only_the_turn_held_through_a_hard_stop_comes_close": "hand",
     "test_shield_memory.py::test_the_jackal_shield_carries_its_memory_by_the_gyro_where_the_wheels_drift": "library",
     "test_user_maps.py::test_a_map_yamls_typos_are_map_typos_and_an_image_or_model_as_a_world_says_what_belongs": "contract",

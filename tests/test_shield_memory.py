@@ -170,7 +170,7 @@ def test_close_to_a_wall_a_back_up_out_of_a_turn_is_checked_along_the_turn_the_w
     Inside the margin (the close-range test), a point the front-right corner reaches only along
     that lagging turn blocks the back-up; the sweep that stops turning within one period misses
     it, and so does the same shield without the wheels' model."""
-    shield = _jackal_shield(wheel_accel=3.5)
+    shield = _jackal_shield(wheel_accel=3.5, memory_margin=0.0)  # the point as placed (it stands for a seen one)
     hb = JACKAL.wheelbase / 2
     lag, lag_t = np.zeros((1, 12, 3)), np.zeros((1, 12))
     wheel_sweep(np.array([-0.5]), np.array([0.0]), 0.0, -1.0, DT, 3.5, 1.5, hb, lag, lag_t)
@@ -190,7 +190,7 @@ def test_close_to_a_wall_a_back_up_out_of_a_turn_is_checked_along_the_turn_the_w
     empty = np.full(len(ANGLES), 30.0)
     args = (np.array([-0.5]), np.array([0.0]), 0.0, empty, [], (0.0, 0.0, 0.0), -1.0, point, 1.0)
     assert not shield._close_clear(*args)[0]
-    no_wheels = Shield(JACKAL, ANGLES, 30.0, DT, 2.0, 4.0, ShieldConfig(), v_min=-0.5)
+    no_wheels = Shield(JACKAL, ANGLES, 30.0, DT, 2.0, 4.0, ShieldConfig(memory_margin=0.0), v_min=-0.5)
     assert no_wheels.config.wheel_accel is None and no_wheels._close_clear(*args)[0]
 
 
@@ -277,6 +277,7 @@ def test_a_remembered_cylinder_whose_near_side_was_never_seen_still_stops_a_turn
     (cast by hand) does not; moved ``memory_margin`` (3 cm) toward the body centre, they stop
     the turn, as the cylinder does."""
     shield = _jackal_shield(wheel_accel=3.5)
+    bare = _jackal_shield(wheel_accel=3.5, memory_margin=0.0)
     centre, radius = np.array([-0.322, -0.207]), 0.075
 
     def arc(a0: float, a1: float, n: int) -> np.ndarray:
@@ -287,18 +288,57 @@ def test_a_remembered_cylinder_whose_near_side_was_never_seen_still_stops_a_turn
     cylinder = arc(0, 359, 360)
     empty = np.full(len(ANGLES), 30.0)
 
-    def turn_clear(memory: np.ndarray) -> bool:
-        return bool(shield._close_clear(np.array([0.0]), np.array([-0.5]), 0.0, empty, [], (0.0, 0.0, 0.0), 0.0,
-                                        memory, math.inf)[0])
+    def turn_clear(s: Shield, memory: np.ndarray) -> bool:
+        return bool(s._close_clear(np.array([0.0]), np.array([-0.5]), 0.0, empty, [], (0.0, 0.0, 0.0), 0.0,
+                                   memory, math.inf)[0])
 
     turn, _ = shield.sweep(0.0, -0.5, 0.0, 0.0)
     assert float(shield._clearance(turn, remembered)[0]) > shield.config.close_margin
     assert float(shield._clearance(turn, cylinder)[0]) < shield.config.close_margin
-    assert turn_clear(remembered) and not turn_clear(cylinder)
+    assert turn_clear(bare, remembered) and not turn_clear(bare, cylinder)
     assert shield.config.memory_margin == 0.03
-    assert not turn_clear(nearer(remembered, shield.config.memory_margin))
+    assert not turn_clear(shield, remembered)
     moved = nearer(np.array([[0.3, 0.4], [0.01, 0.0]]), 0.03)
     assert moved == pytest.approx(np.array([[0.282, 0.376], [0.0, 0.0]]))  # 3 cm along the radius; a nearer point to the centre
+
+
+def test_driving_away_from_a_remembered_wall_is_not_refused_for_the_memory_margin():
+    """A wall remembered 6 cm behind the rear (beyond the 5 cm margin): driving straight ahead,
+    away from it, passes as it does with no memory margin (the margin moves remembered points
+    only in the close-range test)."""
+    shield = _jackal_shield(wheel_accel=3.5)
+    rear = min(r.cx - r.half_x for r in JACKAL.rectangles)
+    wall = np.stack([np.full(41, rear - 0.06), np.linspace(-0.4, 0.4, 41)], axis=1)
+    empty = np.full(len(ANGLES), 30.0)
+    for memory_margin in (0.0, 0.03):
+        s = _jackal_shield(wheel_accel=3.5, memory_margin=memory_margin)
+        d = s.filter(0.5, 0.0, 0.0, empty, w_now=0.0, memory=wall)
+        assert not d.intervened and (d.v, d.w) == (0.5, 0.0)
+    assert shield.filter(-0.5, 0.0, 0.0, empty, w_now=0.0, memory=wall, back_room=1.0).intervened  # backing into it is
+
+
+@pytest.mark.slow
+def test_random_commands_backing_up_in_barn_world_68_stay_off_the_cylinder_their_memory_half_saw():
+    """The whole episode of BARN world 68 (random commands backing up, seed 8000000) behind the
+    shield: with the memory margin it ends without touching anything (the random walk reaches
+    the goal); with it off, the turn by
+    the cylinder whose near side the lidar never saw touches it (the collision at 185a5b5)."""
+    ends = {}
+    for memory_margin in (0.03, 0.0):
+        env = ShieldWrapper(gym.make("bulletnav/BARN-v0", world_idx=68, min_speed=-0.5),
+                            ShieldConfig(memory_margin=memory_margin))
+        try:
+            policy = RandomCommands(env.unwrapped.scene, hold=8, seed=0)
+            obs, info = env.reset(seed=8000000)
+            policy.reset(info)
+            while True:
+                obs, _, terminated, truncated, info = env.step(policy.act(obs, info))
+                if terminated or truncated:
+                    break
+            ends[memory_margin] = info["end_reason"]
+        finally:
+            env.close()
+    assert ends[0.0] == "collision" and ends[0.03] in ("timeout", "success")
 
 
 def test_the_jackal_shield_carries_its_memory_by_the_gyro_where_the_wheels_drift():

@@ -159,12 +159,15 @@ class ShieldConfig:
     on), and checks every sweep against it too. A lidar that sees all the way round has nothing
     to remember. 0 turns the memory off."""
     memory_margin: float = 0.03
-    """Remembered points count this much closer to the robot (m): each is moved this far toward
-    the body centre. The lidar saw a remembered object from where the robot was then, so the side
+    """In the close-range test (turning in place or backing up once inside the margin),
+    remembered points count this much closer to the robot (m): each is moved this far toward the
+    body centre. The lidar saw a remembered object from where the robot was then, so the side
     nearest the robot now may be one it never saw. Measured in BARN world 68 (random commands
     backing up, seed 8000000): a cylinder seen from behind, its near side never in view, was
     1.8 cm nearer the rear corner than the nearest remembered point, and a turn in place that the
-    remembered points passed by 2.2 cm touched it."""
+    remembered points passed by 2.2 cm touched it. The other sweeps (with their larger margins)
+    and the test of whether the robot is inside the margin take the points as remembered, so
+    driving away from a remembered wall is never refused for it."""
 
     def __post_init__(self) -> None:
         if (not 0 <= self.margin_min <= self.margin or self.decel <= 0 or self.samples < 3 or self.join < 0
@@ -445,6 +448,8 @@ class Shield:
         filled in every 1 cm and off the movers: the test for turning in place (or backing up,
         within ``back_room``) once inside the margin."""
         cfg = self.config
+        if memory is not None:  # the remembered objects' unseen near sides (ShieldConfig.memory_margin)
+            memory = nearer(memory, cfg.memory_margin)
         poses, times = self.sweep(v, w, v_now, w_now)
         within = self._bare_radius + cfg.close_margin + travel(poses)
         dense = _joined(self.points(ranges, within=within, fill=0.01), memory, within)
@@ -682,8 +687,7 @@ class Veto:
         memory = None
         if self.memory.active:
             seen = self.shield.points(ranges, within=self.memory.radius, fill=0.01)
-            memory = nearer(self.memory.update(self._memory_pose(odometry, v_now, w_now), seen),
-                            self.shield.config.memory_margin)
+            memory = self.memory.update(self._memory_pose(odometry, v_now, w_now), seen)
         self.back_room = min(max(self.back_room + v_now * self._dt, 0.0), self.shield.config.memory_radius)
         d = self.shield.filter(v, w, v_now, ranges, movers, tuple(scene.pose), w_now=w_now,
                                stuck=self.escape if stuck else None, memory=memory,
