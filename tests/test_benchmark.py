@@ -342,6 +342,10 @@ def test_compare_counts_and_intervals_by_hand(tmp_path):
     (b"not json", "not JSON"),
     (b'{"cells": []}', "not a benchmark's results"),
     (b"[1, 2]", "not a benchmark's results"),
+    (b'{"cells": [{"world": "w", "controller": "c"}], "episodes": []}', "is not a results cell"),
+    (b'{"cells": [{"world": "w", "controller": "c", "summary": {"success": {"mean": "x"}}}], "episodes": []}',
+     "not a number"),
+    (b'{"cells": [], "episodes": [], "provenance": {"git_commit": 5}}', "not a commit name"),
 ])
 def test_compare_refuses_a_file_that_is_not_results_in_one_line(tmp_path, capsys, content, why):
     bad = tmp_path / "other.json"

@@ -255,6 +255,13 @@ def test_goal_and_twist_readers_take_both_encodings_and_refuse_bad_ones():
         (read_twist, "json", "geometry_msgs/msg/Twist", b"[" * 100_000 + b"]" * 100_000, "more than"),
         (read_twist, "json", "geometry_msgs/msg/Twist", b'{"linear": {"x": 1}}', "angular"),
         (read_twist, "cdr", "geometry_msgs/msg/Twist", b"\x00\x01\x00\x00" + bytes(3), "needs 8 bytes"),
+        # (review) an integer float() overflows on, and finite numbers no action can hold
+        (read_twist, "json", "geometry_msgs/msg/Twist", b'{"linear": {"x": 1' + b"0" * 400 + b'}, "angular": {"z": 0}}',
+         "too large for a float"),
+        (read_twist, "json", "geometry_msgs/msg/Twist", b'{"linear": {"x": 1e300}, "angular": {"z": -1e300}}',
+         "at most 1e\\+06"),
+        (read_goal, "json", "geometry_msgs/msg/PoseStamped",
+         b'{"header": {"frame_id": "map"}, "pose": {"position": {"x": 2e6, "y": 2}}}', "at most 1e\\+06"),
     ]
     for reader, encoding, schema, data, says in bad:
         with pytest.raises(ValueError, match=says):

@@ -50,6 +50,19 @@ def load_results(path: str | Path) -> dict[str, Any]:
         raise BulletnavError(f"{p}: not JSON ({exc}); give a results.json a benchmark wrote") from None
     if not (isinstance(record, dict) and isinstance(record.get("cells"), list) and isinstance(record.get("episodes"), list)):
         raise BulletnavError(f"{p}: not a benchmark's results (no 'cells' and 'episodes' lists)")
+    for i, cell in enumerate(record["cells"]):
+        if not (isinstance(cell, dict) and isinstance(cell.get("world"), str) and isinstance(cell.get("controller"), str)
+                and isinstance(cell.get("summary"), dict)):
+            raise BulletnavError(f"{p}: cells[{i}] is not a results cell (world, controller and summary)")
+        for name, figure in cell["summary"].items():
+            if isinstance(figure, dict) and not all(v is None or (isinstance(v, (int, float)) and not isinstance(v, bool))
+                                                    for k, v in figure.items() if k in ("mean", "lo", "hi")):
+                raise BulletnavError(f"{p}: cells[{i}].summary.{name} has a mean or interval that is not a number")
+    if not all(isinstance(r, dict) for r in record["episodes"]):
+        raise BulletnavError(f"{p}: an entry of 'episodes' is not an episode row")
+    commit = (record.get("provenance") or {}).get("git_commit") if isinstance(record.get("provenance"), dict) else None
+    if commit is not None and not isinstance(commit, str):
+        raise BulletnavError(f"{p}: provenance.git_commit is not a commit name")
     return record
 
 

@@ -254,8 +254,11 @@ def run_suite(suite: Suite, out: Path, workers: int = 1, address: str | None = N
     if held and not log_path.exists() and not force:  # results (committed ones, say) and no run to go on with
         raise BulletnavError(f"{out} holds results ({', '.join(held)}) and no run to resume: pass --force to replace "
                              "them, or choose another --out (the default is runs/benchmark/<suite name>)")
-    if force and log_path.exists():
-        log_path.unlink()
+    if force:  # the earlier run's rows, and a gzipped results file that would sit beside the new one
+        for name in ("episodes.jsonl", "results.json.gz"):
+            stale = inside(out, name)
+            if stale.exists() or stale.is_symlink():
+                stale.unlink()
     if resume and meta_path.is_file():
         earlier = json.loads(meta_path.read_text()).get("sha256")
         if earlier != suite.sha256:

@@ -146,13 +146,21 @@ def _field(message: Any, path: str) -> Any:
     return value
 
 
+MAX_VALUE = 1.0e6
+"""The largest magnitude a number of a client's message may have (m, m/s, rad/s): far past any
+world (``limits.world_size``) and any robot's speed, short of what a float32 action overflows."""
+
+
 def _number(message: Any, path: str) -> float:
     value = _field(message, path)
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ValueError(f"field {path!r} is {type(value).__name__}, not a number")
-    out = float(value)
-    if not math.isfinite(out):
-        raise ValueError(f"field {path!r} is {out}, not a finite number")
+    try:
+        out = float(value)
+    except OverflowError:  # a JSON integer of hundreds of digits
+        raise ValueError(f"field {path!r} is an integer too large for a float") from None
+    if not math.isfinite(out) or abs(out) > MAX_VALUE:
+        raise ValueError(f"field {path!r} is {out:g}, not a finite number of at most {MAX_VALUE:g} in size")
     return out
 
 
@@ -310,7 +318,7 @@ class LiveControl:
         try:
             request = (read_goal if message.topic == GOAL_TOPIC else read_twist)(
                 message.encoding, message.schema_name, message.data)
-        except (ValueError, KeyError) as exc:
+        except (ValueError, KeyError, OverflowError, RecursionError) as exc:
             self.messages_refused += 1
             text = f"refused a {message.topic} message of client {message.client} ({message.encoding}): {exc}"
             log.warning("live control: %s", text)
@@ -324,9 +332,10 @@ class LiveControl:
 
     def _goal(self, message: ClientMessage, request: GoalRequest) -> None:
         frames = frames_in_map(self.scene)
-        where = f"({request.x:.2f}, {request.y:.2f}) in {request.frame}"
+        shown = request.frame if request.frame in frames else repr(request.frame[:64])  # a client's text, quoted and cut
+        where = f"({request.x:.2f}, {request.y:.2f}) in {shown}"
         if request.frame not in frames:
-            why = f"its frame {request.frame!r} is not one of the stream's ({', '.join(frames)})"
+            why = f"its frame {request.frame[:64]!r} is not one of the stream's ({', '.join(frames)})"
             goal = None
         else:
             goal = compose(frames[request.frame], (request.x, request.y, 0.0))[:2]
@@ -363,7 +372,8 @@ class LiveControl:
     def _action(self) -> Any:
         if self._teleop is not None and self.time_s < self._teleop[1] - 1e-9:
             request = self._teleop[0]
-            return self.scene.action_for(request.v, request.w)
+            (v_lo, v_hi), (w_lo, w_hi) = self.scene.command_limits  # what the robot can do (the shield then decides)
+            return self.scene.action_for(min(max(request.v, v_lo), v_hi), min(max(request.w, w_lo), w_hi))
         if self._teleop is not None:
             b = self._burst
             self._event(f"teleop ended: {b['messages']} message(s), {b['steps']} steps, the shield replaced "

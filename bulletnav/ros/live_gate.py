@@ -95,6 +95,10 @@ def _is_loopback_page(origin: str) -> bool:
     return (parts.hostname or "").lower() in LOOPBACK_HOSTS
 
 
+MAX_REFUSED_ORIGINS = 256
+"""Refused origins counted by name; any more are counted together."""
+
+
 @dataclass(frozen=True)
 class OriginPolicy:
     """Which clients may connect to a stream that drives the robot, by their ``Origin`` header."""
@@ -320,6 +324,8 @@ class OriginGate:
 
     def _refuse(self, writer: asyncio.StreamWriter, origin: str) -> None:
         first = origin not in self.refused
+        if first and len(self.refused) >= MAX_REFUSED_ORIGINS:  # counted, not named, past the first few hundred
+            origin = "(other origins)"
         self.refused[origin] = self.refused.get(origin, 0) + 1
         try:
             page, remedy = f"a page of {normalize_origin(origin)}", f" (--live-allow-origin {normalize_origin(origin)} lets it)"

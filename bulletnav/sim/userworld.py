@@ -32,8 +32,8 @@ are free, as Nav2's static costmap layer takes them by default (``trinary_costma
 onto the cells of the axis-aligned rectangle that bounds it, and the cells outside the image are
 walls (the edge of the map, as an unturned map's floor ends there). A cell is a wall where any of
 nine points over it (its centre, corners and edge midpoints) falls on a wall pixel or off the
-image, so every point of a wall pixel within half a cell of its centre stays in a wall: walls grow
-by up to a cell's diagonal, never shrink.
+image, so every point of a wall pixel within half a cell of its centre stays in a wall (a wall's
+very edge may move inward by up to a tenth of a cell; it grows by up to a cell's diagonal).
 
 A Gazebo world: its box and cylinder collisions (:mod:`bulletnav.sim.sdf`); the floor is their
 extent grown by ``margin`` on every side (a stock ground plane is 100 m wide: taking its size
