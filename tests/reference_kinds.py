@@ -84,6 +84,8 @@ KINDS: dict[str, str] = {
     "test_barn_controllers.py::test_navigator_settings_come_from_the_envs_robot": "hand",  # control.yaml 2.0 m/s, 4.0 rad/s
     "test_barn_controllers.py::test_outline_reach_and_braking_speed_by_hand": "hand",  # spec-sheet outline, v = sqrt(2 a d)
     "test_barn_controllers.py::test_turn_guard_swings_the_jackals_corners_by_hand": "hand",  # a corner's swing worked by hand
+    "test_barn_controllers.py::test_a_turn_made_while_rolling_is_checked_along_the_roll": "hand",
+    "test_barn_controllers.py::test_pid_astar_no_longer_turns_into_a_cylinder_while_rolling": "golden",
     "test_barn_controllers.py::test_shield_stops_the_jackal_by_its_own_sweep": "formula",  # stop sweep and ray-circle scan
     "test_barn_controllers.py::test_shielded_jackal_at_full_speed_keeps_its_outline_off_a_wall": "formula",  # corners vs wall
     "test_barn_controllers.py::test_navigate_world_idx_drives_a_barn_training_world": "hand",  # 4 t_opt of BARN's score

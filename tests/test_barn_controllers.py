@@ -91,6 +91,41 @@ def test_turn_guard_swings_the_jackals_corners_by_hand(barn):
     assert not ctrl._turn_hits(far, -1.0) and not ctrl._turn_hits(far, 1.0)
 
 
+def test_a_turn_made_while_rolling_is_checked_along_the_roll(barn):
+    """The hit at (0.40, 0.16) is out of the front-left corner's reach in place (above); rolling
+    0.2 m forward while turning 0.35 rad clockwise, halfway (0.1 m along the heading -0.0875,
+    turned 0.175 rad) the corner (0.254, 0.215) is at (0.0996 + 0.287, -0.0087 + 0.168) =
+    (0.387, 0.159), 1.3 cm from the hit: within the guard's 2 cm margin. A navigator
+    told to turn right there while still rolling at 0.45 m/s stops straight instead (BARN
+    training worlds 271 and 283, seed 7100001: the rolling turn touched a cylinder)."""
+    scene = barn.unwrapped.scene
+    cfg = fit_to_robot(NavigatorConfig(), scene).controller
+    ctrl = GoToGoal(cfg, scene.sensors.lidar.angles, scene.geometry)
+    far = np.array([[0.40, 0.16]])
+    assert not ctrl._turn_hits(far, -1.0) and ctrl._turn_hits(far, -1.0, roll=0.2)
+    scan = _cylinder_scan(scene.sensors.lidar.angles, (0.30, -0.30))
+    assert not ctrl._turn_hits(ctrl._near_points(scan), -1.0)
+    assert ctrl._rolls_into(scan, -4.0, 0.45, 1 / 24) and not ctrl._rolls_into(scan, -4.0, 0.15, 1 / 24)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("world", [271, 283])
+def test_pid_astar_no_longer_turns_into_a_cylinder_while_rolling(world):
+    """The two collisions of PID + A* on the 42 hard training worlds (seed 7100001): both end at the goal now."""
+    env = gym.make("bulletnav/BARN-v0", world_idx=world, min_speed=-0.5)
+    try:
+        nav = Navigator(env.unwrapped.scene, NavigatorConfig(planner="astar"))
+        obs, info = env.reset(seed=7100001)
+        nav.reset(info)
+        while True:
+            obs, _, terminated, truncated, info = env.step(nav.act(obs, info))
+            if terminated or truncated:
+                break
+        assert info["end_reason"] == "success"
+    finally:
+        env.close()
+
+
 def _cylinder_scan(angles: np.ndarray, centre: tuple[float, float], radius: float = 0.075) -> np.ndarray:
     """Ranges from the lidar at (LIDAR_X, 0) to one cylinder (ray-circle intersection), else 30 m."""
     ox, oy = LIDAR_X - centre[0], -centre[1]

@@ -166,6 +166,12 @@ TURN_GUARD_RAD = 0.35
 4 rad/s) for corners swinging into what the lidar sees."""
 TURN_GUARD_MARGIN = 0.02
 """The outline grows by this much (m) for that check."""
+TURN_ROLL_SPEED = 0.2
+"""A fitted robot rolling faster than this (m/s) checks a guarded turn along the roll too
+(:meth:`GoToGoal._rolls_into`) and stops straight instead where the turn made while rolling would
+bring a corner onto a hit: the turn guard checks turns in place, and a hard turn asked at
+0.3-0.5 m/s swung a front corner into a cylinder the roll carried it onto (BARN training worlds
+271 and 283, seed 7100001)."""
 TURN_GUARD_RATE = 1.5
 """Top yaw rate (rad/s) of such a turn with something within the corners' reach: at 4 rad/s the
 robot's own spin carries the corners past a reversal (0.35 rad is 2 control steps at 4 rad/s, 5.6 at 1.5)."""
@@ -255,8 +261,8 @@ class GoToGoal:
         self.pid.reset()
         self._turning = 0.0
 
-    def turn_first(self, pose: tuple[float, float, float], target: tuple[float, float], ranges: np.ndarray
-                   ) -> tuple[float, float] | None:
+    def turn_first(self, pose: tuple[float, float, float], target: tuple[float, float], ranges: np.ndarray,
+                   v_now: float = 0.0, dt: float = 0.0) -> tuple[float, float] | None:
         """For a robot that can back up, beside obstacles and facing well away from its target:
         turn in place toward it before driving, where the outline's corners stay clear
         (:data:`TURN_FIRST_RAD`; the avoidance blends, left alone there, swing the heading from
@@ -276,12 +282,16 @@ class GoToGoal:
             if not self._turn_hits(points, sign):
                 self._turning = sign
                 rate = min(cfg.max_turn_rate, TURN_GUARD_RATE if len(points) else cfg.max_turn_rate, max(0.8, 2.0 * abs(error)))
+                if self._rolls_into(ranges, sign * rate, v_now, dt):
+                    return 0.0, 0.0  # the turn, made while the robot still rolls on, would hit: stop straight first
                 return 0.0, sign * rate
         self._turning = 0.0
         return 0.0, 0.0
 
     def command(self, pose: tuple[float, float, float], target: tuple[float, float], ranges: np.ndarray,
-                dt: float, goal_distance: float) -> tuple[float, float]:
+                dt: float, goal_distance: float, v_now: float = 0.0) -> tuple[float, float]:
+        """The command toward ``target``; ``v_now``: the robot's forward speed now (m/s), along
+        which a guarded turn is checked too (:data:`TURN_ROLL_SPEED`)."""
         cfg = self.config
         x, y, yaw = pose
         error = _wrap(math.atan2(target[1] - y, target[0] - x) - yaw)
@@ -314,7 +324,21 @@ class GoToGoal:
             w = 0.8 if float(ranges[self.left].mean()) >= float(ranges[self.right].mean()) else -0.8
         if cfg.outline_clearance and v < cfg.crawl_speed and w != 0.0:
             v, w = self._guard_turn(ranges, v, w, ahead)
+            if w != 0.0 and self._rolls_into(ranges, w, v_now, dt):
+                return 0.0, 0.0  # the turn, made while the robot still rolls on, would hit: stop straight first
         return v, w
+
+    def _rolls_into(self, ranges: np.ndarray, w: float, v_now: float, dt: float) -> bool:
+        """Whether a turn at ``w`` rad/s, made while the robot rolls on from ``v_now`` m/s (faster
+        than :data:`TURN_ROLL_SPEED`), brings a corner onto a lidar hit within ``TURN_GUARD_RAD``:
+        the roll is one control period ``dt`` plus the time the turn takes to sweep
+        ``TURN_GUARD_RAD``, braking at ``brake_decel``."""
+        if v_now <= TURN_ROLL_SPEED:
+            return False
+        decel = self.config.brake_decel or 2.5
+        t = min(TURN_GUARD_RAD / max(abs(w), 0.1), v_now / decel)  # the roll while the guard's turn is made
+        roll = v_now * dt + v_now * t - 0.5 * decel * t * t
+        return self._turn_hits(self._near_points(ranges, roll), math.copysign(1.0, w), roll)
 
     def _guard_turn(self, ranges: np.ndarray, v: float, w: float, ahead: float) -> tuple[float, float]:
         """A slow turn with lidar hits within its corners' reach turns at most ``TURN_GUARD_RATE``;
@@ -331,16 +355,17 @@ class GoToGoal:
             return self.config.crawl_speed / 2, 0.0
         return 0.0, 0.0
 
-    def _near_points(self, ranges: np.ndarray) -> np.ndarray:
-        """Lidar hits (body frame, (N, 2)) within reach of the outline's corners as it turns."""
+    def _near_points(self, ranges: np.ndarray, more: float = 0.0) -> np.ndarray:
+        """Lidar hits (body frame, (N, 2)) within reach of the outline's corners as it turns (and ``more`` m)."""
         x = self.offset + ranges * self.cos
         y = ranges * self.sin
-        near = x * x + y * y <= (self.reach + TURN_GUARD_MARGIN) ** 2
+        near = x * x + y * y <= (self.reach + TURN_GUARD_MARGIN + more) ** 2
         return np.stack([x[near], y[near]], axis=1)
 
-    def _turn_hits(self, points: np.ndarray, sign: float) -> bool:
-        """Whether turning in place by up to ``TURN_GUARD_RAD`` the ``sign`` way brings the outline,
-        grown by ``TURN_GUARD_MARGIN``, onto a point not already on it."""
+    def _turn_hits(self, points: np.ndarray, sign: float, roll: float = 0.0) -> bool:
+        """Whether turning by up to ``TURN_GUARD_RAD`` the ``sign`` way (while rolling ``roll`` m
+        forward, evenly over the turn, along its mean heading) brings the outline, grown by
+        ``TURN_GUARD_MARGIN``, onto a point not already on it."""
         if not len(points):
             return False
         m = TURN_GUARD_MARGIN
@@ -352,9 +377,11 @@ class GoToGoal:
 
         free = ~inside(points[:, 0], points[:, 1])
         px, py = points[free, 0], points[free, 1]
-        for theta in np.linspace(0.0, TURN_GUARD_RAD, 7)[1:] * sign:  # the points as the body sees them, turned back
+        for k, theta in enumerate(np.linspace(0.0, TURN_GUARD_RAD, 7)[1:] * sign, start=1):
+            d = roll * k / 6  # the points as the body sees them there: moved back, turned back
+            qx, qy = px - d * math.cos(theta / 2), py - d * math.sin(theta / 2)
             c, s = math.cos(theta), math.sin(theta)
-            if inside(c * px + s * py, -s * px + c * py).any():
+            if inside(c * qx + s * qy, -s * qx + c * qy).any():
                 return True
         return False
 
@@ -424,6 +451,7 @@ class Navigator:
         self.lidar_offset = geometry.lidar_offset
         self.inflation = geometry.radius if self.config.inflation is None else self.config.inflation
         self.dt = scene.control_dt
+        self._last_pose: tuple[float, float, float] | None = None
         self.mapper = LidarMapper(scene.layout.bounds, self.config.resolution)
         self.controller = GoToGoal(self.config.controller, self.angles, geometry)
         self.goal = (float(info["goal"][0]), float(info["goal"][1]))
@@ -484,6 +512,7 @@ class Navigator:
     def act(self, obs: Any, info: dict[str, Any]) -> np.ndarray:
         cfg = self.config
         pose = self._pose(info)
+        v_now = self._speed(pose)
         if self.order is not None and "reached" in info:  # missions: on to the next goal of our order
             left = [i for i in self.order if not info["reached"][i]]
             goal = self._goals[left[0]] if left else self.goal
@@ -524,13 +553,21 @@ class Navigator:
             if self.path:
                 target = self._lookahead(pose)
         if self._can_back and self.config.controller.outline_clearance:
-            turn = self.controller.turn_first(pose, target, ranges)
+            turn = self.controller.turn_first(pose, target, ranges, v_now, self.dt)
             if turn is not None:
                 if turn == (0.0, 0.0):  # boxed in: back out now rather than wait to be stuck
                     self._stuck_now = True
                 return self._action(*turn)
-        v, w = self.controller.command(pose, target, ranges, self.dt, goal_distance)
+        v, w = self.controller.command(pose, target, ranges, self.dt, goal_distance, v_now)
         return self._action(v, w)
+
+    def _speed(self, pose: tuple[float, float, float]) -> float:
+        """The robot's forward speed (m/s) over the last control period, from the poses the
+        navigator steers by (0 at the first step)."""
+        last, self._last_pose = self._last_pose, pose
+        if last is None:
+            return 0.0
+        return ((pose[0] - last[0]) * math.cos(pose[2]) + (pose[1] - last[1]) * math.sin(pose[2])) / self.dt
 
     def _action(self, v: float, w: float) -> np.ndarray:
         return self.scene.action_for(v, w)
