@@ -25,6 +25,7 @@ from bulletnav.control.navigator import (
     outline_reach,
 )
 from bulletnav.control.shield import ShieldWrapper, shield_for
+from bulletnav.evaluation import run_episodes
 
 JACKAL_V, JACKAL_W = 2.0, 4.0  # jackal_control/config/control.yaml: linear and angular max_velocity
 JACKAL_HALF_WIDTH = 0.430 / 2  # Clearpath's spec sheet: 0.508 x 0.430 m
@@ -114,14 +115,8 @@ def test_pid_astar_no_longer_turns_into_a_cylinder_while_rolling(world):
     """The two collisions of PID + A* on the 42 hard training worlds (seed 7100001): both end at the goal now."""
     env = gym.make("bulletnav/BARN-v0", world_idx=world, min_speed=-0.5)
     try:
-        nav = Navigator(env.unwrapped.scene, NavigatorConfig(planner="astar"))
-        obs, info = env.reset(seed=7100001)
-        nav.reset(info)
-        while True:
-            obs, _, terminated, truncated, info = env.step(nav.act(obs, info))
-            if terminated or truncated:
-                break
-        assert info["end_reason"] == "success"
+        result = run_episodes(env, Navigator(env.unwrapped.scene, NavigatorConfig(planner="astar")), 1, seed=7100001)[0]
+        assert result.success and not result.collision
     finally:
         env.close()
 
