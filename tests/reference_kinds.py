@@ -417,6 +417,14 @@ KINDS: dict[str, str] = {
     "test_fleet_viz.py::test_marks_are_told_apart_and_the_legend_shows_each": "hand",  # a 3 px gap between words
     "test_fleet_viz.py::test_fleet_table_leaves_out_the_rate_of_a_run_too_short": "hand",  # 4 errands in 120 s: 120.0/h
     "test_fleet_viz.py::test_comparison_table_leaves_out_the_rate_of_a_run_too_short": "hand",
+    # ---- test_kinematic_kernels.py
+    # every ray against every shape by the numpy ExactCaster (no culling, no shared arithmetic code)
+    "test_kinematic_kernels.py::test_culled_level_casts_equal_every_ray_against_every_shape": "formula",
+    "test_kinematic_kernels.py::test_level_caster_refuses_uneven_fans_and_unknown_shapes": "contract",
+    "test_kinematic_kernels.py::test_contact_test_agrees_with_shapely_distances": "library",
+    # the closed-form arc written in the test; math.remainder
+    "test_kinematic_kernels.py::test_drive_follows_exact_arcs_and_wraps_as_remainder": "formula",
+    "test_kinematic_kernels.py::test_drive_stops_before_a_wall_and_marks_it": "hand",  # the wall 0.5 m ahead, 1/240 s substeps
     # ---- test_kinematic.py (PyBullet's full physics, physics="default", is the reference)
     "test_kinematic.py::test_scans_match_pybullet_in_every_world_source": "library",
     "test_kinematic.py::test_straight_drive_and_turn_in_place_end_where_pybullet_ends": "library",

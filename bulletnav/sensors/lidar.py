@@ -12,7 +12,7 @@ from gymnasium import spaces
 
 from bulletnav.config import LidarConfig
 from bulletnav.sensors.base import VectorSensor, float32_list
-from bulletnav.sensors.raycast import ExactCaster
+from bulletnav.sensors.raycast import ExactCaster, LevelCaster
 from bulletnav.sim.client import Clock
 from bulletnav.sim.robot import Robot
 from bulletnav.sim.world import STATIC_GROUP, Primitive
@@ -70,7 +70,7 @@ class Lidar(VectorSensor):
         self._directions = directions
         self._caster: ExactCaster | None = None
         self._shapes: ShapeSource | None = None  # a kinematic world: casts in closed form against what it holds now
-        self._casters: tuple[ExactCaster | None, ExactCaster | None] = (None, None)
+        self._casters: tuple[LevelCaster | None, LevelCaster | None] = (None, None)
         self._versions = (-1, -1)
         self.extra_noise_std = 0.0
         """Extra range noise (m) of an evaluation shift or randomization, on top of the config's."""
@@ -103,20 +103,18 @@ class Lidar(VectorSensor):
         if versions != self._versions:
             static, moving = self._casters
             if versions[0] != self._versions[0]:
-                static = ExactCaster(shapes.static_primitives())
+                static = LevelCaster(shapes.static_primitives(), self.angles)
             if versions[1] != self._versions[1]:
                 prims = shapes.moving_primitives()
-                moving = ExactCaster(prims) if prims else None
+                moving = LevelCaster(prims, self.angles) if prims else None
             self._casters, self._versions = (static, moving), versions
         x, y, z, yaw = shapes.lidar_pose()
-        a = self.angles + yaw
-        directions = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], axis=1)
-        origin = np.array([x, y, z])
         max_range = self.config.max_range
+        t = np.full(len(self.angles), np.inf)
         static, moving = self._casters
-        t = static.cast(origin, directions, max_range)
+        static.cast((x, y, z), yaw, max_range, t)
         if moving is not None:
-            t = np.minimum(t, moving.cast(origin, directions, max_range))
+            moving.cast((x, y, z), yaw, max_range, t)
         return np.minimum(t / max_range, 1.0).tolist()
 
     def _fractions(self) -> list[float]:

@@ -20,6 +20,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from bulletnav.sim.kinematic_kernels import cast_level
 from bulletnav.sim.world import Primitive
 
 
@@ -132,3 +133,47 @@ class ExactCaster:
         ok = (d[:, 2:3] < 0) & (height >= 0)
         hits = np.where(ok, t, np.inf)
         return np.where(height <= 0, 0.0, hits).min(axis=1)
+
+
+class LevelCaster:
+    """Nearest hits of a fixed fan of level rays against boxes and cylinders, compiled
+    (:func:`bulletnav.sim.kinematic_kernels.cast_level`): each shape is tested only against the
+    rays inside the angle it subtends, so a scan costs what the shapes cover. The same
+    intersections as :class:`ExactCaster` (within rounding) for rays with no vertical part,
+    as a lidar that never tilts casts (the kinematic profile's).
+
+    Args:
+        primitives: the shapes (world frame); planes are never hit by a level ray above them.
+        angles: the fan's ray angles (rad from the heading), evenly spaced (:func:`bulletnav.sensors.lidar.ray_angles`).
+    """
+
+    def __init__(self, primitives: Sequence[Primitive], angles: np.ndarray) -> None:
+        unknown = {s.kind for s in primitives} - {"box", "cylinder", "plane"}
+        if unknown:
+            raise ValueError(f"LevelCaster: cannot cast against {', '.join(sorted(unknown))}")
+        self._boxes = np.array([(s.center[0], s.center[1], np.cos(s.yaw), np.sin(s.yaw), s.half[0], s.half[1],
+                                 s.center[2], s.half[2]) for s in primitives if s.kind == "box"],
+                               dtype=np.float64).reshape(-1, 8)
+        self._cyls = np.array([(s.center[0], s.center[1], s.half[0], s.center[2], s.half[2])
+                               for s in primitives if s.kind == "cylinder"], dtype=np.float64).reshape(-1, 5)
+        self._planes = [s.center[2] for s in primitives if s.kind == "plane"]
+        angles = np.asarray(angles, dtype=np.float64)
+        self._cos, self._sin = np.cos(angles), np.sin(angles)
+        # the window arithmetic takes the angles as a0 + i da modulo a turn (widened by a ray each side)
+        steps = np.mod(np.diff(angles), 2 * np.pi)  # counter-clockwise steps, across the wrap at pi too
+        self._a0 = float(angles[0]) if len(angles) else 0.0
+        self._da = float(steps[0]) if len(steps) else 2 * np.pi
+        if len(steps) and (self._da <= 0 or np.max(np.abs(steps - self._da)) > 1e-9):
+            raise ValueError("LevelCaster: the ray angles must be evenly spaced, counter-clockwise")
+
+    def cast(self, origin: tuple[float, float, float], yaw: float, length: float, out: np.ndarray) -> np.ndarray:
+        """Lower ``out`` (one entry a ray, ``inf`` for none yet) to each ray's distance to its
+        nearest hit, the fan turned by ``yaw`` (rad) at ``origin`` (m); returns ``out``. A ray
+        that starts inside a shape hits it at 0; hits beyond ``length`` may be left in ``out``."""
+        x, y, z = origin
+        if any(z <= h for h in self._planes):  # at or under a floor: every ray starts in it
+            out[:] = 0.0
+            return out
+        cast_level(float(x), float(y), float(z), float(yaw), self._cos, self._sin, self._a0, self._da,
+                   self._boxes, self._cyls, float(length), out)
+        return out

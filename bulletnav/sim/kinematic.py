@@ -43,6 +43,7 @@ import numpy as np
 from bulletnav.config import PhysicsConfig, RobotConfig
 from bulletnav.errors import ConfigError
 from bulletnav.geometry import RobotGeometry, robot_geometry
+from bulletnav.sim import kinematic_kernels as kk
 from bulletnav.sim.client import Clock
 from bulletnav.sim.events import Events
 from bulletnav.sim.layout import Layout
@@ -170,7 +171,8 @@ def obstacle_primitive(o: Obstacle) -> Primitive:
 
 
 class _Shapes:
-    """A set of boxes and cylinders (with body ids) as arrays, for footprint overlap tests."""
+    """A set of boxes and cylinders (with body ids) as the arrays the compiled contact test
+    (:func:`bulletnav.sim.kinematic_kernels.overlaps`) takes."""
 
     def __init__(self, items: list[tuple[int, Primitive]]) -> None:
         boxes = [(b, s) for b, s in items if s.kind == "box"]
@@ -182,54 +184,26 @@ class _Shapes:
         self.cyl_ids = [b for b, _ in cyls]
         self.cyl = np.array([(s.center[0], s.center[1], s.half[0]) for _, s in cyls], dtype=np.float64).reshape(-1, 3)
         self.empty = not items
+        self.box_hit = np.zeros(len(self.box_ids), dtype=np.bool_)
+        self.cyl_hit = np.zeros(len(self.cyl_ids), dtype=np.bool_)
 
     def overlapping(self, rects: np.ndarray, centre: tuple[float, float], reach: float, margin: float) -> list[int]:
         """Ids of the shapes that ``rects`` (K x 6: centre x, y, cos, sin, half x, half y) overlap
         once both are grown by ``margin`` (m); ``reach``: the rectangles' farthest point from ``centre``."""
-        hits: list[int] = []
-        cx, cy = centre
-        if len(self.box_ids):
-            b = self.box
-            near = np.nonzero(np.hypot(b[:, 0] - cx, b[:, 1] - cy) <= self.box_reach + reach + margin)[0]
-            for i in near:
-                if _boxes_meet(rects, b[i], margin):
-                    hits.append(self.box_ids[i])
-        if len(self.cyl_ids):
-            c = self.cyl
-            near = np.nonzero(np.hypot(c[:, 0] - cx, c[:, 1] - cy) <= c[:, 2] + reach + margin)[0]
-            for i in near:
-                if _circle_meets(rects, c[i], margin):
-                    hits.append(self.cyl_ids[i])
-        return hits
+        self.box_hit[:] = False
+        self.cyl_hit[:] = False
+        if not kk.overlaps(rects, centre[0], centre[1], reach, margin, self.box, self.box_reach, self.cyl,
+                           self.box_hit, self.cyl_hit):
+            return []
+        return self.touched()
+
+    def touched(self) -> list[int]:
+        """Ids of the shapes marked in :attr:`box_hit` and :attr:`cyl_hit`."""
+        return ([self.box_ids[i] for i in np.flatnonzero(self.box_hit)]
+                + [self.cyl_ids[i] for i in np.flatnonzero(self.cyl_hit)])
 
 
-def _boxes_meet(rects: np.ndarray, box: np.ndarray, margin: float) -> bool:
-    """Whether any of ``rects`` overlaps ``box`` (both as centre, cos, sin, halves) within ``margin``: separating axes."""
-    bx, by, bc, bs, bhx, bhy = box
-    for rx, ry, rc, rs, rhx, rhy in rects:
-        dx, dy = bx - rx, by - ry
-        separated = False
-        for ux, uy in ((rc, rs), (-rs, rc), (bc, bs), (-bs, bc)):
-            reach = (rhx * abs(ux * rc + uy * rs) + rhy * abs(-ux * rs + uy * rc)
-                     + bhx * abs(ux * bc + uy * bs) + bhy * abs(-ux * bs + uy * bc))
-            if abs(dx * ux + dy * uy) > reach + margin:
-                separated = True
-                break
-        if not separated:
-            return True
-    return False
-
-
-def _circle_meets(rects: np.ndarray, circle: np.ndarray, margin: float) -> bool:
-    """Whether any of ``rects`` comes within ``radius + margin`` of the circle's centre."""
-    x, y, radius = circle
-    for rx, ry, rc, rs, rhx, rhy in rects:
-        dx, dy = x - rx, y - ry
-        lx, ly = rc * dx + rs * dy, -rs * dx + rc * dy
-        ex, ey = max(abs(lx) - rhx, 0.0), max(abs(ly) - rhy, 0.0)
-        if ex * ex + ey * ey <= (radius + margin) ** 2:
-            return True
-    return False
+_NO_SHAPES = _Shapes([])
 
 
 class KinematicWorld:
@@ -399,6 +373,7 @@ class KinematicRobot:
         self.contacts: set[int] = set()
         """Bodies touched during the last control step."""
         self._rects = np.array([(r.cx, r.cy, r.half_x, r.half_y) for r in self.geometry.rectangles], dtype=np.float64)
+        self._state = np.zeros(7)  # the drive kernel's rims, pose and wheel angles
         self.reach = max(math.hypot(abs(r.cx) + r.half_x, abs(r.cy) + r.half_y) for r in self.geometry.rectangles)
         """Farthest point of the collision rectangles from the body centre (m)."""
 
@@ -450,62 +425,30 @@ class KinematicRobot:
         """Whether the robot stands still on a zero command (nothing creeps here)."""
         return self._target == (0.0, 0.0) and self.rims == (0.0, 0.0)
 
-    def next_rims(self) -> tuple[float, float]:
-        """The rim speeds after one substep: the two motor forces that reach the targets, each
-        clamped to the motor's limit (projected Gauss-Seidel on the 2 x 2 system)."""
-        (left, right), (tl, tr) = self.rims, self._target
-        if left == tl and right == tr:
-            return left, right
-        a, b, dt, limit = self._a, self._b, self._dt, self._force
-        el, er = (tl - left) / dt, (tr - right) / dt  # rim accelerations that reach the targets
-        det = a * a - b * b
-        fl, fr = (a * el - b * er) / det, (a * er - b * el) / det
-        if abs(fl) > limit or abs(fr) > limit:
-            fl, fr = max(-limit, min(limit, fl)), max(-limit, min(limit, fr))
-            for _ in range(_SOLVER_ITERATIONS):
-                fl = max(-limit, min(limit, (el - b * fr) / a))
-                fr = max(-limit, min(limit, (er - b * fl) / a))
-        nl, nr = left + (a * fl + b * fr) * dt, right + (a * fr + b * fl) * dt
-        # a rim that reaches its target within rounding lands on it
-        if abs(nl - tl) < 1e-12:
-            nl = tl
-        if abs(nr - tr) < 1e-12:
-            nr = tr
-        return nl, nr
-
-    def advance(self, rims: tuple[float, float], dt: float) -> tuple[float, float, float]:
-        """The pose after ``dt`` s at rim speeds ``rims`` (an exact arc)."""
-        x, y, yaw = self.pose3
-        v, w = (rims[0] + rims[1]) / 2, (rims[1] - rims[0]) / self.wheelbase
-        dyaw = w * dt
-        if abs(dyaw) < 1e-9:
-            mid = yaw + dyaw / 2
-            ds = v * dt
-            return x + ds * math.cos(mid), y + ds * math.sin(mid), yaw + dyaw
-        r = v / w
-        return x + r * (math.sin(yaw + dyaw) - math.sin(yaw)), y - r * (math.cos(yaw + dyaw) - math.cos(yaw)), yaw + dyaw
-
-    def move(self, rims: tuple[float, float], pose: tuple[float, float, float], dt: float) -> None:
-        """Take a substep: rims and pose as computed, wheel angles turned."""
-        r = self.wheel_radius
-        self._angles = (self._angles[0] + rims[0] * dt / r, self._angles[1] + rims[1] * dt / r)
-        self.rims = rims
-        self.pose3 = (pose[0], pose[1], math.remainder(pose[2], 2 * math.pi))
-
-    def block(self) -> None:
-        """Stopped by a contact: the body stands where it is."""
-        self.rims = (0.0, 0.0)
+    def substeps(self, n: int, static: _Shapes | None, moving: _Shapes | None) -> None:
+        """Take ``n`` substeps toward the rims' targets (:func:`bulletnav.sim.kinematic_kernels.drive`:
+        the two motor forces that reach the targets, each clamped to the motor's limit, solved
+        together by projected Gauss-Seidel; then the exact arc). A substep whose outline would
+        overlap one of ``static`` or ``moving`` (None: not checked) is not taken: the rims stop
+        where the body stands, and the shapes touched are marked in their ``*_hit`` arrays."""
+        s = self._state
+        s[0], s[1] = self.rims
+        s[2], s[3], s[4] = self.pose3
+        s[5], s[6] = self._angles
+        none = _NO_SHAPES
+        st, mv = static or none, moving or none
+        kk.drive(n, s, self._target[0], self._target[1], self._a, self._b, self._dt, self._force, _SOLVER_ITERATIONS,
+                 self.wheelbase, self.wheel_radius, self._rects, self.reach, static is not None, st.box, st.box_reach,
+                 st.cyl, st.box_hit, st.cyl_hit, moving is not None, mv.box, mv.box_reach, mv.cyl, mv.box_hit,
+                 mv.cyl_hit)
+        self.rims = (float(s[0]), float(s[1]))
+        self.pose3 = (float(s[2]), float(s[3]), float(s[4]))
+        self._angles = (float(s[5]), float(s[6]))
 
     def rectangles(self, pose: tuple[float, float, float]) -> np.ndarray:
         """The collision rectangles at ``pose``, world frame (K x 6: centre x, y, cos, sin, half x, half y)."""
-        x, y, yaw = pose
-        c, s = math.cos(yaw), math.sin(yaw)
-        r = self._rects
-        out = np.empty((len(r), 6))
-        out[:, 0] = x + c * r[:, 0] - s * r[:, 1]
-        out[:, 1] = y + s * r[:, 0] + c * r[:, 1]
-        out[:, 2], out[:, 3] = c, s
-        out[:, 4], out[:, 5] = r[:, 2], r[:, 3]
+        out = np.empty((len(self._rects), 6))
+        kk.rectangles(pose[0], pose[1], pose[2], self._rects, out)
         return out
 
     # ------------------------------------------------------------------ state
@@ -622,36 +565,30 @@ class KinematicSimulation:
         rim = max(abs(left), abs(right), abs(tl), abs(tr))
         sweep = (rim + 2.0 * rim / self.robot.wheelbase * robot.reach) * n * dt + 1e-3
         x, y, _ = robot.pose3
-        static_near = bool(world.shapes(True).overlapping(robot.rectangles(robot.pose3), (x, y), robot.reach, sweep))
+        rects = robot.rectangles(robot.pose3)
+        static = world.shapes(True)
+        static_near = bool(static.overlapping(rects, (x, y), robot.reach, sweep))
         moving = world.shapes(False)
         moving_near = before_substep is not None or bool(
-            not moving.empty and moving.overlapping(robot.rectangles(robot.pose3), (x, y), robot.reach, sweep))
-        for k in range(n):
-            if before_substep is not None:
+            not moving.empty and moving.overlapping(rects, (x, y), robot.reach, sweep))
+        static.box_hit[:], static.cyl_hit[:] = False, False
+        if before_substep is None:
+            if moving_near:
+                moving.box_hit[:], moving.cyl_hit[:] = False, False
+            robot.substeps(n, static if static_near else None, moving if moving_near else None)
+            touched = static.touched() + (moving.touched() if moving_near else [])
+        else:  # the movers move between substeps: one at a time, against the moving shapes as they stand then
+            touched = []
+            for k in range(n):
                 before_substep(k, n)
-            rims = robot.next_rims()
-            pose = robot.advance(rims, dt)
-            if static_near or moving_near:
-                hits = self._overlaps(pose, static_near, moving_near)
-                if hits:
-                    robot.contacts.update(hits)
-                    robot.block()
-                    continue
-            robot.move(rims, pose, dt)
+                moving = world.shapes(False)
+                moving.box_hit[:], moving.cyl_hit[:] = False, False
+                robot.substeps(1, static if static_near else None, moving)
+                touched += moving.touched()
+            touched += static.touched()
+        robot.contacts = set(touched)
         self.clock.tick += n
         robot.sample()
-
-    def _overlaps(self, pose: tuple[float, float, float], static: bool, moving: bool) -> list[int]:
-        robot, world = self.robot, self.world
-        rects = robot.rectangles(pose)
-        hits: list[int] = []
-        if static:
-            hits += world.shapes(True).overlapping(rects, pose[:2], robot.reach, 0.0)
-        if moving:
-            shapes = world.shapes(False)
-            if not shapes.empty:
-                hits += shapes.overlapping(rects, pose[:2], robot.reach, 0.0)
-        return hits
 
     def in_collision(self) -> bool:
         """True when the robot touched a wall or an obstacle in the last control step."""

@@ -1,0 +1,299 @@
+"""Compiled (numba, ``cache=True``) kernels of the kinematic profile's step: the drive, the
+contact test and the lidar's closed-form casts, in the same arithmetic as the Python they
+replace (:class:`bulletnav.sim.kinematic.KinematicRobot`, :func:`bulletnav.sim.kinematic._boxes_meet`,
+:class:`bulletnav.sensors.raycast.ExactCaster`); ``tests/test_kinematic_kernels.py`` checks them
+against that code on random inputs.
+
+Shapes are plain arrays:
+
+- boxes ``(M, 8)``: centre x, y, cos and sin of the yaw, half sizes x, y, centre z, half height;
+- cylinders ``(C, 5)``: centre x, y, radius, centre z, half height;
+- the robot's collision rectangles ``(K, 4)`` in its body frame: centre x, y, half x, half y.
+
+The lidar kernel (:func:`cast_level`) is for level rays (the lidar's, always horizontal here):
+each shape is tested only against the rays inside the angle its bounding circle subtends from
+the lidar, so a scan costs what the shapes cover, not rays times shapes.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+TWO_PI = 2.0 * math.pi
+
+
+@njit(cache=True, nogil=True)
+def wrap(yaw: float) -> float:
+    """``math.remainder(yaw, 2 pi)``, bit for bit where ``|yaw| < 3 pi`` (Sterbenz: the one
+    subtraction is exact there), which a substep's yaw always is."""
+    if -3.0 * math.pi < yaw < 3.0 * math.pi:
+        if yaw > math.pi:
+            return yaw - TWO_PI
+        if yaw < -math.pi:
+            return yaw + TWO_PI
+        return yaw
+    n = np.round(yaw / TWO_PI)  # far out (never on a substep): round half to even, as remainder does
+    return yaw - n * TWO_PI
+
+
+@njit(cache=True, nogil=True)
+def next_rims(left: float, right: float, tl: float, tr: float, a: float, b: float, dt: float, limit: float,
+              iterations: int) -> tuple[float, float]:
+    """:meth:`KinematicRobot.next_rims`: the rim speeds after one substep."""
+    if left == tl and right == tr:
+        return left, right
+    el = (tl - left) / dt
+    er = (tr - right) / dt
+    det = a * a - b * b
+    fl = (a * el - b * er) / det
+    fr = (a * er - b * el) / det
+    if abs(fl) > limit or abs(fr) > limit:
+        fl = max(-limit, min(limit, fl))
+        fr = max(-limit, min(limit, fr))
+        for _ in range(iterations):
+            fl = max(-limit, min(limit, (el - b * fr) / a))
+            fr = max(-limit, min(limit, (er - b * fl) / a))
+    nl = left + (a * fl + b * fr) * dt
+    nr = right + (a * fr + b * fl) * dt
+    if abs(nl - tl) < 1e-12:
+        nl = tl
+    if abs(nr - tr) < 1e-12:
+        nr = tr
+    return nl, nr
+
+
+@njit(cache=True, nogil=True)
+def advance(x: float, y: float, yaw: float, left: float, right: float, wheelbase: float,
+            dt: float) -> tuple[float, float, float]:
+    """:meth:`KinematicRobot.advance`: the pose after ``dt`` at rim speeds (left, right), an exact arc."""
+    v = (left + right) / 2
+    w = (right - left) / wheelbase
+    dyaw = w * dt
+    if abs(dyaw) < 1e-9:
+        mid = yaw + dyaw / 2
+        ds = v * dt
+        return x + ds * math.cos(mid), y + ds * math.sin(mid), yaw + dyaw
+    r = v / w
+    return x + r * (math.sin(yaw + dyaw) - math.sin(yaw)), y - r * (math.cos(yaw + dyaw) - math.cos(yaw)), yaw + dyaw
+
+
+@njit(cache=True, nogil=True)
+def rectangles(x: float, y: float, yaw: float, body: np.ndarray, out: np.ndarray) -> None:
+    """:meth:`KinematicRobot.rectangles` into ``out`` (K x 6: centre x, y, cos, sin, half x, half y)."""
+    c = math.cos(yaw)
+    s = math.sin(yaw)
+    for k in range(body.shape[0]):
+        out[k, 0] = x + c * body[k, 0] - s * body[k, 1]
+        out[k, 1] = y + s * body[k, 0] + c * body[k, 1]
+        out[k, 2] = c
+        out[k, 3] = s
+        out[k, 4] = body[k, 2]
+        out[k, 5] = body[k, 3]
+
+
+@njit(cache=True, nogil=True)
+def _box_meets(rects: np.ndarray, bx: float, by: float, bc: float, bs: float, bhx: float, bhy: float,
+               margin: float) -> bool:
+    # separating axes, the operations of kinematic._boxes_meet in its order
+    for k in range(rects.shape[0]):
+        rx, ry, rc, rs, rhx, rhy = rects[k, 0], rects[k, 1], rects[k, 2], rects[k, 3], rects[k, 4], rects[k, 5]
+        dx = bx - rx
+        dy = by - ry
+        separated = False
+        for axis in range(4):
+            if axis == 0:
+                ux, uy = rc, rs
+            elif axis == 1:
+                ux, uy = -rs, rc
+            elif axis == 2:
+                ux, uy = bc, bs
+            else:
+                ux, uy = -bs, bc
+            reach = (rhx * abs(ux * rc + uy * rs) + rhy * abs(-ux * rs + uy * rc)
+                     + bhx * abs(ux * bc + uy * bs) + bhy * abs(-ux * bs + uy * bc))
+            if abs(dx * ux + dy * uy) > reach + margin:
+                separated = True
+                break
+        if not separated:
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True)
+def _circle_meets(rects: np.ndarray, x: float, y: float, radius: float, margin: float) -> bool:
+    for k in range(rects.shape[0]):
+        rx, ry, rc, rs, rhx, rhy = rects[k, 0], rects[k, 1], rects[k, 2], rects[k, 3], rects[k, 4], rects[k, 5]
+        dx = x - rx
+        dy = y - ry
+        lx = rc * dx + rs * dy
+        ly = -rs * dx + rc * dy
+        ex = max(abs(lx) - rhx, 0.0)
+        ey = max(abs(ly) - rhy, 0.0)
+        if ex * ex + ey * ey <= (radius + margin) ** 2:
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True)
+def overlaps(rects: np.ndarray, cx: float, cy: float, reach: float, margin: float, boxes: np.ndarray,
+             box_reach: np.ndarray, cyls: np.ndarray, box_hit: np.ndarray, cyl_hit: np.ndarray) -> bool:
+    """``_Shapes.overlapping``: marks in ``box_hit`` / ``cyl_hit`` the shapes ``rects`` meet once
+    both are grown by ``margin``; True when any. ``reach``: the rectangles' farthest point from (cx, cy)."""
+    anything = False
+    for i in range(boxes.shape[0]):
+        if math.hypot(boxes[i, 0] - cx, boxes[i, 1] - cy) <= box_reach[i] + reach + margin:
+            if _box_meets(rects, boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3], boxes[i, 4], boxes[i, 5], margin):
+                box_hit[i] = True
+                anything = True
+    for i in range(cyls.shape[0]):
+        if math.hypot(cyls[i, 0] - cx, cyls[i, 1] - cy) <= cyls[i, 2] + reach + margin:
+            if _circle_meets(rects, cyls[i, 0], cyls[i, 1], cyls[i, 2], margin):
+                cyl_hit[i] = True
+                anything = True
+    return anything
+
+
+@njit(cache=True, nogil=True)
+def drive(n: int, state: np.ndarray, target_l: float, target_r: float, a: float, b: float, dt: float, limit: float,
+          iterations: int, wheelbase: float, wheel_radius: float, body: np.ndarray, reach: float,
+          check_static: bool, boxes: np.ndarray, box_reach: np.ndarray, cyls: np.ndarray,
+          box_hit: np.ndarray, cyl_hit: np.ndarray, check_moving: bool, mboxes: np.ndarray,
+          mbox_reach: np.ndarray, mcyls: np.ndarray, mbox_hit: np.ndarray, mcyl_hit: np.ndarray) -> None:
+    """``n`` substeps of :meth:`KinematicSimulation.step` with nothing moving meanwhile.
+
+    ``state`` (7,): rims left, right (m/s), pose x, y, yaw, wheel angles left, right, updated in
+    place. A substep whose pose would overlap a checked shape is not taken: the rims stop, the
+    shapes touched are marked in the ``*_hit`` arrays."""
+    rects = np.empty((body.shape[0], 6))
+    for _ in range(n):
+        left, right = next_rims(state[0], state[1], target_l, target_r, a, b, dt, limit, iterations)
+        x, y, yaw = advance(state[2], state[3], state[4], left, right, wheelbase, dt)
+        if check_static or check_moving:
+            rectangles(x, y, yaw, body, rects)
+            hit = False
+            if check_static:
+                hit = overlaps(rects, x, y, reach, 0.0, boxes, box_reach, cyls, box_hit, cyl_hit)
+            if check_moving:
+                hit = overlaps(rects, x, y, reach, 0.0, mboxes, mbox_reach, mcyls, mbox_hit, mcyl_hit) or hit
+            if hit:
+                state[0] = 0.0
+                state[1] = 0.0
+                continue
+        state[5] = state[5] + left * dt / wheel_radius
+        state[6] = state[6] + right * dt / wheel_radius
+        state[0] = left
+        state[1] = right
+        state[2] = x
+        state[3] = y
+        state[4] = wrap(yaw)
+
+
+# ---------------------------------------------------------------------------------------- the lidar
+@njit(cache=True, nogil=True)
+def _cylinder_t(ox: float, oy: float, dx: float, dy: float, cx: float, cy: float, r: float) -> float:
+    # ExactCaster._cylinders for one level ray (inside the cylinder's height)
+    relx = cx - ox
+    rely = cy - oy
+    a = dx * dx + dy * dy
+    b = -(dx * relx + dy * rely)
+    c = relx * relx + rely * rely - r * r
+    disc = b * b - a * c
+    if disc < 0.0:
+        return np.inf
+    root = math.sqrt(disc)
+    t_in = (-b - root) / a
+    t_out = (-b + root) / a
+    if t_out < 0.0:
+        return np.inf
+    return max(t_in, 0.0)
+
+
+@njit(cache=True, nogil=True)
+def _box_t(ox: float, oy: float, dx: float, dy: float, bx: float, by: float, bc: float, bs: float,
+           hx: float, hy: float) -> float:
+    # ExactCaster._boxes for one level ray (inside the box's height): slab test in the box's frame
+    rx = ox - bx
+    ry = oy - by
+    lox = bc * rx + bs * ry
+    loy = -bs * rx + bc * ry
+    ldx = dx * bc + dy * bs
+    ldy = dy * bc - dx * bs
+    if ldx == 0.0:
+        ldx = 1e-300
+    if ldy == 0.0:
+        ldy = 1e-300
+    t1 = (-hx - lox) / ldx
+    t2 = (hx - lox) / ldx
+    t3 = (-hy - loy) / ldy
+    t4 = (hy - loy) / ldy
+    enter = max(min(t1, t2), min(t3, t4))
+    leave = min(max(t1, t2), max(t3, t4))
+    if enter <= leave and leave >= 0.0:
+        return max(enter, 0.0)
+    return np.inf
+
+
+@njit(cache=True, nogil=True)
+def cast_level(ox: float, oy: float, oz: float, yaw: float, cos_a: np.ndarray, sin_a: np.ndarray, a0: float,
+               da: float, boxes: np.ndarray, cyls: np.ndarray, length: float, out: np.ndarray) -> None:
+    """Lower ``out[i]`` to the distance along level ray ``i`` to its nearest hit among the
+    shapes (``inf`` stays where nothing lies within ``length``).
+
+    Ray ``i`` leaves (ox, oy, oz) at angle ``yaw + a_i`` (``cos_a``, ``sin_a`` of ``a_i``); the
+    ``a_i`` run from ``a0`` in steps of about ``da``. A shape is tested
+    against the rays within the angle its bounding circle subtends (every ray where the origin
+    lies inside that circle); a shape whose height range misses ``oz`` is never hit."""
+    n = cos_a.shape[0]
+    cy_, sy_ = math.cos(yaw), math.sin(yaw)
+    dxs = np.empty(n)
+    dys = np.empty(n)
+    for i in range(n):
+        dxs[i] = cos_a[i] * cy_ - sin_a[i] * sy_
+        dys[i] = sin_a[i] * cy_ + cos_a[i] * sy_
+    for j in range(cyls.shape[0]):
+        if abs(oz - cyls[j, 3]) <= cyls[j, 4]:
+            _scan(False, cyls[j], cyls[j, 2], ox, oy, yaw, a0, da, dxs, dys, length, out)
+    for j in range(boxes.shape[0]):
+        if abs(oz - boxes[j, 6]) <= boxes[j, 7]:
+            _scan(True, boxes[j], math.hypot(boxes[j, 4], boxes[j, 5]), ox, oy, yaw, a0, da, dxs, dys, length, out)
+
+
+@njit(cache=True, nogil=True)
+def _scan(is_box: bool, shape: np.ndarray, radius: float, ox: float, oy: float, yaw: float, a0: float, da: float,
+          dxs: np.ndarray, dys: np.ndarray, length: float, out: np.ndarray) -> None:
+    # one shape against the rays within the angle its bounding circle (``radius`` about its
+    # centre) subtends: the ray angles a0 + i da taken modulo 2 pi, so the window is looked for
+    # a turn either side too, and widened by a ray each side (the angles are only nearly uniform)
+    n = dxs.shape[0]
+    cx, cy = shape[0], shape[1]
+    d = math.hypot(cx - ox, cy - oy)
+    if d - radius > length:
+        return
+    if d <= radius * 1.000001 + 1e-9:  # the origin within the bounding circle: every ray
+        _rays(is_box, shape, ox, oy, dxs, dys, 0, n - 1, out)
+        return
+    half = math.asin(radius / d) + 1e-6
+    phi = math.atan2(cy - oy, cx - ox) - yaw - a0
+    phi = phi - TWO_PI * math.floor(phi / TWO_PI)  # [0, 2 pi)
+    last = -1
+    for shift in (-TWO_PI, 0.0, TWO_PI):
+        lo = max(int(math.ceil((phi - half + shift) / da)) - 1, 0, last + 1)
+        hi = min(int(math.floor((phi + half + shift) / da)) + 1, n - 1)
+        if lo <= hi:
+            _rays(is_box, shape, ox, oy, dxs, dys, lo, hi, out)
+            last = hi
+
+
+@njit(cache=True, nogil=True)
+def _rays(is_box: bool, shape: np.ndarray, ox: float, oy: float, dxs: np.ndarray, dys: np.ndarray, lo: int, hi: int,
+          out: np.ndarray) -> None:
+    for i in range(lo, hi + 1):
+        if is_box:
+            t = _box_t(ox, oy, dxs[i], dys[i], shape[0], shape[1], shape[2], shape[3], shape[4], shape[5])
+        else:
+            t = _cylinder_t(ox, oy, dxs[i], dys[i], shape[0], shape[1], shape[2])
+        if t < out[i]:
+            out[i] = t

@@ -1,0 +1,145 @@
+"""The kinematic profile's compiled kernels (bulletnav.sim.kinematic_kernels) against
+independent references: the lidar's culled level casts against the numpy ExactCaster (every
+ray against every shape), the contact test against shapely's polygon distances, the drive
+against its closed-form arcs and the IEEE remainder."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import shapely
+from shapely import affinity
+
+from bulletnav.sensors.lidar import ray_angles
+from bulletnav.sensors.raycast import ExactCaster, LevelCaster
+from bulletnav.sim import kinematic_kernels as kk
+from bulletnav.sim.world import Primitive
+
+
+def _scene(rng: np.random.Generator) -> list[Primitive]:
+    prims = [Primitive("plane", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))]
+    for _ in range(int(rng.integers(0, 40))):
+        if rng.random() < 0.5:
+            r = rng.uniform(0.05, 0.5)
+            prims.append(Primitive("cylinder", (rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(0.1, 1.0)),
+                                   (r, r, rng.uniform(0.05, 1.0))))
+        else:
+            prims.append(Primitive("box", (rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(0.1, 1.0)),
+                                   (rng.uniform(0.02, 3.0), rng.uniform(0.02, 3.0), rng.uniform(0.05, 1.0)),
+                                   rng.uniform(-4, 4)))
+    return prims
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_culled_level_casts_equal_every_ray_against_every_shape(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    worst, hits = 0.0, 0
+    for _ in range(60):
+        prims = _scene(rng)
+        n = int(rng.choice([1, 2, 5, 36, 72, 720]))
+        fov = float(rng.choice([360.0, 270.0, 180.0, 45.0]))
+        angles = ray_angles(n, fov)
+        origin = (rng.uniform(-6, 6), rng.uniform(-6, 6), rng.uniform(0.05, 1.2))
+        yaw, length = rng.uniform(-7, 7), float(rng.choice([2.0, 30.0]))
+        a = angles + yaw
+        ref = ExactCaster(prims).cast(np.array(origin), np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], 1), length)
+        got = LevelCaster(prims, angles).cast(origin, yaw, length, np.full(n, np.inf))
+        got[got > length] = np.inf
+        assert np.array_equal(np.isfinite(ref), np.isfinite(got))
+        both = np.isfinite(ref)
+        hits += int(both.sum())
+        if both.any():
+            worst = max(worst, float(np.abs(ref[both] - got[both]).max()))
+    assert hits > 500  # the scenes are hit, not empty
+    assert worst < 1e-9
+
+
+def test_level_caster_refuses_uneven_fans_and_unknown_shapes() -> None:
+    with pytest.raises(ValueError, match="evenly spaced"):
+        LevelCaster([], np.array([0.0, 0.1, 0.5]))
+    with pytest.raises(ValueError, match="mesh"):
+        LevelCaster([Primitive("mesh", (0, 0, 0), (1, 1, 1))], ray_angles(8, 360.0))
+
+
+def _rect(x: float, y: float, c: float, s: float, hx: float, hy: float) -> shapely.Polygon:
+    box = shapely.box(-hx, -hy, hx, hy)
+    return affinity.translate(affinity.rotate(box, math.atan2(s, c), use_radians=True, origin=(0, 0)), x, y)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_contact_test_agrees_with_shapely_distances(seed: int) -> None:
+    rng = np.random.default_rng(100 + seed)
+    met = apart = 0
+    for _ in range(400):
+        k = int(rng.integers(1, 4))
+        rects = np.array([(rng.uniform(-1, 1), rng.uniform(-1, 1), 0, 0, rng.uniform(0.05, 0.4), rng.uniform(0.05, 0.4))
+                          for _ in range(k)])
+        yaw = rng.uniform(-4, 4)
+        rects[:, 2], rects[:, 3] = math.cos(yaw), math.sin(yaw)
+        boxes = np.array([(rng.uniform(-2, 2), rng.uniform(-2, 2), *(lambda t: (math.cos(t), math.sin(t)))(rng.uniform(-4, 4)),
+                           rng.uniform(0.02, 1), rng.uniform(0.02, 1)) for _ in range(int(rng.integers(0, 4)))]).reshape(-1, 6)
+        cyls = np.array([(rng.uniform(-2, 2), rng.uniform(-2, 2), rng.uniform(0.02, 0.5))
+                         for _ in range(int(rng.integers(0, 4)))]).reshape(-1, 3)
+        margin = float(rng.choice([0.0, 0.05, 0.3]))
+        box_hit, cyl_hit = np.zeros(len(boxes), bool), np.zeros(len(cyls), bool)
+        reach = max(math.hypot(abs(r[0]), abs(r[1])) + math.hypot(r[4], r[5]) for r in rects)
+        kk.overlaps(rects, 0.0, 0.0, reach, margin, boxes, np.hypot(boxes[:, 4], boxes[:, 5]), cyls, box_hit, cyl_hit)
+        robot = shapely.union_all([_rect(*r) for r in rects])
+        for i, b in enumerate(boxes):
+            # two rectangles each grown by margin meet iff some pair of their separating-axis
+            # projections overlaps; shapely's distance <= margin is the same for margin 0 and a
+            # bound either side otherwise: distance <= margin must hit, distance > 2 margin * sqrt2 must not
+            d = robot.distance(_rect(*b))
+            if d <= margin + 1e-9:
+                assert box_hit[i], (rects, b, margin, d)
+            elif d > 2 * margin * math.sqrt(2) + 1e-9:
+                assert not box_hit[i], (rects, b, margin, d)
+            met += bool(box_hit[i])
+            apart += not box_hit[i]
+        for i, (x, y, r) in enumerate(cyls):
+            d = robot.distance(shapely.Point(x, y)) - r
+            assert bool(cyl_hit[i]) == (d <= margin + 1e-9) or abs(d - margin) < 1e-9, (rects, (x, y, r), margin, d)
+            met += bool(cyl_hit[i])
+            apart += not cyl_hit[i]
+    assert met > 100 and apart > 100
+
+
+def test_drive_follows_exact_arcs_and_wraps_as_remainder() -> None:
+    # no force limit to speak of: the rims reach their targets in one substep, then the pose is an exact arc
+    wheelbase, radius, dt, n = 0.4, 0.1, 1 / 240, 240
+    state = np.zeros(7)
+    v, w = 0.8, 1.3
+    tl, tr = v - w * wheelbase / 2, v + w * wheelbase / 2
+    empty6, empty3 = np.zeros((0, 6)), np.zeros((0, 3))
+    none = np.zeros(0, bool)
+    kk.drive(n, state, tl, tr, 1.0, 0.0, dt, 1e12, 8, wheelbase, radius, np.zeros((1, 4)), 0.3,
+             False, empty6, np.zeros(0), empty3, none, none, False, empty6, np.zeros(0), empty3, none, none)
+    t = n * dt
+    r = v / w
+    assert state[0] == pytest.approx(tl) and state[1] == pytest.approx(tr)
+    assert state[2] == pytest.approx(r * math.sin(w * t), abs=1e-9)
+    assert state[3] == pytest.approx(r * (1 - math.cos(w * t)), abs=1e-9)
+    assert state[4] == pytest.approx(math.remainder(w * t, 2 * math.pi), abs=1e-12)
+    assert state[5] == pytest.approx(tl * t / radius) and state[6] == pytest.approx(tr * t / radius)
+    for yaw in np.random.default_rng(0).uniform(-3 * math.pi + 1e-9, 3 * math.pi - 1e-9, 2000):
+        assert kk.wrap(float(yaw)) == math.remainder(float(yaw), 2 * math.pi)
+    assert kk.wrap(math.pi) == math.remainder(math.pi, 2 * math.pi)
+    assert kk.wrap(-math.pi) == math.remainder(-math.pi, 2 * math.pi)
+
+
+def test_drive_stops_before_a_wall_and_marks_it() -> None:
+    # a 0.2 m square robot driven at 1 m/s at a box whose face is 0.5 m ahead of its front
+    wheelbase, radius, dt = 0.3, 0.05, 1 / 240
+    body = np.array([[0.0, 0.0, 0.1, 0.1]])
+    boxes = np.array([[1.1, 0.0, 1.0, 0.0, 0.5, 1.0]])
+    hit = np.zeros(1, bool)
+    empty6, empty3, none = np.zeros((0, 6)), np.zeros((0, 3)), np.zeros(0, bool)
+    state = np.array([1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    kk.drive(240, state, 1.0, 1.0, 1.0, 0.0, dt, 1e12, 8, wheelbase, radius, body, math.hypot(0.1, 0.1),
+             True, boxes, np.hypot(boxes[:, 4], boxes[:, 5]), empty3, hit, np.zeros(0, bool), False, empty6,
+             np.zeros(0), empty3, none, none)
+    assert hit[0]
+    assert 0.6 - dt <= state[2] + 0.1 <= 0.6  # front face stopped within a substep's travel of the wall
+    assert state[0] == 0.0 and state[1] == 0.0
