@@ -85,7 +85,9 @@ def test_contact_test_agrees_with_shapely_distances(seed: int) -> None:
         margin = float(rng.choice([0.0, 0.05, 0.3]))
         box_hit, cyl_hit = np.zeros(len(boxes), bool), np.zeros(len(cyls), bool)
         reach = max(math.hypot(abs(r[0]), abs(r[1])) + math.hypot(r[4], r[5]) for r in rects)
-        kk.overlaps(rects, 0.0, 0.0, reach, margin, boxes, np.hypot(boxes[:, 4], boxes[:, 5]), cyls, box_hit, cyl_hit)
+        reaches = np.hypot(boxes[:, 4], boxes[:, 5])
+        anything = kk.overlaps(rects, 0.0, 0.0, reach, margin, boxes, reaches, cyls, box_hit, cyl_hit)
+        assert anything == box_hit.any() | cyl_hit.any() == kk.any_near(rects, 0.0, 0.0, reach, margin, boxes, reaches, cyls)
         robot = shapely.union_all([_rect(*r) for r in rects])
         for i, b in enumerate(boxes):
             # two rectangles each grown by margin meet iff some pair of their separating-axis
@@ -114,8 +116,8 @@ def test_drive_follows_exact_arcs_and_wraps_as_remainder() -> None:
     tl, tr = v - w * wheelbase / 2, v + w * wheelbase / 2
     empty6, empty3 = np.zeros((0, 6)), np.zeros((0, 3))
     none = np.zeros(0, bool)
-    kk.drive(n, state, tl, tr, 1.0, 0.0, dt, 1e12, 8, wheelbase, radius, np.zeros((1, 4)), 0.3,
-             False, empty6, np.zeros(0), empty3, none, none, False, empty6, np.zeros(0), empty3, none, none)
+    assert not kk.drive(n, state, tl, tr, 1.0, 0.0, dt, 1e12, 8, wheelbase, radius, np.zeros((1, 4)), 0.3, 10.0,
+                        empty6, np.zeros(0), empty3, none, none, False, empty6, np.zeros(0), empty3, none, none)
     t = n * dt
     r = v / w
     assert state[0] == pytest.approx(tl) and state[1] == pytest.approx(tr)
@@ -137,9 +139,9 @@ def test_drive_stops_before_a_wall_and_marks_it() -> None:
     hit = np.zeros(1, bool)
     empty6, empty3, none = np.zeros((0, 6)), np.zeros((0, 3)), np.zeros(0, bool)
     state = np.array([1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0])
-    kk.drive(240, state, 1.0, 1.0, 1.0, 0.0, dt, 1e12, 8, wheelbase, radius, body, math.hypot(0.1, 0.1),
-             True, boxes, np.hypot(boxes[:, 4], boxes[:, 5]), empty3, hit, np.zeros(0, bool), False, empty6,
-             np.zeros(0), empty3, none, none)
+    assert kk.drive(240, state, 1.0, 1.0, 1.0, 0.0, dt, 1e12, 8, wheelbase, radius, body, math.hypot(0.1, 0.1),
+                    1.0 + 1e-3, boxes, np.hypot(boxes[:, 4], boxes[:, 5]), empty3, hit, np.zeros(0, bool), False,
+                    empty6, np.zeros(0), empty3, none, none)
     assert hit[0]
     assert 0.6 - dt <= state[2] + 0.1 <= 0.6  # front face stopped within a substep's travel of the wall
     assert state[0] == 0.0 and state[1] == 0.0

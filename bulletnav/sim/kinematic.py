@@ -171,8 +171,9 @@ def obstacle_primitive(o: Obstacle) -> Primitive:
 
 
 class _Shapes:
-    """A set of boxes and cylinders (with body ids) as the arrays the compiled contact test
-    (:func:`bulletnav.sim.kinematic_kernels.overlaps`) takes."""
+    """A set of boxes and cylinders (with body ids) as the arrays the compiled drive
+    (:func:`bulletnav.sim.kinematic_kernels.drive`) tests contacts against; it marks the shapes
+    touched in :attr:`box_hit` and :attr:`cyl_hit`."""
 
     def __init__(self, items: list[tuple[int, Primitive]]) -> None:
         boxes = [(b, s) for b, s in items if s.kind == "box"]
@@ -187,23 +188,15 @@ class _Shapes:
         self.box_hit = np.zeros(len(self.box_ids), dtype=np.bool_)
         self.cyl_hit = np.zeros(len(self.cyl_ids), dtype=np.bool_)
 
-    def overlapping(self, rects: np.ndarray, centre: tuple[float, float], reach: float, margin: float) -> list[int]:
-        """Ids of the shapes that ``rects`` (K x 6: centre x, y, cos, sin, half x, half y) overlap
-        once both are grown by ``margin`` (m); ``reach``: the rectangles' farthest point from ``centre``."""
+    def clear(self) -> None:
+        """Unmark every shape (:attr:`box_hit`, :attr:`cyl_hit`)."""
         self.box_hit[:] = False
         self.cyl_hit[:] = False
-        if not kk.overlaps(rects, centre[0], centre[1], reach, margin, self.box, self.box_reach, self.cyl,
-                           self.box_hit, self.cyl_hit):
-            return []
-        return self.touched()
 
     def touched(self) -> list[int]:
         """Ids of the shapes marked in :attr:`box_hit` and :attr:`cyl_hit`."""
         return ([self.box_ids[i] for i in np.flatnonzero(self.box_hit)]
                 + [self.cyl_ids[i] for i in np.flatnonzero(self.cyl_hit)])
-
-
-_NO_SHAPES = _Shapes([])
 
 
 class KinematicWorld:
@@ -425,25 +418,26 @@ class KinematicRobot:
         """Whether the robot stands still on a zero command (nothing creeps here)."""
         return self._target == (0.0, 0.0) and self.rims == (0.0, 0.0)
 
-    def substeps(self, n: int, static: _Shapes | None, moving: _Shapes | None) -> None:
+    def substeps(self, n: int, static: _Shapes, moving: _Shapes, sweep: float, moving_always: bool) -> bool:
         """Take ``n`` substeps toward the rims' targets (:func:`bulletnav.sim.kinematic_kernels.drive`:
         the two motor forces that reach the targets, each clamped to the motor's limit, solved
-        together by projected Gauss-Seidel; then the exact arc). A substep whose outline would
-        overlap one of ``static`` or ``moving`` (None: not checked) is not taken: the rims stop
-        where the body stands, and the shapes touched are marked in their ``*_hit`` arrays."""
+        together by projected Gauss-Seidel; then the exact arc). ``static`` and ``moving`` are
+        checked when one of them lies within ``sweep`` (m) of the outline now (``moving``
+        always with ``moving_always``); a substep whose outline would overlap one is not taken:
+        the rims stop where the body stands. True when a shape was touched (marked in its
+        ``*_hit`` array, which the caller clears)."""
         s = self._state
         s[0], s[1] = self.rims
         s[2], s[3], s[4] = self.pose3
         s[5], s[6] = self._angles
-        none = _NO_SHAPES
-        st, mv = static or none, moving or none
-        kk.drive(n, s, self._target[0], self._target[1], self._a, self._b, self._dt, self._force, _SOLVER_ITERATIONS,
-                 self.wheelbase, self.wheel_radius, self._rects, self.reach, static is not None, st.box, st.box_reach,
-                 st.cyl, st.box_hit, st.cyl_hit, moving is not None, mv.box, mv.box_reach, mv.cyl, mv.box_hit,
-                 mv.cyl_hit)
+        touched = kk.drive(n, s, self._target[0], self._target[1], self._a, self._b, self._dt, self._force,
+                           _SOLVER_ITERATIONS, self.wheelbase, self.wheel_radius, self._rects, self.reach, sweep,
+                           static.box, static.box_reach, static.cyl, static.box_hit, static.cyl_hit, moving_always,
+                           moving.box, moving.box_reach, moving.cyl, moving.box_hit, moving.cyl_hit)
         self.rims = (float(s[0]), float(s[1]))
         self.pose3 = (float(s[2]), float(s[3]), float(s[4]))
         self._angles = (float(s[5]), float(s[6]))
+        return touched
 
     def rectangles(self, pose: tuple[float, float, float]) -> np.ndarray:
         """The collision rectangles at ``pose``, world frame (K x 6: centre x, y, cos, sin, half x, half y)."""
@@ -564,28 +558,24 @@ class KinematicSimulation:
         tl, tr = robot._target
         rim = max(abs(left), abs(right), abs(tl), abs(tr))
         sweep = (rim + 2.0 * rim / self.robot.wheelbase * robot.reach) * n * dt + 1e-3
-        x, y, _ = robot.pose3
-        rects = robot.rectangles(robot.pose3)
         static = world.shapes(True)
-        static_near = bool(static.overlapping(rects, (x, y), robot.reach, sweep))
-        moving = world.shapes(False)
-        moving_near = before_substep is not None or bool(
-            not moving.empty and moving.overlapping(rects, (x, y), robot.reach, sweep))
-        static.box_hit[:], static.cyl_hit[:] = False, False
         if before_substep is None:
-            if moving_near:
-                moving.box_hit[:], moving.cyl_hit[:] = False, False
-            robot.substeps(n, static if static_near else None, moving if moving_near else None)
-            touched = static.touched() + (moving.touched() if moving_near else [])
+            moving = world.shapes(False)
+            touched = []
+            if robot.substeps(n, static, moving, sweep, False):
+                touched = static.touched() + moving.touched()
+                static.clear()
+                moving.clear()
         else:  # the movers move between substeps: one at a time, against the moving shapes as they stand then
             touched = []
             for k in range(n):
                 before_substep(k, n)
                 moving = world.shapes(False)
-                moving.box_hit[:], moving.cyl_hit[:] = False, False
-                robot.substeps(1, static if static_near else None, moving)
-                touched += moving.touched()
+                if robot.substeps(1, static, moving, sweep, True):
+                    touched += moving.touched()
+                    moving.clear()
             touched += static.touched()
+            static.clear()
         robot.contacts = set(touched)
         self.clock.tick += n
         robot.sample()

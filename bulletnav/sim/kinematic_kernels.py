@@ -157,17 +157,39 @@ def overlaps(rects: np.ndarray, cx: float, cy: float, reach: float, margin: floa
 
 
 @njit(cache=True, nogil=True)
+def any_near(rects: np.ndarray, cx: float, cy: float, reach: float, margin: float, boxes: np.ndarray,
+             box_reach: np.ndarray, cyls: np.ndarray) -> bool:
+    """Whether ``rects`` meet any of the shapes once both are grown by ``margin`` (:func:`overlaps`, nothing marked)."""
+    for i in range(boxes.shape[0]):
+        if math.hypot(boxes[i, 0] - cx, boxes[i, 1] - cy) <= box_reach[i] + reach + margin:
+            if _box_meets(rects, boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3], boxes[i, 4], boxes[i, 5], margin):
+                return True
+    for i in range(cyls.shape[0]):
+        if math.hypot(cyls[i, 0] - cx, cyls[i, 1] - cy) <= cyls[i, 2] + reach + margin:
+            if _circle_meets(rects, cyls[i, 0], cyls[i, 1], cyls[i, 2], margin):
+                return True
+    return False
+
+
+@njit(cache=True, nogil=True)
 def drive(n: int, state: np.ndarray, target_l: float, target_r: float, a: float, b: float, dt: float, limit: float,
-          iterations: int, wheelbase: float, wheel_radius: float, body: np.ndarray, reach: float,
-          check_static: bool, boxes: np.ndarray, box_reach: np.ndarray, cyls: np.ndarray,
-          box_hit: np.ndarray, cyl_hit: np.ndarray, check_moving: bool, mboxes: np.ndarray,
-          mbox_reach: np.ndarray, mcyls: np.ndarray, mbox_hit: np.ndarray, mcyl_hit: np.ndarray) -> None:
-    """``n`` substeps of :meth:`KinematicSimulation.step` with nothing moving meanwhile.
+          iterations: int, wheelbase: float, wheel_radius: float, body: np.ndarray, reach: float, sweep: float,
+          boxes: np.ndarray, box_reach: np.ndarray, cyls: np.ndarray, box_hit: np.ndarray, cyl_hit: np.ndarray,
+          moving_always: bool, mboxes: np.ndarray, mbox_reach: np.ndarray, mcyls: np.ndarray, mbox_hit: np.ndarray,
+          mcyl_hit: np.ndarray) -> bool:
+    """``n`` substeps of :meth:`KinematicSimulation.step`; True when a shape was touched.
 
     ``state`` (7,): rims left, right (m/s), pose x, y, yaw, wheel angles left, right, updated in
-    place. A substep whose pose would overlap a checked shape is not taken: the rims stop, the
-    shapes touched are marked in the ``*_hit`` arrays."""
+    place. The static shapes, and the moving ones, are checked at every substep when any of
+    them lies within ``sweep`` (m: how far the outline can move in the ``n`` substeps) of the
+    outline now; the moving ones always with ``moving_always`` (they move between calls). A
+    substep whose pose would overlap a checked shape is not taken: the rims stop, the shapes
+    touched are marked in the ``*_hit`` arrays."""
     rects = np.empty((body.shape[0], 6))
+    rectangles(state[2], state[3], state[4], body, rects)
+    check_static = any_near(rects, state[2], state[3], reach, sweep, boxes, box_reach, cyls)
+    check_moving = moving_always or any_near(rects, state[2], state[3], reach, sweep, mboxes, mbox_reach, mcyls)
+    touched = False
     for _ in range(n):
         left, right = next_rims(state[0], state[1], target_l, target_r, a, b, dt, limit, iterations)
         x, y, yaw = advance(state[2], state[3], state[4], left, right, wheelbase, dt)
@@ -179,6 +201,7 @@ def drive(n: int, state: np.ndarray, target_l: float, target_r: float, a: float,
             if check_moving:
                 hit = overlaps(rects, x, y, reach, 0.0, mboxes, mbox_reach, mcyls, mbox_hit, mcyl_hit) or hit
             if hit:
+                touched = True
                 state[0] = 0.0
                 state[1] = 0.0
                 continue
@@ -189,6 +212,7 @@ def drive(n: int, state: np.ndarray, target_l: float, target_r: float, a: float,
         state[2] = x
         state[3] = y
         state[4] = wrap(yaw)
+    return touched
 
 
 # ---------------------------------------------------------------------------------------- the lidar
