@@ -425,10 +425,6 @@ KINDS: dict[str, str] = {
     # the closed-form arc written in the test; math.remainder
     "test_kinematic_kernels.py::test_drive_follows_exact_arcs_and_wraps_as_remainder": "formula",
     "test_kinematic_kernels.py::test_drive_stops_before_a_wall_and_marks_it": "hand",  # the wall 0.5 m ahead, 1/240 s substeps
-    # ---- test_shadow_plan.py
-    "test_shadow_plan.py::test_shadow_options_are_checked": "contract",
-    # cells counted by hand: 0.3 m of shadow plus the berth on the unknown side, the berth alone on the seen side
-    "test_shadow_plan.py::test_unknown_cells_near_an_obstacle_are_shadow_but_seen_free_ones_are_not": "hand",
     # ---- test_kinematic.py (PyBullet's full physics, physics="default", is the reference)
     "test_kinematic.py::test_scans_match_pybullet_in_every_world_source": "library",
     "test_kinematic.py::test_straight_drive_and_turn_in_place_end_where_pybullet_ends": "library",

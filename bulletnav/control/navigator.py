@@ -14,7 +14,7 @@ from bulletnav.config import TaskConfig
 from bulletnav.control.pid import PID
 from bulletnav.geometry import RobotGeometry, robot_geometry
 from bulletnav.planning import OccupancyGrid, astar, rrt, warmup
-from bulletnav.planning.mapping import OCCUPIED, UNKNOWN, LidarMapper
+from bulletnav.planning.mapping import LidarMapper
 from bulletnav.planning.rrt import DEFAULT_MAX_ITERS
 from bulletnav.planning.tour import tour_through
 
@@ -119,35 +119,16 @@ class NavigatorConfig:
     """A last plan is tried with this inflation (m) when none is found with ``inflation``
     (None: no such plan). :func:`fit_to_robot` sets it to a long, narrow robot's half width
     plus 3 cm: driven along the plan it fits where its disc does not."""
-    shadow_margin: float | None = None
-    """With a value (m), each plan is also searched on a cautious map where the unknown cells
-    within this distance of a mapped obstacle count as occupied (the lidar's shadow behind an
-    obstacle is often more of it: BARN's obstacles come in clumps), inflated by ``inflation``
-    plus ``preferred_margin``; that plan is driven when at most ``shadow_slack`` times as long
-    as the usual one (or there is no usual one). None (the default, every robot): no cautious
-    plan. Measured on the Jackal in BARN (docs/classical-navigation.md): at 0.3 m it took the
-    42 hardest non-test worlds from BARN metric 0.474 to 0.489, and two sets of 30 non-test
-    worlds never tuned on from 0.498 to 0.495 and 0.493, so it is not on by default."""
-    shadow_slack: float = 1.1
-    """How much longer (a factor) the cautious plan may be than the usual one and still be driven."""
 
     def __post_init__(self) -> None:
         if self.planner not in ("none", "astar", "rrt"):
             raise ValueError(f"planner must be 'none', 'astar' or 'rrt', got {self.planner!r}")
         if self.pose_source not in ("truth", "odometry"):
             raise ValueError(f"pose_source must be 'truth' or 'odometry', got {self.pose_source!r}")
-        if self.shadow_margin is not None and not (math.isfinite(self.shadow_margin) and self.shadow_margin >= 0):
-            raise ValueError(f"shadow_margin must be None or a finite number >= 0 m, got {self.shadow_margin!r}")
-        if not (math.isfinite(self.shadow_slack) and self.shadow_slack >= 1):
-            raise ValueError(f"shadow_slack must be a finite number >= 1, got {self.shadow_slack!r}")
 
 
 def _wrap(angle: float) -> float:
     return math.remainder(angle, 2 * math.pi)
-
-
-def _length(path: list[tuple[float, float]]) -> float:
-    return sum(math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in zip(path, path[1:]))
 
 
 TRAIL_STEP = 0.05
@@ -670,43 +651,24 @@ class Navigator:
     def _plan(self, pose) -> None:
         start = (pose[0], pose[1])
         t0 = time.perf_counter()
-        path = self._search(self._inflated, start)
-        if self.config.shadow_margin is not None:
-            cautious = self._search([self._shadow_grid(self.config.shadow_margin)], start)
-            if cautious is not None and (path is None or _length(cautious) <= self.config.shadow_slack * _length(path)):
-                path = cautious
-        self.plan_times.append(time.perf_counter() - t0)
-        if self.path is not None:
-            self.replans += 1
-        self.path = path
-        self._since_plan = 0
-
-    def _search(self, inflated: list[OccupancyGrid], start: tuple[float, float]) -> list[tuple[float, float]] | None:
-        """The first path found on ``inflated`` in turn (each with the places backed out of
-        blocked first, where there are any), or None."""
-        grids = inflated
+        path = None
+        grids = self._inflated
         if self._tabu:  # around the places it had to back out of first, then through them as a last resort
-            grids = [self._blocked_at(g, self._tabu) for g in inflated] + list(inflated)
-        for grid in grids:  # wide berth first, then the robot radius alone
-            grid = self._clear_around(grid, [start, self.goal])
+            grids = [self._blocked_at(g, self._tabu) for g in self._inflated] + list(self._inflated)
+        for inflated in grids:  # wide berth first, then the robot radius alone
+            grid = self._clear_around(inflated, [start, self.goal])
             if self.config.planner == "astar":
                 path = astar(grid, start, self.goal)
             else:
                 path = rrt(grid, start, self.goal, self.rng, step=self.config.rrt_step,
                            max_iters=self.config.rrt_max_iters)
             if path is not None:
-                return path
-        return None
-
-    def _shadow_grid(self, margin: float) -> OccupancyGrid:
-        """The lidar map with the unknown cells within ``margin`` (m) of an occupied one
-        occupied too, inflated by the wide berth (``inflation`` plus ``preferred_margin``)."""
-        state = self.mapper.state()
-        occupied = state == OCCUPIED
-        grid = self.mapper.grid()
-        near = OccupancyGrid(occupied, grid.resolution, grid.origin).inflate(margin).occupied
-        cautious = OccupancyGrid(occupied | ((state == UNKNOWN) & near), grid.resolution, grid.origin)
-        return cautious.inflate(self.inflation + self.config.preferred_margin)
+                break
+        self.plan_times.append(time.perf_counter() - t0)
+        if self.path is not None:
+            self.replans += 1
+        self.path = path
+        self._since_plan = 0
 
     def _blocked_at(self, grid: OccupancyGrid, points: list[tuple[float, float]]) -> OccupancyGrid:
         """``grid`` with the cells within :data:`TABU_RADIUS` of ``points`` occupied."""
