@@ -137,14 +137,6 @@ STUCK_DISTANCE = 0.03
 """Net motion (m) under which ``stuck_time`` without headway counts as stuck."""
 STUCK_TURN = 0.2
 """Net turn (rad) under which ``stuck_time`` without headway counts as stuck."""
-PROGRESS_TIME = 3.0
-"""A robot that can back up and has moved less than :data:`PROGRESS_DISTANCE` in this long (s)
-counts as stuck too, however it turned and rocked meanwhile: a livelock of short drives and
-guarded stops (BARN test world 126 at 6ca5e54: 7 of 10 runs rocked within 6 cm for 90 s)
-never satisfies the ``stuck_time`` test. 3 s is longer than any turn in place the navigator
-makes (pi at the guarded 1.5 rad/s is 2.1 s)."""
-PROGRESS_DISTANCE = 0.2
-"""See :data:`PROGRESS_TIME` (m)."""
 BACK_CLEARANCE = 0.06
 """Backing up ends when no lidar hit lies within the outline's reach plus this (m): room to turn."""
 TURN_FIRST_RAD = 1.0
@@ -598,15 +590,12 @@ class Navigator:
             self._trail.append((x, y))
         self._recent.append(pose)
         window = max(1, int(round(cfg.stuck_time / self.dt)))
-        long_window = max(window, int(round(PROGRESS_TIME / self.dt)))
-        if len(self._recent) > long_window:
+        if len(self._recent) > window:
             del self._recent[0]
         if not self._backing:
-            x0, y0, yaw0 = self._recent[-window] if len(self._recent) >= window else self._recent[0]
-            xl, yl, _ = self._recent[0]
-            stuck = ((self._stuck_now or (len(self._recent) >= window and math.hypot(x - x0, y - y0) < STUCK_DISTANCE
-                                          and abs(_wrap(yaw - yaw0)) < STUCK_TURN)
-                      or (len(self._recent) == long_window and math.hypot(x - xl, y - yl) < PROGRESS_DISTANCE))
+            x0, y0, yaw0 = self._recent[0]
+            stuck = ((self._stuck_now or (len(self._recent) == window and math.hypot(x - x0, y - y0) < STUCK_DISTANCE
+                                          and abs(_wrap(yaw - yaw0)) < STUCK_TURN))
                      and goal_distance > 2.0 * self.scene.goal_radius and len(self._trail) > 1)
             self._stuck_now = False
             if not stuck:
