@@ -439,12 +439,6 @@ class KinematicRobot:
         self._angles = (float(s[5]), float(s[6]))
         return touched
 
-    def rectangles(self, pose: tuple[float, float, float]) -> np.ndarray:
-        """The collision rectangles at ``pose``, world frame (K x 6: centre x, y, cos, sin, half x, half y)."""
-        out = np.empty((len(self._rects), 6))
-        kk.rectangles(pose[0], pose[1], pose[2], self._rects, out)
-        return out
-
     # ------------------------------------------------------------------ state
     def sample(self) -> RobotState:
         """The ground truth now, kept as :attr:`state` (as :meth:`bulletnav.sim.robot.Robot.sample`)."""
