@@ -269,7 +269,8 @@ def cast_level(ox: float, oy: float, oz: float, yaw: float, cos_a: np.ndarray, s
     Ray ``i`` leaves (ox, oy, oz) at angle ``yaw + a_i`` (``cos_a``, ``sin_a`` of ``a_i``); the
     ``a_i`` run from ``a0`` in steps of about ``da``. A shape is tested
     against the rays within the angle its bounding circle subtends (every ray where the origin
-    lies inside that circle); a shape whose height range misses ``oz`` is never hit."""
+    lies inside that circle), nearest first, and skipped where every ray of that angle already
+    hits nearer than the circle comes; a shape whose height range misses ``oz`` is never hit."""
     n = cos_a.shape[0]
     cy_, sy_ = math.cos(yaw), math.sin(yaw)
     dxs = np.empty(n)
@@ -277,12 +278,21 @@ def cast_level(ox: float, oy: float, oz: float, yaw: float, cos_a: np.ndarray, s
     for i in range(n):
         dxs[i] = cos_a[i] * cy_ - sin_a[i] * sy_
         dys[i] = sin_a[i] * cy_ + cos_a[i] * sy_
-    for j in range(cyls.shape[0]):
-        if abs(oz - cyls[j, 3]) <= cyls[j, 4]:
-            _scan(False, cyls[j], cyls[j, 2], ox, oy, yaw, a0, da, dxs, dys, length, out)
-    for j in range(boxes.shape[0]):
-        if abs(oz - boxes[j, 6]) <= boxes[j, 7]:
-            _scan(True, boxes[j], math.hypot(boxes[j, 4], boxes[j, 5]), ox, oy, yaw, a0, da, dxs, dys, length, out)
+    # nearest first, so that a shape wholly behind what its rays already hit is skipped (_scan)
+    if boxes.shape[0]:
+        near = np.empty(boxes.shape[0])
+        for j in range(boxes.shape[0]):
+            near[j] = math.hypot(boxes[j, 0] - ox, boxes[j, 1] - oy) - math.hypot(boxes[j, 4], boxes[j, 5])
+        for j in np.argsort(near):
+            if abs(oz - boxes[j, 6]) <= boxes[j, 7]:
+                _scan(True, boxes[j], math.hypot(boxes[j, 4], boxes[j, 5]), ox, oy, yaw, a0, da, dxs, dys, length, out)
+    if cyls.shape[0]:
+        near = np.empty(cyls.shape[0])
+        for j in range(cyls.shape[0]):
+            near[j] = math.hypot(cyls[j, 0] - ox, cyls[j, 1] - oy) - cyls[j, 2]
+        for j in np.argsort(near):
+            if abs(oz - cyls[j, 3]) <= cyls[j, 4]:
+                _scan(False, cyls[j], cyls[j, 2], ox, oy, yaw, a0, da, dxs, dys, length, out)
 
 
 @njit(cache=True, nogil=True)
@@ -302,13 +312,31 @@ def _scan(is_box: bool, shape: np.ndarray, radius: float, ox: float, oy: float, 
     half = math.asin(radius / d) + 1e-6
     phi = math.atan2(cy - oy, cx - ox) - yaw - a0
     phi = phi - TWO_PI * math.floor(phi / TWO_PI)  # [0, 2 pi)
+    lo1 = lo2 = lo3 = 1
+    hi1 = hi2 = hi3 = 0
+    k = 0
     last = -1
+    behind = True  # every ray of the window already hits nearer than this shape can be (d - radius)
     for shift in (-TWO_PI, 0.0, TWO_PI):
         lo = max(int(math.ceil((phi - half + shift) / da)) - 1, 0, last + 1)
         hi = min(int(math.floor((phi + half + shift) / da)) + 1, n - 1)
         if lo <= hi:
-            _rays(is_box, shape, ox, oy, dxs, dys, lo, hi, out)
+            if k == 0:
+                lo1, hi1 = lo, hi
+            elif k == 1:
+                lo2, hi2 = lo, hi
+            else:
+                lo3, hi3 = lo, hi
+            k += 1
             last = hi
+            for i in range(lo, hi + 1):
+                if out[i] > d - radius:
+                    behind = False
+    if behind:
+        return
+    _rays(is_box, shape, ox, oy, dxs, dys, lo1, hi1, out)
+    _rays(is_box, shape, ox, oy, dxs, dys, lo2, hi2, out)
+    _rays(is_box, shape, ox, oy, dxs, dys, lo3, hi3, out)
 
 
 @njit(cache=True, nogil=True)
