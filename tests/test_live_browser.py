@@ -8,16 +8,14 @@ publishes the same goal, and the session takes it. The browser, not the test, wr
 from __future__ import annotations
 
 import http.server
-import shutil
 import threading
 
 import gymnasium as gym
 import pytest
 
 import bulletnav  # noqa: F401
+from browser import chromium
 from hang import HANG_S
-
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 PAGE = """<!doctype html><title>page</title><script>
 const ws = new WebSocket("%(url)s", ["foxglove.sdk.v1"]);
@@ -39,17 +37,7 @@ ws.onclose = (event) => { if (window.result === null) window.result = "closed " 
 
 @pytest.fixture(scope="module")
 def browser():
-    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is not installed (make install)")
-    if CHROMIUM is None:
-        pytest.skip("no chromium binary (Debian package 'chromium'; .ci/run installs it)")
-    with sync_api.sync_playwright() as pw:
-        chromium = pw.chromium.launch(executable_path=CHROMIUM, args=[
-            "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
-            "--disable-component-update", "--disable-sync", "--host-resolver-rules=MAP evil.example 127.0.0.1"])
-        try:
-            yield chromium
-        finally:
-            chromium.close()
+    yield from chromium("--host-resolver-rules=MAP evil.example 127.0.0.1")
 
 
 def _serve(html: str) -> tuple[http.server.ThreadingHTTPServer, int]:

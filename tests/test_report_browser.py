@@ -8,11 +8,11 @@ breaks only between its arguments and its text is the command on one line. Scree
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import pytest
 
+from browser import chromium
 from bulletnav.benchmark import report as report_module
 from bulletnav.benchmark.report import write_report
 from bulletnav.benchmark.runner import build_results
@@ -20,7 +20,6 @@ from bulletnav.benchmark.suite import load_suite
 from bulletnav.viz.plots import draw_layout
 
 HERE = Path(__file__).resolve().parent
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 WIDTHS = (1400, 390)
 """Viewport widths (px) the page must fit: a laptop's and a phone's."""
 
@@ -41,17 +40,7 @@ def report(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def browser():
     """One Chromium for the module's tests."""
-    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is not installed (make install)")
-    if CHROMIUM is None:
-        pytest.skip("no chromium binary (Debian package 'chromium'; .ci/run installs it)")
-    with sync_api.sync_playwright() as pw:
-        chromium = pw.chromium.launch(executable_path=CHROMIUM, args=[
-            "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
-            "--disable-component-update", "--disable-sync"])
-        try:
-            yield chromium
-        finally:
-            chromium.close()
+    yield from chromium()
 
 
 def _suite(report: Path) -> dict:
