@@ -31,13 +31,7 @@ class ErrandTask(NavigationTask):
 
     def set_goal(self, slot: RobotSlot, goal: tuple[float, float]) -> None:
         """Head for ``goal`` from now on: the progress term restarts from the distance to it."""
-        self.goals = ((float(goal[0]), float(goal[1])),)
-        if self.guide is not None:
-            self.guide.set_goals(self.goals)
-        self._measure(slot)
-        self.initial_distance = self.distance
-        self._prev_distance = self._potential()
-        self._progress.clear()
+        self._head_for(slot, goal)
         self._success = False
 
     def end(self, scene: Any) -> tuple[bool, bool, str | None]:

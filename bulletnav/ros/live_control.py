@@ -83,13 +83,7 @@ class GoalPoseTask(NavigationTask):
     def set_goal(self, scene: Any, goal: tuple[float, float]) -> None:
         """Head for ``goal`` (x, y m) from now on: the distance, the heading error and the
         progress term are measured to it from this moment."""
-        self.goals = ((float(goal[0]), float(goal[1])),)
-        if self.guide is not None:
-            self.guide.set_goals(self.goals)
-        self._measure(scene)
-        self.initial_distance = self.distance
-        self._prev_distance = self._potential()
-        self._progress.clear()
+        self._head_for(scene, goal)
         self._success = self.distance < self._goal_radius
 
     def end(self, scene: Any) -> tuple[bool, bool, str | None]:

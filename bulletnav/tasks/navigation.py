@@ -141,6 +141,17 @@ class NavigationTask(Task):
             self._history.clear()
             self._history.extend([self._range_list] * self._history_len)
 
+    def _head_for(self, scene: TaskScene, goal: tuple[float, float]) -> None:
+        """Head for ``goal`` (x, y m) from now on, mid-episode: the guide, the distance, the
+        heading error and the progress term are measured to it from this moment."""
+        self.goals = ((float(goal[0]), float(goal[1])),)
+        if self.guide is not None:
+            self.guide.set_goals(self.goals)
+        self._measure(scene)
+        self.initial_distance = self.distance
+        self._prev_distance = self._potential()
+        self._progress.clear()
+
     def _choose_target(self, start: tuple[float, float, float]) -> None:
         """Which goal the episode heads for first (the only one here)."""
 
