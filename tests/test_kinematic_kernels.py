@@ -86,8 +86,11 @@ def test_contact_test_agrees_with_shapely_distances(seed: int) -> None:
         box_hit, cyl_hit = np.zeros(len(boxes), bool), np.zeros(len(cyls), bool)
         reach = max(math.hypot(abs(r[0]), abs(r[1])) + math.hypot(r[4], r[5]) for r in rects)
         reaches = np.hypot(boxes[:, 4], boxes[:, 5])
-        anything = kk.overlaps(rects, 0.0, 0.0, reach, margin, boxes, reaches, cyls, box_hit, cyl_hit)
-        assert anything == box_hit.any() | cyl_hit.any() == kk.any_near(rects, 0.0, 0.0, reach, margin, boxes, reaches, cyls)
+        anything = kk.overlaps(rects, 0.0, 0.0, reach, margin, boxes, reaches, cyls, box_hit, cyl_hit, False)
+        unmarked = np.zeros(len(boxes), bool), np.zeros(len(cyls), bool)
+        first = kk.overlaps(rects, 0.0, 0.0, reach, margin, boxes, reaches, cyls, *unmarked, True)
+        assert anything == box_hit.any() | cyl_hit.any() == first
+        assert not unmarked[0].any() and not unmarked[1].any()
         robot = shapely.union_all([_rect(*r) for r in rects])
         for i, b in enumerate(boxes):
             # two rectangles each grown by margin meet iff some pair of their separating-axis

@@ -139,36 +139,26 @@ def _circle_meets(rects: np.ndarray, x: float, y: float, radius: float, margin: 
 
 @njit(cache=True, nogil=True)
 def overlaps(rects: np.ndarray, cx: float, cy: float, reach: float, margin: float, boxes: np.ndarray,
-             box_reach: np.ndarray, cyls: np.ndarray, box_hit: np.ndarray, cyl_hit: np.ndarray) -> bool:
-    """``_Shapes.overlapping``: marks in ``box_hit`` / ``cyl_hit`` the shapes ``rects`` meet once
-    both are grown by ``margin``; True when any. ``reach``: the rectangles' farthest point from (cx, cy)."""
+             box_reach: np.ndarray, cyls: np.ndarray, box_hit: np.ndarray, cyl_hit: np.ndarray, first: bool) -> bool:
+    """Whether ``rects`` meet any of the shapes once both are grown by ``margin``; ``reach``:
+    the rectangles' farthest point from (cx, cy). With ``first``, True at the first shape met
+    and nothing marked; else every shape met is marked in ``box_hit`` / ``cyl_hit``."""
     anything = False
     for i in range(boxes.shape[0]):
         if math.hypot(boxes[i, 0] - cx, boxes[i, 1] - cy) <= box_reach[i] + reach + margin:
             if _box_meets(rects, boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3], boxes[i, 4], boxes[i, 5], margin):
+                if first:
+                    return True
                 box_hit[i] = True
                 anything = True
     for i in range(cyls.shape[0]):
         if math.hypot(cyls[i, 0] - cx, cyls[i, 1] - cy) <= cyls[i, 2] + reach + margin:
             if _circle_meets(rects, cyls[i, 0], cyls[i, 1], cyls[i, 2], margin):
+                if first:
+                    return True
                 cyl_hit[i] = True
                 anything = True
     return anything
-
-
-@njit(cache=True, nogil=True)
-def any_near(rects: np.ndarray, cx: float, cy: float, reach: float, margin: float, boxes: np.ndarray,
-             box_reach: np.ndarray, cyls: np.ndarray) -> bool:
-    """Whether ``rects`` meet any of the shapes once both are grown by ``margin`` (:func:`overlaps`, nothing marked)."""
-    for i in range(boxes.shape[0]):
-        if math.hypot(boxes[i, 0] - cx, boxes[i, 1] - cy) <= box_reach[i] + reach + margin:
-            if _box_meets(rects, boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3], boxes[i, 4], boxes[i, 5], margin):
-                return True
-    for i in range(cyls.shape[0]):
-        if math.hypot(cyls[i, 0] - cx, cyls[i, 1] - cy) <= cyls[i, 2] + reach + margin:
-            if _circle_meets(rects, cyls[i, 0], cyls[i, 1], cyls[i, 2], margin):
-                return True
-    return False
 
 
 @njit(cache=True, nogil=True)
@@ -187,8 +177,9 @@ def drive(n: int, state: np.ndarray, target_l: float, target_r: float, a: float,
     touched are marked in the ``*_hit`` arrays."""
     rects = np.empty((body.shape[0], 6))
     rectangles(state[2], state[3], state[4], body, rects)
-    check_static = any_near(rects, state[2], state[3], reach, sweep, boxes, box_reach, cyls)
-    check_moving = moving_always or any_near(rects, state[2], state[3], reach, sweep, mboxes, mbox_reach, mcyls)
+    check_static = overlaps(rects, state[2], state[3], reach, sweep, boxes, box_reach, cyls, box_hit, cyl_hit, True)
+    check_moving = moving_always or overlaps(rects, state[2], state[3], reach, sweep, mboxes, mbox_reach, mcyls,
+                                             mbox_hit, mcyl_hit, True)
     touched = False
     for _ in range(n):
         left, right = next_rims(state[0], state[1], target_l, target_r, a, b, dt, limit, iterations)
@@ -197,9 +188,9 @@ def drive(n: int, state: np.ndarray, target_l: float, target_r: float, a: float,
             rectangles(x, y, yaw, body, rects)
             hit = False
             if check_static:
-                hit = overlaps(rects, x, y, reach, 0.0, boxes, box_reach, cyls, box_hit, cyl_hit)
+                hit = overlaps(rects, x, y, reach, 0.0, boxes, box_reach, cyls, box_hit, cyl_hit, False)
             if check_moving:
-                hit = overlaps(rects, x, y, reach, 0.0, mboxes, mbox_reach, mcyls, mbox_hit, mcyl_hit) or hit
+                hit = overlaps(rects, x, y, reach, 0.0, mboxes, mbox_reach, mcyls, mbox_hit, mcyl_hit, False) or hit
             if hit:
                 touched = True
                 state[0] = 0.0
