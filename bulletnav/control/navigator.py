@@ -335,7 +335,7 @@ class GoToGoal:
         ``TURN_GUARD_RAD``, braking at ``brake_decel``."""
         if v_now <= TURN_ROLL_SPEED:
             return False
-        decel = self.config.brake_decel or 2.5
+        decel = self.config.brake_decel or FIT_BRAKE_DECEL
         t = min(TURN_GUARD_RAD / max(abs(w), 0.1), v_now / decel)  # the roll while the guard's turn is made
         roll = v_now * dt + v_now * t - 0.5 * decel * t * t
         return self._turn_hits(self._near_points(ranges, roll), math.copysign(1.0, w), roll)
