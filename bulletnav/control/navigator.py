@@ -62,6 +62,16 @@ class ControllerConfig:
     corridor_margin: float = 0.02
     """With ``brake_decel``: the corridor ahead is the robot's width plus this much (m) each side;
     what is in it counts as ahead (the avoidance blend and the braking), what is beside it does not."""
+    avoid_side: str = "room"
+    """Which way the avoidance blend turns from what is ahead: 'room', toward the side whose rays
+    (15-110 deg) read farther on average (the article robot's rule); 'away', away from the
+    nearest hit in the corridor ahead (``brake_decel`` only), toward the target's side where that
+    hit lies within :data:`CENTRE_BAND` of the centre line. The mean of the ranges can point at the
+    very obstacle being avoided, and flips with every scan beside a cylinder."""
+
+    def __post_init__(self) -> None:
+        if self.avoid_side not in ("room", "away"):
+            raise ValueError(f"avoid_side must be 'room' or 'away', got {self.avoid_side!r}")
 
 
 @dataclass(frozen=True)
@@ -177,6 +187,11 @@ TURN_GUARD_RATE = 1.5
 robot's own spin carries the corners past a reversal (0.35 rad is 2 control steps at 4 rad/s, 5.6 at 1.5)."""
 
 
+CENTRE_BAND = 0.05
+"""With ``avoid_side='away'``: a corridor hit this close (m) to the centre line has no side; the
+blend turns toward the target's."""
+
+
 def is_article_robot(scene: Any) -> bool:
     """Whether ``scene`` drives the robot the navigator's defaults were tuned for: the shipped
     URDF's geometry and Warehouse-v0's action bounds (0.5 m/s, 1.5 rad/s)."""
@@ -199,7 +214,8 @@ def fit_to_robot(config: NavigatorConfig, scene: Any) -> NavigatorConfig:
     geometry = scene.geometry
     (_, v_max), (_, w_max) = scene.command_limits
     controller = replace(config.controller, max_speed=float(v_max), max_turn_rate=float(w_max), outline_clearance=True,
-                         brake_decel=FIT_BRAKE_DECEL, near_range=FIT_NEAR_RANGE, safety_distance=0.3, side_margin=0.1)
+                         brake_decel=FIT_BRAKE_DECEL, near_range=FIT_NEAR_RANGE, safety_distance=0.3, side_margin=0.1,
+                         avoid_side="away")
     narrow = geometry.half_width + NARROW_MARGIN
     inflation = geometry.radius if config.inflation is None else config.inflation
     return replace(config, controller=controller, resolution=min(config.resolution, 0.1),
@@ -302,7 +318,7 @@ class GoToGoal:
         desired = error
         if ahead < cfg.safety_distance:
             weight = 1.0 - max(ahead, 0.0) / cfg.safety_distance
-            side = math.pi / 2 if float(ranges[self.left].mean()) >= float(ranges[self.right].mean()) else -math.pi / 2
+            side = self._avoid_side(ranges, error)
             desired = (1.0 - weight) * error + weight * side
         side_clear = clear[self.sides]
         i = int(np.argmin(side_clear))
@@ -386,13 +402,30 @@ class GoToGoal:
         return False
 
 
-    def _corridor(self, ranges: np.ndarray) -> float:
-        """Free length (m) ahead of the robot's nose of the corridor its width plus
-        ``corridor_margin`` each side sweeps straight ahead (inf when nothing is in it)."""
+    def _avoid_side(self, ranges: np.ndarray, error: float) -> float:
+        """The heading (rad, +-pi/2) the avoidance blend turns toward (``avoid_side``)."""
+        if self.config.avoid_side == "away" and self.config.brake_decel is not None:
+            hit = self._corridor_hit(ranges)
+            if hit is not None:
+                lateral = hit[1] if abs(hit[1]) > CENTRE_BAND else -error
+                return -math.copysign(math.pi / 2, lateral)
+        return math.pi / 2 if float(ranges[self.left].mean()) >= float(ranges[self.right].mean()) else -math.pi / 2
+
+    def _corridor_hit(self, ranges: np.ndarray) -> tuple[float, float] | None:
+        """The nearest lidar hit (body frame, m) in the corridor :meth:`_corridor` measures, or None."""
         x = self.offset + ranges * self.cos
         y = ranges * self.sin
         inside = (np.abs(y) <= self.half_width + self.config.corridor_margin) & (x > 0.0)
-        return float(x[inside].min()) - self.nose if inside.any() else math.inf
+        if not inside.any():
+            return None
+        i = int(np.flatnonzero(inside)[np.argmin(x[inside])])
+        return float(x[i]), float(y[i])
+
+    def _corridor(self, ranges: np.ndarray) -> float:
+        """Free length (m) ahead of the robot's nose of the corridor its width plus
+        ``corridor_margin`` each side sweeps straight ahead (inf when nothing is in it)."""
+        hit = self._corridor_hit(ranges)
+        return math.inf if hit is None else hit[0] - self.nose
 
     def _braking_speed(self, ahead: float, clear: np.ndarray) -> float:
         """Top speed that can still stop ``stop_distance`` short of what is ``ahead`` in the
