@@ -339,7 +339,7 @@ class GoToGoal:
         if v < 0.05 and abs(w) < 0.5:  # blocked with the blends cancelling: turn toward more room
             w = 0.8 if float(ranges[self.left].mean()) >= float(ranges[self.right].mean()) else -0.8
         if cfg.outline_clearance and v < cfg.crawl_speed and w != 0.0:
-            v, w = self._guard_turn(ranges, v, w, ahead)
+            v, w = self._guard_turn(ranges, v, w, ahead, error)
             if w != 0.0 and self._rolls_into(ranges, w, v_now, dt):
                 return 0.0, 0.0  # the turn, made while the robot still rolls on, would hit: stop straight first
         return v, w
@@ -356,16 +356,22 @@ class GoToGoal:
         roll = v_now * dt + v_now * t - 0.5 * decel * t * t
         return self._turn_hits(self._near_points(ranges, roll), math.copysign(1.0, w), roll)
 
-    def _guard_turn(self, ranges: np.ndarray, v: float, w: float, ahead: float) -> tuple[float, float]:
+    def _guard_turn(self, ranges: np.ndarray, v: float, w: float, ahead: float, error: float = 0.0
+                    ) -> tuple[float, float]:
         """A slow turn with lidar hits within its corners' reach turns at most ``TURN_GUARD_RATE``;
         one whose corners would swing into a hit within ``TURN_GUARD_RAD`` becomes the turn the
-        other way, else a crawl straight ahead (room permitting), else a stop."""
+        other way, else a crawl straight ahead (room permitting), else a stop. A turn the other
+        way with the target ``error`` rad off, at least :data:`TURN_FIRST_RAD`, goes on as
+        :meth:`turn_first`'s turn until the robot faces the target: turned back at each step as
+        the corners clear, it rocked in place (BARN training world 271, seed 7100000)."""
         points = self._near_points(ranges)
         if len(points):  # something within the corners' reach: turn no faster than TURN_GUARD_RATE
             w = max(-TURN_GUARD_RATE, min(TURN_GUARD_RATE, w))
         if not self._turn_hits(points, math.copysign(1.0, w)):
             return v, w
         if not self._turn_hits(points, -math.copysign(1.0, w)):
+            if abs(error) >= TURN_FIRST_RAD:
+                self._turning = -math.copysign(1.0, w)
             return v, -w
         if ahead > self.config.stop_distance + 0.05:
             return self.config.crawl_speed / 2, 0.0
