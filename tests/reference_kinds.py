@@ -161,6 +161,8 @@ KINDS: dict[str, str] = {
     "test_benchmark.py::test_tiny_results_are_the_committed_ones_at_1_and_2_workers": "golden",
     # the resumed rows against the committed tiny-suite rows
     "test_benchmark.py::test_an_interrupted_run_resumes_without_rerunning": "golden",
+    # rows resumed at a stubbed second commit: the committed rows, and each commit's rows counted by hand
+    "test_benchmark.py::test_a_run_resumed_at_another_commit_names_both_in_results_and_report": "golden",
     # the printed rows against the committed tiny-suite rows
     "test_benchmark.py::test_cli_prints_the_headline_and_writes_the_report": "golden",
     "test_benchmark.py::test_an_out_folder_with_results_is_refused_and_force_starts_afresh": "golden",

@@ -245,6 +245,36 @@ def test_an_interrupted_run_resumes_without_rerunning(tiny_one, tmp_path):
 
 
 @pytest.mark.slow
+def test_a_run_resumed_at_another_commit_names_both_in_results_and_report(tiny_one, tmp_path, monkeypatch):
+    """Rows carry the checkout that ran them (in ``episodes.jsonl``, not in the results' rows, which
+    stay the committed ones); a run resumed at another commit counts each commit's rows per
+    controller, and the report says the rows come from more than one checkout."""
+    import bulletnav.benchmark.runner as runner
+    from bulletnav.benchmark.report import write_report
+
+    _, done = tiny_one
+    out = tmp_path / "mixed"
+    out.mkdir()
+    shutil.copy(done / "suite.json", out / "suite.json")
+    old = [json.loads(line) for line in (done / "episodes.jsonl").read_text().splitlines()]
+    kept = [dict(r, commit="a" * 40) for r in old if r["controller"] == "PID"][:3]  # three rows "from" commit a
+    (out / "episodes.jsonl").write_text("".join(json.dumps(r) + "\n" for r in kept))
+    monkeypatch.setattr(runner, "git_commit", lambda: "b" * 40 + "-dirty")
+    results = run_suite(load_suite(str(TINY)), out, workers=1, resume=True)
+    written = json.loads((out / "results.json").read_text())
+    assert written["episodes"] == json.loads(GOLDEN.read_text())["episodes"]  # no commit in the results' rows
+    assert results["provenance"]["row_commits"] == {"PID": {"a" * 40: 3, "b" * 40 + "-dirty": 1},
+                                                   "PPO + shield": {"b" * 40 + "-dirty": 4}}
+    stamped = [json.loads(line)["commit"] for line in (out / "episodes.jsonl").read_text().splitlines()]
+    assert stamped == ["a" * 40] * 3 + ["b" * 40 + "-dirty"] * 5
+    page = write_report(results, out / "report.html").read_text()
+    assert "more than one checkout" in page and "aaaaaaaaaaaa</code>: PID (3)" in page
+    assert "bbbbbbbbbbbb</code>: PID (1), PPO + shield (4)" in page
+    single = json.loads((done / "results.json").read_text())
+    assert "more than one checkout" not in write_report(single, tmp_path / "single.html").read_text()
+
+
+@pytest.mark.slow
 def test_cli_prints_the_headline_and_writes_the_report(tiny_one, tmp_path, capsys):
     results = json.loads((tiny_one[1] / "results.json").read_text())
     assert main(["benchmark", str(TINY), "--out", str(tmp_path / "cli"), "--json"]) == 0

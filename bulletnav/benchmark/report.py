@@ -449,6 +449,20 @@ def render_report(results: dict[str, Any], results_name: str = "results.json",
     return "\n".join(out)
 
 
+def _mixed_commits(prov: dict[str, Any]) -> str:
+    """A sentence naming the checkouts that ran each controller's rows, where a resumed run
+    mixes several (``provenance.row_commits``); empty where one ran them all."""
+    by_commit: dict[str, list[str]] = {}
+    for controller, counts in (prov.get("row_commits") or {}).items():
+        for commit, n in counts.items():
+            by_commit.setdefault(commit, []).append(f"{controller} ({n})")
+    if len(by_commit) < 2:
+        return ""
+    esc = html.escape
+    parts = "; ".join(f"<code>{esc(commit[:12])}</code>: {esc(', '.join(names))}" for commit, names in by_commit.items())
+    return f" The rows come from more than one checkout: {parts}."
+
+
 def _page_head(results: dict[str, Any], results_name: str, controllers: list[str], worlds: list[dict[str, Any]],
                barn: list[dict[str, Any]]) -> list[str]:
     """The page's lines up to its tab list: title, the run's provenance and one tab per view
@@ -466,7 +480,7 @@ def _page_head(results: dict[str, Any], results_name: str, controllers: list[str
            f"Commit {esc(str(prov.get('git_commit', '?'))[:12])}{' (dirty)' if prov.get('dirty') else ''}, "
            f"{esc(str(prov.get('machine', '?')))}, {prov.get('workers', '?')} workers, "
            f"{prov.get('wall_time_s', '?')} s. Raw data: <a href='{esc(results_name)}'>{esc(results_name)}</a>. "
-           f"Command: {command_html(str(prov.get('command', '')))}</p>",
+           f"Command: {command_html(str(prov.get('command', '')))}{_mixed_commits(prov)}</p>",
            "<div role=tablist aria-label='Benchmark views'>",
            "<button role=tab id=tab-headline aria-controls=panel-headline aria-selected=true>Headline</button>"]
     for i, w in enumerate(worlds):

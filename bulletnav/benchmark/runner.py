@@ -32,6 +32,7 @@ from bulletnav.benchmark.suite import (
 )
 from bulletnav.errors import BulletnavError
 from bulletnav.limits import inside
+from bulletnav.provenance import git_commit
 from bulletnav.runs import PROJECT_ROOT, RowLog, reopen_rows, run_in_pool, run_provenance, write_strict_json
 
 log = logging.getLogger(__name__)
@@ -273,7 +274,11 @@ def run_suite(suite: Suite, out: Path, workers: int = 1, address: str | None = N
         chunks = [chunk for chunk in chunks if names[chunk[1]] in controllers]
         total = len(rows) + sum(len(eps) for _, _, eps in chunks)
     t0 = time.perf_counter()
-    with RowLog(log_path, rows, total, progress) as keep:
+    commit = git_commit()
+    with RowLog(log_path, rows, total, progress) as keep_rows:
+        def keep(new: list[dict[str, Any]]) -> None:  # each row names the checkout that ran it
+            keep_rows([{**row, "commit": commit} for row in new])
+
         if address:
             _run_ray(suite, root, chunks, address, keep)
         elif workers == 1:
@@ -287,8 +292,28 @@ def run_suite(suite: Suite, out: Path, workers: int = 1, address: str | None = N
             run_in_pool([(_run_in_process, (suite, str(root), w, c, eps)) for w, c, eps in chunks], workers, keep)
     results = build_results(suite, rows, root)
     results["provenance"] = run_provenance(time.perf_counter() - t0, workers, address)
+    results["provenance"]["row_commits"] = row_commits(suite, rows)
     write_strict_json(results_path, results)
     return results
+
+
+def row_commits(suite: Suite, rows: list[dict[str, Any]]) -> dict[str, dict[str, int]]:
+    """How many of each controller's rows (those :func:`build_results` keeps) each checkout ran:
+    the ``commit`` a run stamps on the rows it adds to ``episodes.jsonl``, as
+    :func:`~bulletnav.provenance.git_commit` gives it (``-dirty`` included). A run resumed at
+    another commit mixes them, and the results say so; rows written before rows carried their
+    commit count under ``"unrecorded"``. (The results' own rows leave the commit out, so a rerun
+    at another commit gives the same rows.)"""
+    worlds = {w.name for w in suite.worlds}
+    controllers = [c.name for c in suite.controllers]
+    unique = {cell_key(r["world"], r["controller"], r["episode"]): r for r in rows
+              if r["world"] in worlds and r["controller"] in controllers}
+    counts: dict[str, dict[str, int]] = {}
+    for row in unique.values():
+        cell = counts.setdefault(row["controller"], {})
+        commit = str(row.get("commit") or "unrecorded")
+        cell[commit] = cell.get(commit, 0) + 1
+    return {c: counts[c] for c in controllers if c in counts}
 
 
 def _run_ray(suite: Suite, root: Path, chunks: list, address: str, keep: Callable) -> None:
@@ -337,7 +362,8 @@ def build_results(suite: Suite, rows: list[dict[str, Any]], root: Path = PROJECT
     replay command."""
     order_w = {w.name: i for i, w in enumerate(suite.worlds)}
     order_c = {c.name: i for i, c in enumerate(suite.controllers)}
-    keep = [r for r in rows if r["world"] in order_w and r["controller"] in order_c]
+    keep = [{k: v for k, v in r.items() if k != "commit"} for r in rows
+            if r["world"] in order_w and r["controller"] in order_c]
     unique = {cell_key(r["world"], r["controller"], r["episode"]): r for r in keep}
     ordered = sorted(unique.values(), key=lambda r: (order_w[r["world"]], order_c[r["controller"]], r["episode"]))
     cells = []
