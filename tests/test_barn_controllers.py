@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 
 import gymnasium as gym
 import numpy as np
@@ -119,6 +120,64 @@ def test_pid_astar_no_longer_turns_into_a_cylinder_while_rolling(world):
         assert result.success and not result.collision
     finally:
         env.close()
+
+
+def _wall_scan(angles: np.ndarray, y: float) -> np.ndarray:
+    """Ranges from the lidar at (LIDAR_X, 0) to the line y = ``y`` (a wall beside the robot), else 30 m."""
+    sin = np.sin(angles)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(sin * y > 0, y / sin, 30.0)
+    return np.minimum(t, 30.0)
+
+
+def test_the_avoidance_blend_turns_away_from_the_cylinder_in_the_way_not_toward_the_far_side(barn):
+    """A cylinder 0.6 m ahead, its centre 0.12 m left of the axis (its nearest hits inside the
+    corridor the Jackal's width sweeps), and a wall 0.6 m to the right: the rays on the right read
+    short, so the article robot's rule (toward the side whose rays read farther) turns left, into
+    the cylinder's side; the fitted Jackal (``avoid_side='away'``) turns right, away from it. The
+    target dead ahead leaves the blend alone to decide (BARN test worlds 126 and 276, where the
+    rule turned the robot onto the cylinder it was avoiding)."""
+    scene = barn.unwrapped.scene
+    angles = scene.sensors.lidar.angles
+    scan = np.minimum(_cylinder_scan(angles, (0.6, 0.12)), _wall_scan(angles, -0.6))
+    away = fit_to_robot(NavigatorConfig(), scene).controller
+    assert away.avoid_side == "away"
+    room = replace(away, avoid_side="room")
+    args = ((0.0, 0.0, 0.0), (10.0, 0.0), scan, scene.control_dt, 10.0)
+    assert GoToGoal(away, angles, scene.geometry)._corridor_hit(scan)[1] > 0.05  # the nearest hit: left of centre
+    assert GoToGoal(away, angles, scene.geometry).command(*args)[1] < 0.0  # away: right
+    assert GoToGoal(room, angles, scene.geometry).command(*args)[1] > 0.0  # toward the longer rays: left
+    # a cylinder on the centre line has no side: the blend turns toward the target's
+    centred = _cylinder_scan(angles, (0.6, 0.0))
+    for target, sign in (((10.0, 1.0), 1.0), ((10.0, -1.0), -1.0)):
+        w = GoToGoal(away, angles, scene.geometry).command((0.0, 0.0, 0.0), target, centred, scene.control_dt, 10.0)[1]
+        assert math.copysign(1.0, w) == sign
+    with pytest.raises(ValueError, match="avoid_side"):
+        replace(away, avoid_side="left")
+
+
+def test_a_guarded_turn_sent_the_long_way_round_goes_on_until_the_robot_faces_the_target(barn):
+    """A cylinder at 0.4 m, 25 degrees left, blocks the clockwise turn (the front-left corner swings
+    onto it) and not the counter-clockwise one. Asked to turn clockwise toward a target 2 rad off,
+    the guard turns the other way and keeps turning that way as turn_first's turn, even once the
+    cylinder is gone and clockwise is clear again: turned back at each step as the corners
+    cleared, the robot rocked in place (BARN training world 271). A target under TURN_FIRST_RAD
+    off is not committed to."""
+    scene = barn.unwrapped.scene
+    angles = scene.sensors.lidar.angles
+    cfg = fit_to_robot(NavigatorConfig(), scene).controller
+    blocked = _cylinder_scan(angles, (0.4 * math.cos(math.radians(25)), 0.4 * math.sin(math.radians(25))))
+    clear = np.full(len(angles), 30.0)
+    ctrl = GoToGoal(cfg, angles, scene.geometry)
+    points = ctrl._near_points(blocked)
+    assert ctrl._turn_hits(points, -1.0) and not ctrl._turn_hits(points, 1.0)
+    v, w = ctrl._guard_turn(blocked, 0.05, -1.0, ahead=0.7, error=-2.0)
+    assert w == 1.0 and ctrl._turning == 1.0
+    behind_right = (-1.0, -1.5)  # 2.16 rad clockwise of the heading
+    assert ctrl.turn_first((0.0, 0.0, 0.0), behind_right, clear)[1] > 0.0  # still the long way round
+    assert GoToGoal(cfg, angles, scene.geometry).turn_first((0.0, 0.0, 0.0), behind_right, clear) is None
+    small = GoToGoal(cfg, angles, scene.geometry)
+    assert small._guard_turn(blocked, 0.05, -1.0, ahead=0.7, error=-0.5)[1] == 1.0 and small._turning == 0.0
 
 
 def _cylinder_scan(angles: np.ndarray, centre: tuple[float, float], radius: float = 0.075) -> np.ndarray:
