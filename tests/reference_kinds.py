@@ -86,8 +86,10 @@ KINDS: dict[str, str] = {
     "test_barn_controllers.py::test_turn_guard_swings_the_jackals_corners_by_hand": "hand",  # a corner's swing worked by hand
     "test_barn_controllers.py::test_a_turn_made_while_rolling_is_checked_along_the_roll": "hand",
     "test_barn_controllers.py::test_pid_astar_no_longer_turns_into_a_cylinder_while_rolling": "golden",
-    "test_barn_controllers.py::test_the_avoidance_blend_turns_away_from_the_cylinder_in_the_way_not_toward_the_far_side": "formula",  # ray-circle, ray-line scans
-    "test_barn_controllers.py::test_a_guarded_turn_sent_the_long_way_round_goes_on_until_the_robot_faces_the_target": "hand",  # the corner swing above
+    # scans by ray-circle and ray-line intersection
+    "test_barn_controllers.py::test_the_avoidance_blend_turns_away_from_the_cylinder_in_the_way_not_toward_the_far_side": "formula",
+    # the corner's swing worked out for the cylinder
+    "test_barn_controllers.py::test_a_guarded_turn_sent_the_long_way_round_goes_on_until_the_robot_faces_the_target": "hand",
     "test_barn_controllers.py::test_shield_stops_the_jackal_by_its_own_sweep": "formula",  # stop sweep and ray-circle scan
     "test_barn_controllers.py::test_shielded_jackal_at_full_speed_keeps_its_outline_off_a_wall": "formula",  # corners vs wall
     "test_barn_controllers.py::test_navigate_world_idx_drives_a_barn_training_world": "hand",  # 4 t_opt of BARN's score
