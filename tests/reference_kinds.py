@@ -425,6 +425,10 @@ KINDS: dict[str, str] = {
     "test_fleet_viz.py::test_comparison_table_leaves_out_the_rate_of_a_run_too_short": "hand",
     # ---- test_kinematic_kernels.py
     # every ray against every shape by the numpy ExactCaster (no culling, no shared arithmetic code)
+    # the grid walk against the culled caster (bits) and the numpy caster that tests every shape
+    "test_kinematic_kernels.py::test_grid_casts_are_the_culled_casts_to_the_bit_and_every_ray_against_every_shape": "formula",
+    # the grid's cells against shapely's predicates, its leap distances against scipy's transform
+    "test_kinematic_kernels.py::test_grid_lists_each_shape_where_it_lies_and_its_empty_distance_is_scipys": "library",
     "test_kinematic_kernels.py::test_culled_level_casts_equal_every_ray_against_every_shape": "formula",
     "test_kinematic_kernels.py::test_level_caster_refuses_uneven_fans_and_unknown_shapes": "contract",
     "test_kinematic_kernels.py::test_contact_test_agrees_with_shapely_distances": "library",

@@ -56,6 +56,83 @@ def test_culled_level_casts_equal_every_ray_against_every_shape(seed: int) -> No
     assert worst < 1e-9
 
 
+def _dense_scene(rng: np.random.Generator) -> list[Primitive]:
+    """Up to 300 shapes, many of them small cylinders packed as in a BARN world, with long walls round them."""
+    prims = []
+    for _ in range(int(rng.integers(1, 300))):
+        if rng.random() < 0.7:
+            r = rng.uniform(0.03, 0.5) if rng.random() < 0.3 else 0.075
+            prims.append(Primitive("cylinder", (rng.uniform(-3, 3), rng.uniform(-3, 3), rng.uniform(0.1, 1.0)),
+                                   (r, r, rng.uniform(0.05, 1.0))))
+        else:
+            prims.append(Primitive("box", (rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(0.1, 1.0)),
+                                   (rng.uniform(0.02, 3.0), rng.uniform(0.02, 3.0), rng.uniform(0.05, 1.0)),
+                                   rng.uniform(-4, 4)))
+    walls = [((0.0, 15.0), (5.0, 0.1)), ((0.0, -15.0), (5.0, 0.1)), ((5.0, 0.0), (0.1, 15.0)), ((-5.0, 0.0), (0.1, 15.0))]
+    return prims + [Primitive("box", (x, y, 0.5), (hx, hy, 0.5)) for (x, y), (hx, hy) in walls]
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_grid_casts_are_the_culled_casts_to_the_bit_and_every_ray_against_every_shape(seed: int) -> None:
+    """The grid walk (cast_grid) stops at the first cell whose far side lies beyond the nearest
+    hit, and leaps through empty cells: its distances must be the culled caster's to the bit
+    and the numpy reference's within rounding, rays starting inside shapes, outside the grid and
+    beyond the walls included."""
+    rng = np.random.default_rng(200 + seed)
+    worst, hits = 0.0, 0
+    for _ in range(40):
+        prims = _dense_scene(rng)
+        n = int(rng.choice([1, 5, 72, 720]))
+        angles = ray_angles(n, float(rng.choice([360.0, 270.0])))
+        grid, culled = LevelCaster(prims, angles, grid=True), LevelCaster(prims, angles, grid=False)
+        for _ in range(5):
+            origin = (rng.uniform(-7, 7), rng.uniform(-17, 17), rng.uniform(0.05, 1.2))
+            yaw, length = rng.uniform(-7, 7), float(rng.choice([2.0, 30.0]))
+            got = grid.cast(origin, yaw, length, np.full(n, np.inf))
+            assert np.array_equal(np.minimum(got / length, 1.0),
+                                  np.minimum(culled.cast(origin, yaw, length, np.full(n, np.inf)) / length, 1.0))
+            a = angles + yaw
+            ref = ExactCaster(prims).cast(np.array(origin), np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], 1), length)
+            got[got > length] = np.inf
+            assert np.array_equal(np.isfinite(ref), np.isfinite(got))
+            both = np.isfinite(ref)
+            hits += int(both.sum())
+            if both.any():
+                worst = max(worst, float(np.abs(ref[both] - got[both]).max()))
+    assert hits > 2000
+    assert worst < 1e-9
+
+
+def test_grid_lists_each_shape_where_it_lies_and_its_empty_distance_is_scipys() -> None:
+    """The grid's cells against shapely (a cell lists a shape exactly where the shape's bounding
+    box meets it) and its leap distances against scipy's chessboard distance transform."""
+    from scipy.ndimage import distance_transform_cdt
+
+    rng = np.random.default_rng(7)
+    prims = _dense_scene(rng)
+    caster = LevelCaster(prims, ray_angles(8, 360.0), grid=True)
+    gx, gy, cell, nx, ny, starts, items, empty = caster._grid
+    shapes = [("box", b) for b in caster._boxes] + [("cylinder", c) for c in caster._cyls]
+    ix, iy = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+    squares = shapely.box(gx + ix.ravel() * cell, gy + iy.ravel() * cell, gx + (ix.ravel() + 1) * cell,
+                          gy + (iy.ravel() + 1) * cell)  # cell ix * ny + iy
+    member = np.zeros((len(shapes), nx * ny), dtype=bool)
+    member[items, np.repeat(np.arange(nx * ny), np.diff(starts))] = True
+    for j, (kind, sh) in enumerate(shapes):
+        if kind == "box":
+            c, s_ = abs(sh[2]), abs(sh[3])
+            ex, ey = c * sh[4] + s_ * sh[5], s_ * sh[4] + c * sh[5]
+        else:
+            ex = ey = sh[2]
+        bounds = shapely.box(sh[0] - ex, sh[1] - ey, sh[0] + ex, sh[1] + ey)
+        listed = member[j]
+        overlap = shapely.intersects(squares, bounds) & ~shapely.touches(squares, bounds)  # interiors meet
+        assert np.all(listed[overlap])  # overlapping: listed (cells that only touch it may go either way)
+        assert not np.any(listed[~shapely.dwithin(squares, bounds, 1e-5)])
+    listed = (starts[1:] > starts[:-1]).reshape(nx, ny)
+    assert np.array_equal(empty.reshape(nx, ny), distance_transform_cdt(~listed, metric="chessboard"))
+
+
 def test_level_caster_refuses_uneven_fans_and_unknown_shapes() -> None:
     with pytest.raises(ValueError, match="evenly spaced"):
         LevelCaster([], np.array([0.0, 0.1, 0.5]))

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from bulletnav.sim.kinematic_kernels import cast_level
+from bulletnav.sim.kinematic_kernels import cast_grid, cast_level, shape_grid
 from bulletnav.sim.world import Primitive
 
 
@@ -138,16 +138,20 @@ class ExactCaster:
 class LevelCaster:
     """Nearest hits of a fixed fan of level rays against boxes and cylinders, compiled
     (:func:`bulletnav.sim.kinematic_kernels.cast_level`): each shape is tested only against the
-    rays inside the angle it subtends, so a scan costs what the shapes cover. The same
+    rays inside the angle it subtends, so a scan costs what the shapes cover; with many shapes
+    (:data:`GRID_MIN_SHAPES`) each ray walks a grid of them instead
+    (:func:`~bulletnav.sim.kinematic_kernels.cast_grid`), the same distances to the bit. The same
     intersections as :class:`ExactCaster` (within rounding) for rays with no vertical part,
     as a lidar that never tilts casts (the kinematic profile's).
 
     Args:
         primitives: the shapes (world frame); planes are never hit by a level ray above them.
         angles: the fan's ray angles (rad from the heading), evenly spaced (:func:`bulletnav.sensors.lidar.ray_angles`).
+        grid: walk a grid of the shapes (True), test them by angle (False), or choose by their
+            number (None, :data:`GRID_MIN_SHAPES`).
     """
 
-    def __init__(self, primitives: Sequence[Primitive], angles: np.ndarray) -> None:
+    def __init__(self, primitives: Sequence[Primitive], angles: np.ndarray, grid: bool | None = None) -> None:
         unknown = {s.kind for s in primitives} - {"box", "cylinder", "plane"}
         if unknown:
             raise ValueError(f"LevelCaster: cannot cast against {', '.join(sorted(unknown))}")
@@ -165,6 +169,10 @@ class LevelCaster:
         self._da = float(steps[0]) if len(steps) else 2 * np.pi
         if len(steps) and (self._da <= 0 or np.max(np.abs(steps - self._da)) > 1e-9):
             raise ValueError("LevelCaster: the ray angles must be evenly spaced, counter-clockwise")
+        if grid is None:
+            grid = len(self._boxes) + len(self._cyls) >= GRID_MIN_SHAPES
+        self._grid = (shape_grid(self._boxes, self._cyls, GRID_CELL_MIN, GRID_CELL_MAX, GRID_CELLS_MAX)
+                      if grid and len(self._boxes) + len(self._cyls) else None)
 
     def cast(self, origin: tuple[float, float, float], yaw: float, length: float, out: np.ndarray) -> np.ndarray:
         """Lower ``out`` (one entry a ray, ``inf`` for none yet) to each ray's distance to its
@@ -174,6 +182,25 @@ class LevelCaster:
         if any(z <= h for h in self._planes):  # at or under a floor: every ray starts in it
             out[:] = 0.0
             return out
-        cast_level(float(x), float(y), float(z), float(yaw), self._cos, self._sin, self._a0, self._da,
-                   self._boxes, self._cyls, float(length), out)
+        if self._grid is not None:
+            gx, gy, cell, nx, ny, starts, items, empty = self._grid
+            cast_grid(float(x), float(y), float(z), float(yaw), self._cos, self._sin, self._boxes, self._cyls,
+                      gx, gy, cell, nx, ny, starts, items, empty, float(length), out)
+        else:
+            cast_level(float(x), float(y), float(z), float(yaw), self._cos, self._sin, self._a0, self._da,
+                       self._boxes, self._cyls, float(length), out)
         return out
+
+
+GRID_MIN_SHAPES = 64
+"""A :class:`LevelCaster` of at least this many shapes casts through a grid of them
+(:func:`~bulletnav.sim.kinematic_kernels.cast_grid`; a BARN world's 237 cylinders: each ray
+tests the few in the cells it crosses); fewer (a warehouse's racks and walls, a set of movers)
+are tested shape by shape within the angle each subtends."""
+GRID_CELLS_MAX = 65536
+"""The most cells a shape grid has (its cells grow to keep within this)."""
+GRID_CELL_MIN, GRID_CELL_MAX = 0.2, 2.0
+"""The range (m) of a shape grid's cell size: four times the median shape's smaller half extent
+(:func:`~bulletnav.sim.kinematic_kernels.shape_grid`; 0.3 m among BARN's cylinders)."""
+
+
