@@ -98,7 +98,7 @@ class Lidar(VectorSensor):
         """Whether the scans see movers and event bodies (PyBullet's rays, or a kinematic world's shapes)."""
         return self._shapes is not None or self.config.caster == "bullet"
 
-    def _shape_fractions(self, shapes: ShapeSource) -> list[float]:
+    def _shape_fractions(self, shapes: ShapeSource) -> np.ndarray:
         versions = shapes.shape_versions
         if versions != self._versions:
             static, moving = self._casters
@@ -115,12 +115,12 @@ class Lidar(VectorSensor):
         static.cast((x, y, z), yaw, max_range, t)
         if moving is not None:
             moving.cast((x, y, z), yaw, max_range, t)
-        return np.minimum(t / max_range, 1.0).tolist()
+        return np.minimum(t / max_range, 1.0)
 
     def _fractions(self) -> list[float]:
         """Hit fraction of each ray in [0, 1] (1 = nothing within ``max_range``)."""
         if self._shapes is not None:
-            return self._shape_fractions(self._shapes)
+            return self._shape_fractions(self._shapes).tolist()
         if self.config.caster == "bullet":
             return [r[2] for r in self._rays()]
         if self._caster is None:
@@ -141,6 +141,8 @@ class Lidar(VectorSensor):
 
     def cast(self) -> np.ndarray:
         """Hit fractions of the rays in [0, 1] (1 = nothing within ``max_range``), noise-free."""
+        if self._shapes is not None:
+            return self._shape_fractions(self._shapes)
         return np.array(self._fractions())
 
     def measure_floats(self) -> list[float]:
@@ -152,8 +154,9 @@ class Lidar(VectorSensor):
                 ranges += self.rng.normal(0.0, std, ranges.shape)
             if self.dropout > 0:
                 ranges[self.rng.random(ranges.shape) < self.dropout] = cfg.max_range
-            np.clip(ranges, cfg.min_range, cfg.max_range, out=ranges)
-            return float32_list(ranges.tolist())
+            np.maximum(ranges, cfg.min_range, out=ranges)  # np.clip's bounds, without its wrapper's cost
+            np.minimum(ranges, cfg.max_range, out=ranges)
+            return ranges.astype(np.float32).tolist()  # float32_list's rounding
         # Noise-free (the default, once per step): the double products rounded to float32.
         max_range = cfg.max_range
         ranges = float32_list([f * max_range for f in self._fractions()])
