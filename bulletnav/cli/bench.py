@@ -230,8 +230,40 @@ def _live(args: argparse.Namespace) -> tuple[dict, list[str]]:
     return result, lines
 
 
+def _kinematic(args: argparse.Namespace) -> tuple[dict, list[str]]:
+    """``kinematic``: the kinematic profile beside full physics (scans, manoeuvres, contacts, outcomes)."""
+    from pathlib import Path
+
+    from bulletnav.bench.kinematic_bench import bench_kinematic
+
+    out = Path(args.out or "runs/bench-kinematic-pair")
+    result = bench_kinematic(out, seeds=range(args.seed, args.seed + (args.episodes or 20)), workers=args.workers)
+    lines = ["scans (same seeded reset, noise off): source, rays, share within 1 cm, p99 and largest difference (m)"]
+    lines += [f"  {r['source']:11s} {r['rays']:7d} {r['within_1cm']:8.4f} {r['p99_m']:8.4f} {r['max_m']:8.4f}"
+              for r in result["scans"]]
+    def pct(value: float | None) -> str:
+        return "-" if value is None else f"{value:.2f} %"
+
+    lines.append("manoeuvres: end point error against full physics, m (% of the distance), heading error rad "
+                 "(% of the turn): fast | kinematic")
+    lines += [f"  {r['robot']:8s} {r['manoeuvre']:16s} "
+              + " | ".join(f"{r[k]['end_error_m']:.4f} ({pct(r[k]['end_error_pct'])}) {r[k]['heading_error_rad']:.4f} "
+                           f"({pct(r[k]['heading_error_pct'])})" for k in ("fast", "kinematic"))
+              for r in result["manoeuvres"]]
+    lines.append("contacts: first contact step default / fast / kinematic; nose past the face (m), kinematic")
+    lines += [f"  {r['target']:14s} {r['default']['first_contact_step']} / {r['fast']['first_contact_step']} / "
+              f"{r['kinematic']['first_contact_step']}; {r['kinematic']['nose_past_face_m']:+.4f}" for r in result["contacts"]]
+    o = result["outcomes"]
+    lines.append(f"outcomes ({o['suite']}, rows in {o['out']}): success and collisions default -> kinematic, same outcome")
+    lines += [f"  {p['world']:10s} {p['controller']:9s} {100 * p['default']['success']:5.1f} % -> "
+              f"{100 * p['kinematic']['success']:5.1f} %, {100 * p['default']['collision']:5.1f} % -> "
+              f"{100 * p['kinematic']['collision']:5.1f} %, same {100 * p['same_outcome']:5.1f} %" for p in o["pairs"]]
+    lines.append(f"  same outcome overall: {100 * o['same_outcome_overall']:.1f} %")
+    return result, lines
+
+
 BENCHES = {"env": _env, "physics": _physics, "planners": _planners, "gui": _gui, "shield": _shield, "fleet": _fleet,
-           "live": _live}
+           "live": _live, "kinematic": _kinematic}
 """``bench WHAT``'s benchmarks, in the order ``--help`` lists them: each returns ``(record, table lines)``."""
 
 
@@ -257,9 +289,12 @@ def register(sub) -> None:
                             "shield's decision time per step against the env step (default env WarehouseDynamic-v0); fleet: wall "
                             "time per control step at 1, 2, 4, 8, 16 robots, each on PID + A* (default 480 steps); "
                             "live: what --live costs an unpaced navigate run, with no client and with one subscribed to "
-                            "everything (--episodes per round, default 4; --rounds, default 5)")
+                            "everything (--episodes per round, default 4; --rounds, default 5); kinematic: the kinematic "
+                            "profile beside full physics, scans, manoeuvres, contacts and the kinematic-pair suite's "
+                            "outcomes (docs/performance/kinematic.md)")
     bench.add_argument("--episodes", type=COUNT, default=None,
-                       help="navigation episodes per planner (planners, default 50); per variant and round (live, default 4)")
+                       help="navigation episodes per planner (planners, default 50); per variant and round (live, "
+                            "default 4); seeded resets per world source whose scans are compared (kinematic, default 20)")
     bench.add_argument("--json", action="store_true", help="print one JSON object")
     bench.add_argument("--steps", type=NON_NEGATIVE, default=0, help="steps to time (default: the benchmark's own)")
     bench.add_argument("--seed", type=SEED, default=0, help="random seed (default 0)")
@@ -288,4 +323,8 @@ def register(sub) -> None:
                             "(default 240,120,96,48)")
     bench.add_argument("--policy-episodes", type=NON_NEGATIVE, default=200, metavar="N",
                        help="physics: the policy's episodes at each rate, seeds 1000000.. (default 200; 0 skips it)")
+    bench.add_argument("--out", default=None, metavar="DIR",
+                       help="kinematic: the folder of the kinematic-pair suite's rows, resumed when it holds some "
+                            "(default runs/bench-kinematic-pair)")
+    bench.add_argument("--workers", type=COUNT, default=1, help="kinematic: worker processes of the suite run (default 1)")
     bench.set_defaults(func=cmd_bench)
