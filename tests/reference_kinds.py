@@ -119,6 +119,7 @@ KINDS: dict[str, str] = {
     # the DWA row's line against the one BARN's own report_test.py printed on the same rows (run by hand)
     "test_barn_benchmark.py::test_dwa_row_is_report_test_pys_summary_of_barns_rows": "library",
     "test_barn_benchmark.py::test_per_world_and_overall_figures_by_hand": "hand",
+    "test_barn_benchmark.py::test_the_barn_tab_shows_each_dwa_runs_success_beside_barns_rows": "contract",
     "test_barn_benchmark.py::test_the_plot_is_written": "hand",  # DWA rows of the same worlds, [0, 6]; the PNG read by Pillow
     "test_barn_benchmark.py::test_barn_score_is_barns_score_with_the_2_t_opt_clip": "hand",
     "test_barn_benchmark.py::test_a_barn_run_scores_its_rows_as_barn_and_reports_them": "formula",  # run.py's score of the row

@@ -221,6 +221,25 @@ def test_the_plot_is_written(tmp_path):
         assert image.format == "PNG" and image.width > 600 and image.height > 300
 
 
+def test_the_barn_tab_shows_each_dwa_runs_success_beside_barns_rows(tmp_path):
+    """A ``dwa`` controller's entry carries its agreement with BARN's DWA rows; the BARN tab shows
+    the per-world success plot of the two beside the agreement table, linked to the PNG written
+    beside the page; a controller of another type gets no such plot."""
+    from bulletnav.benchmark.report import _barn_panel
+
+    rows = [OutRow(0, True, False, False, 30.0), OutRow(6, False, True, False, 5.0)]
+    worlds = [{"name": f"b-{i}", "group": "b", "barn_world": i, "episodes": 1} for i in (0, 6)]
+    bench = [{"world": f"b-{r.world}", "controller": c, "world_idx": r.world, "success": int(r.success),
+              "collision": int(r.collided), "timeout": int(r.timeout), "barn_time_s": r.time_s}
+             for r in rows for c in ("mine", "other")]
+    (section,) = barn_sections(worlds, [{"name": "mine", "type": "dwa"}, {"name": "other", "type": "navigator"}], bench)
+    assert "agreement" in section["controllers"][0] and "agreement" not in section["controllers"][1]
+    pair = plot_success_pair(section, "mine", DWA_NAME, tmp_path / "barn_success_b_0.png")
+    page = "\n".join(_barn_panel(0, section, bench, None, [pair]))
+    assert "href='barn_success_b_0.png'" in page and "data:image/png;base64," in page
+    assert "DWA here against DWA in Gazebo" in page
+
+
 def test_barn_score_is_barns_score_with_the_2_t_opt_clip():
     from bulletnav.benchmark.metrics import METRICS, EpisodeTrace, episode_metrics
     from bulletnav.evaluation import EpisodeResult

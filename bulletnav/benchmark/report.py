@@ -419,10 +419,12 @@ def legend_html(movers: bool) -> str:
 # ------------------------------------------------------------------ the page
 
 def render_report(results: dict[str, Any], results_name: str = "results.json",
-                  draw_layout: DrawLayout | None = None, plots: dict[str, Path] | None = None) -> str:
+                  draw_layout: DrawLayout | None = None, plots: dict[str, Path] | None = None,
+                  pair_plots: dict[str, list[Path]] | None = None) -> str:
     """The HTML page of ``results`` (a ``results.json`` record); ``draw_layout`` draws the maps
     under the pictured paths (None: paths on blank axes); ``plots``: each BARN group's per-world
-    metric plot (a PNG beside the page: shown and linked)."""
+    metric plot (a PNG beside the page: shown and linked); ``pair_plots``: each BARN group's
+    per-world success plots of a DWA run here beside BARN's DWA rows (shown and linked too)."""
     suite = results["suite"]
     worlds = [w for w in suite["worlds"] if not w.get("group")]  # a BARN group's worlds share one tab
     barn = results.get("barn", [])
@@ -441,7 +443,8 @@ def render_report(results: dict[str, Any], results_name: str = "results.json",
     finally:
         scenes.close()
     for i, section in enumerate(barn):  # one tab per BARN group
-        out += _barn_panel(i, section, results["episodes"], (plots or {}).get(section["group"]))
+        out += _barn_panel(i, section, results["episodes"], (plots or {}).get(section["group"]),
+                           (pair_plots or {}).get(section["group"], []))
     esc = html.escape
     definitions = "".join(f"<dt><b>{esc(k)}</b></dt><dd>{esc(v)}</dd>" for k, v in results["metrics"].items())
     out.append(f"<h2>Metrics</h2><dl>{definitions}</dl>")
@@ -640,11 +643,16 @@ def _failure_gallery(w: dict[str, Any], controllers: list[str], rows: dict[tuple
 def write_report(results: dict[str, Any], path: Path, draw_layout: DrawLayout | None = None) -> Path:
     """Write :func:`render_report` to ``path`` atomically (:func:`bulletnav.files.write_bytes`),
     and beside it each BARN group's per-world metric plot, ``barn_metric_<group>.png``
-    (:func:`bulletnav.benchmark.barn.plot_metric`)."""
-    from bulletnav.benchmark.barn import plot_metric
+    (:func:`bulletnav.benchmark.barn.plot_metric`), and for each DWA run here its per-world
+    success beside BARN's DWA rows, ``barn_success_<group>_<k>.png`` (k: its place among the
+    group's controllers; :func:`bulletnav.benchmark.barn.plot_success_pair`)."""
+    from bulletnav.benchmark.barn import DWA_NAME, plot_metric, plot_success_pair
 
-    plots = {s["group"]: plot_metric(s, path.parent / f"barn_metric_{s['group']}.png") for s in results.get("barn", [])}
-    write_bytes(path, render_report(results, draw_layout=draw_layout, plots=plots).encode())
+    sections = results.get("barn", [])
+    plots = {s["group"]: plot_metric(s, path.parent / f"barn_metric_{s['group']}.png") for s in sections}
+    pairs = {s["group"]: [plot_success_pair(s, e["name"], DWA_NAME, path.parent / f"barn_success_{s['group']}_{i}.png")
+                          for i, e in enumerate(s["controllers"]) if e.get("agreement")] for s in sections}
+    write_bytes(path, render_report(results, draw_layout=draw_layout, plots=plots, pair_plots=pairs).encode())
     return path
 
 
@@ -708,8 +716,10 @@ def _barn_agreement(section: dict[str, Any]) -> list[str]:
             "success within 0.3 in 35 of 50 worlds (scaled to the worlds both ran).</p>"]
 
 
-def _barn_panel(i: int, section: dict[str, Any], rows: list[dict[str, Any]], plot: Path | None) -> list[str]:
-    """BARN group ``i``'s tab: the overall table, the per-world plot, each controller's per-world
+def _barn_panel(i: int, section: dict[str, Any], rows: list[dict[str, Any]], plot: Path | None,
+                pair_plots: list[Path] = ()) -> list[str]:
+    """BARN group ``i``'s tab: the overall table, the per-world plots (the metric of every
+    controller, and each DWA run's success beside BARN's DWA rows), each controller's per-world
     table and its failures' replay commands."""
     from bulletnav.benchmark.barn import DWA_NOTE
 
@@ -721,6 +731,12 @@ def _barn_panel(i: int, section: dict[str, Any], rows: list[dict[str, Any]], plo
         out.append(f"<h3>BARN metric per world</h3><figure class=barn-plot><a href='{esc(plot.name, quote=True)}'>"
                    f"<img alt='BARN metric per world of every controller and DWA' src='{uri}'></a>"
                    f"<figcaption>{esc(plot.name)} (click for the file)</figcaption></figure>")
+    for pair in pair_plots:
+        if pair.is_file():
+            uri = "data:image/png;base64," + base64.b64encode(pair.read_bytes()).decode()
+            out.append(f"<figure class=barn-plot><a href='{esc(pair.name, quote=True)}'><img alt='success per world of "
+                       f"a DWA run here beside BARN&#39;s DWA rows' src='{uri}'></a><figcaption>{esc(pair.name)} (click "
+                       "for the file)</figcaption></figure>")
     out.append("<h3>Per world</h3>")
     for entry in section["controllers"]:
         body = "".join(f"<tr><th scope=row>{p['world']}</th><td class=num>{p['runs']}</td>"
