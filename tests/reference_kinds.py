@@ -731,6 +731,8 @@ KINDS: dict[str, str] = {
     "test_report_browser.py::test_report_replay_command_wraps_between_arguments_and_copies_as_one_line": "library",
     # ---- test_reset_kernels.py
     # the array code the kernels replaced
+    # the compiled placement against the plain NumPy loop it replaced, kept in the test
+    "test_reset_kernels.py::test_compiled_warehouse_placement_is_the_python_loops_to_the_bit": "formula",
     "test_reset_kernels.py::test_compiled_footprint_distance_is_the_array_codes_to_the_bit": "formula",
     "test_reset_kernels.py::test_occupancy_and_levels_equal_the_full_clearance_grid": "formula",
     "test_reset_kernels.py::test_compiled_line_of_sight_is_the_array_codes": "formula",

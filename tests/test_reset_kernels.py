@@ -87,3 +87,94 @@ def test_compiled_line_of_sight_is_the_array_codes():
         assert cmap.line_clear(a, b, need) == expected, (a, b, need)
         seen.add(expected)
     assert seen == {True, False}
+
+
+# ------------------------------------------------------------------ the procedural warehouse's placement
+def _python_shape(kind, rng, aisle_yaw):
+    """The shape draws of generate_warehouse before its loop was compiled (NumPy's rng.uniform spelled out)."""
+    if kind == "rack":
+        return "box", (rng.uniform(2.0, 3.5), 0.6, 2.0), 0.0, 0.0, aisle_yaw
+    if kind == "column":
+        return "cylinder", (0.0, 0.0, 0.0), rng.uniform(0.15, 0.25), 3.0, 0.0
+    if kind == "pallet":
+        yaw = aisle_yaw + float(rng.choice([0.0, math.pi / 2])) + float(rng.normal(0.0, 0.05))
+        return "box", (1.2, 0.8, rng.uniform(0.4, 1.2)), 0.0, 0.0, yaw
+    side = rng.uniform(0.3, 0.7)
+    height = rng.uniform(0.3, 0.8)
+    return "box", (side, side, height), 0.0, 0.0, rng.uniform(-math.pi, math.pi)
+
+
+def _python_inside(o, hx, hy):
+    if o.kind == "cylinder":
+        return abs(o.center[0]) + o.radius <= hx and abs(o.center[1]) + o.radius <= hy
+    c, s = abs(math.cos(o.yaw)), abs(math.sin(o.yaw))
+    ex = c * o.size[0] / 2 + s * o.size[1] / 2
+    ey = s * o.size[0] / 2 + c * o.size[1] / 2
+    return abs(o.center[0]) + ex <= hx and abs(o.center[1]) + ey <= hy
+
+
+def _window(o, pad, hx, hy, res, shape):
+    """The raster's cells within the footprint's bounding circle grown by ``pad`` (the rest are farther)."""
+    r = o.bounding_radius() + pad
+    return (slice(max(int((o.center[0] - r + hx) / res), 0), min(int((o.center[0] + r + hx) / res) + 1, shape[0])),
+            slice(max(int((o.center[1] - r + hy) / res), 0), min(int((o.center[1] + r + hy) / res) + 1, shape[1])))
+
+
+def _python_warehouse(rng, config):
+    """generate_warehouse's rejection sampling in plain NumPy, claiming cells by the array code
+    (Obstacle.distance on the raster's cell centres): the obstacles, or None where one found no place."""
+    from bulletnav.sim.layout import _category_counts
+
+    hx, hy, gap, res = config.size[0] / 2, config.size[1] / 2, config.min_gap, 0.05
+    aisle_yaw = float(rng.choice([0.0, math.pi / 2]))
+    counts = _category_counts(config.num_obstacles)
+    grid = np.zeros((int(math.ceil(config.size[0] / res)), int(math.ceil(config.size[1] / res))), dtype=bool)
+    xs = -hx + res * (np.arange(grid.shape[0]) + 0.5)
+    ys = -hy + res * (np.arange(grid.shape[1]) + 0.5)
+    placed = []
+    for kind in ("rack", "pallet", "column", "box"):
+        for _ in range(counts[kind]):
+            for _try in range(config.max_placement_tries):
+                geometry, size, radius, height, yaw = _python_shape(kind, rng, aisle_yaw)
+                center = (rng.uniform(-hx + gap, hx - gap), rng.uniform(-hy + gap, hy - gap))
+                cand = Obstacle(geometry, center, size, radius, height, yaw, kind)
+                if not _python_inside(cand, hx - gap, hy - gap):
+                    continue
+                sx, sy = _window(cand, 0.0, hx, hy, res, grid.shape)
+                if np.any(grid[sx, sy] & (cand.distance(xs[sx, None], ys[None, sy]) <= 0.0)):
+                    continue
+                sx, sy = _window(cand, gap + res, hx, hy, res, grid.shape)
+                grid[sx, sy] |= cand.distance(xs[sx, None], ys[None, sy]) <= gap + res
+                placed.append(cand)
+                break
+            else:
+                return None
+    return placed
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_compiled_warehouse_placement_is_the_python_loops_to_the_bit(seed):
+    """generate_warehouse's compiled rejection sampling (kernels.place_obstacles, drawing from
+    the same Generator inside the kernel) against the plain loop: the same obstacles to the bit
+    on default and crowded floors, the same Generator state after, and a floor too small fails
+    in both."""
+    from bulletnav.sim.layout import LayoutError
+
+    rng = np.random.default_rng(300 + seed)
+    configs = [WorldConfig(size=(float(rng.uniform(6, 16)), float(rng.uniform(6, 16))),
+                           num_obstacles=int(rng.integers(0, 45)), min_gap=float(rng.uniform(0.3, 0.9))) for _ in range(5)]
+    configs += [WorldConfig(), WorldConfig(size=(5.0, 5.0), num_obstacles=30, max_placement_tries=50)]  # the last: no room
+    failed = 0
+    for config in configs:
+        s = int(rng.integers(0, 2**31))
+        a, b = np.random.default_rng(s), np.random.default_rng(s)
+        reference = _python_warehouse(a, config)
+        if reference is None:
+            with pytest.raises(LayoutError, match="could not place obstacle"):
+                generate_warehouse(b, config)
+            failed += 1
+            continue
+        got = generate_warehouse(b, config).obstacles
+        assert got == tuple(reference)
+        assert a.random() == b.random()  # the same draws, to the last
+    assert failed >= 1  # the floor with no room

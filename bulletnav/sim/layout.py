@@ -35,7 +35,7 @@ import numpy as np
 from bulletnav import limits
 from bulletnav.config import WorldConfig
 from bulletnav.errors import LayoutError, LimitError
-from bulletnav.sim.kernels import any_within, mark_levels, mark_within
+from bulletnav.sim.kernels import COLUMN, CRATE, PALLET, RACK, mark_levels, place_obstacles
 from bulletnav.sim.specs import EventSpec, ForkliftSpec, MoverSpec, Obstacle, WorkerSpec
 from bulletnav.yamlfile import read_yaml, show
 
@@ -476,23 +476,6 @@ def _category_counts(n: int) -> dict[str, int]:
     return counts
 
 
-def _draw_shape(kind: str, random, rng: np.random.Generator, aisle_yaw: float
-                ) -> tuple[str, tuple[float, float, float], float, float, float]:
-    """Draw one obstacle's shape: (geometry, size, radius, height, yaw). ``random`` is
-    ``rng.random``: ``lo + (hi - lo) * random()`` is ``rng.uniform(lo, hi)`` bit for bit (NumPy
-    computes it so), without the call's overhead."""
-    if kind == "rack":  # shelving rack: long, shallow, tall, aligned with the aisles
-        return "box", (2.0 + (3.5 - 2.0) * random(), 0.6, 2.0), 0.0, 0.0, aisle_yaw
-    if kind == "column":
-        return "cylinder", (0.0, 0.0, 0.0), 0.15 + (0.25 - 0.15) * random(), 3.0, 0.0
-    if kind == "pallet":  # loaded pallet, 1.2 x 0.8 m, tall enough for the lidar plane to see it
-        yaw = aisle_yaw + float(rng.choice([0.0, math.pi / 2])) + float(rng.normal(0.0, 0.05))
-        return "box", (1.2, 0.8, 0.4 + (1.2 - 0.4) * random()), 0.0, 0.0, yaw
-    side = 0.3 + (0.7 - 0.3) * random()
-    height = 0.3 + (0.8 - 0.3) * random()
-    return "box", (side, side, height), 0.0, 0.0, -math.pi + (math.pi - -math.pi) * random()
-
-
 def generate_warehouse(rng: np.random.Generator, config: WorldConfig = WorldConfig()) -> Layout:
     """A seeded procedural warehouse: racks along aisles, columns, loaded pallets and boxes.
 
@@ -506,31 +489,23 @@ def generate_warehouse(rng: np.random.Generator, config: WorldConfig = WorldConf
     hx, hy = config.size[0] / 2, config.size[1] / 2
     aisle_yaw = float(rng.choice([0.0, math.pi / 2]))
     counts = _category_counts(config.num_obstacles)
+    order = ("rack", "pallet", "column", "box")  # big things first: they are hardest to fit
+    kinds = np.array([code for kind, code in zip(order, (RACK, PALLET, COLUMN, CRATE)) for _ in range(counts[kind])],
+                     dtype=np.int64)
     claimed = _Raster(config.size, _RASTER)
-    placed: list[Obstacle] = []
-    gap = config.min_gap
-    lo_x, lo_y = -hx + gap, -hy + gap
-    random = rng.random
-    for kind in ("rack", "pallet", "column", "box"):  # big things first: they are hardest to fit
-        for _ in range(counts[kind]):
-            for _try in range(config.max_placement_tries):
-                geometry, size, radius, height, yaw = _draw_shape(kind, random, rng, aisle_yaw)
-                r = radius if geometry == "cylinder" else 0.5 * math.hypot(size[0], size[1])  # bounding_radius()
-                center = (lo_x + (-lo_x - lo_x) * random(), lo_y + (-lo_y - lo_y) * random())  # rng.uniform(lo, -lo)
-                cand = Obstacle(geometry, center, size, radius, height, yaw, kind)
-                if abs(center[0]) + r > hx - gap or abs(center[1]) + r > hy - gap:
-                    if not _inside(cand, hx - gap, hy - gap):
-                        continue
-                if not claimed.any(cand, 0.0):
-                    claimed.mark(cand, gap + _RASTER)
-                    placed.append(cand)
-                    break
-            else:
-                raise LayoutError(
-                    f"procedural warehouse: could not place obstacle {len(placed) + 1} of {config.num_obstacles} "
-                    f"({kind}) on a {config.size[0]} x {config.size[1]} m floor with min_gap={config.min_gap} m; "
-                    "use fewer obstacles, a larger floor or a smaller gap"
-                )
+    rows = np.zeros((len(kinds), 9))
+    n = place_obstacles(rng, kinds, config.max_placement_tries, hx, hy, config.min_gap, aisle_yaw, claimed.grid,
+                        claimed.xs, claimed.ys, _RASTER, rows)
+    if n < len(kinds):
+        raise LayoutError(
+            f"procedural warehouse: could not place obstacle {n + 1} of {config.num_obstacles} "
+            f"({order[int(kinds[n])]}) on a {config.size[0]} x {config.size[1]} m floor with min_gap={config.min_gap} m; "
+            "use fewer obstacles, a larger floor or a smaller gap"
+        )
+    placed = [Obstacle("cylinder" if row[0] == 1.0 else "box", (float(row[7]), float(row[8])),
+                       (float(row[1]), float(row[2]), float(row[3])), float(row[4]), float(row[5]), float(row[6]),
+                       order[int(code)])
+              for row, code in zip(rows, kinds)]
     return Layout(config.size, tuple(placed), config.wall_height, name="procedural", source="procedural")
 
 
@@ -538,18 +513,9 @@ _RASTER = 0.05
 """Cell size of the placement raster (m)."""
 
 
-def _inside(o: Obstacle, hx: float, hy: float) -> bool:
-    """True when the whole footprint lies within |x| <= hx, |y| <= hy."""
-    if o.kind == "cylinder":
-        return abs(o.center[0]) + o.radius <= hx and abs(o.center[1]) + o.radius <= hy
-    c, s = abs(math.cos(o.yaw)), abs(math.sin(o.yaw))
-    ex = c * o.size[0] / 2 + s * o.size[1] / 2
-    ey = s * o.size[0] / 2 + c * o.size[1] / 2
-    return abs(o.center[0]) + ex <= hx and abs(o.center[1]) + ey <= hy
-
-
 class _Raster:
-    """A boolean raster of claimed floor (footprints dilated by the gap) for fast placement tests."""
+    """A boolean raster of claimed floor (footprints dilated by the gap) and its cell centres, for
+    the placement kernel (:func:`bulletnav.sim.kernels.place_obstacles`)."""
 
     def __init__(self, size: tuple[float, float], res: float) -> None:
         self.res = res
@@ -559,22 +525,4 @@ class _Raster:
         self.xs = -self.hx + self.res * (np.arange(self.grid.shape[0]) + 0.5)
         self.ys = -self.hy + self.res * (np.arange(self.grid.shape[1]) + 0.5)
 
-    def _bounds(self, o: Obstacle, pad: float) -> tuple[slice, slice]:
-        r = o.bounding_radius() + pad
-        i0 = max(int((o.center[0] - r + self.hx) / self.res), 0)
-        i1 = min(int((o.center[0] + r + self.hx) / self.res) + 1, self.grid.shape[0])
-        j0 = max(int((o.center[1] - r + self.hy) / self.res), 0)
-        j1 = min(int((o.center[1] + r + self.hy) / self.res) + 1, self.grid.shape[1])
-        return slice(i0, i1), slice(j0, j1)
 
-    def any(self, o: Obstacle, pad: float) -> bool:
-        ci = min(int((o.center[0] + self.hx) / self.res), self.grid.shape[0] - 1)
-        cj = min(int((o.center[1] + self.hy) / self.res), self.grid.shape[1] - 1)
-        if self.grid[ci, cj]:  # the centre itself is taken: most rejections end here, cheaply
-            return True
-        sx, sy = self._bounds(o, pad)
-        return any_within(self.grid, self.xs[sx], self.ys[sy], sx.start, sy.start, *o.footprint(), pad)
-
-    def mark(self, o: Obstacle, pad: float) -> None:
-        sx, sy = self._bounds(o, pad)
-        mark_within(self.grid, self.xs[sx], self.ys[sy], sx.start, sy.start, *o.footprint(), pad)
