@@ -439,6 +439,7 @@ KINDS: dict[str, str] = {
     # ---- test_kinematic.py (PyBullet's full physics, physics="default", is the reference)
     # the outcome table against the suite's rows counted in the test
     "test_kinematic.py::test_bench_outcomes_pairs_each_world_with_its_kinematic_twin": "formula",
+    "test_kinematic.py::test_a_model_trained_kinematic_is_evaluated_in_full_physics_unless_asked": "contract",
     "test_kinematic.py::test_scans_match_pybullet_in_every_world_source": "library",
     "test_kinematic.py::test_straight_drive_and_turn_in_place_end_where_pybullet_ends": "library",
     "test_kinematic.py::test_full_speed_contact_is_reported_at_pybullets_step": "library",

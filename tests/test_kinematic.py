@@ -160,3 +160,34 @@ def test_bench_outcomes_pairs_each_world_with_its_kinematic_twin(tmp_path):
         assert pair["same_outcome"] == pytest.approx(1 - len(differ) / 3)
     again = bench_outcomes(tmp_path / "pair", suite_path=suite)  # resumed: nothing rerun, the same table
     assert again["pairs"] == record["pairs"]
+
+
+@pytest.mark.slow
+def test_a_model_trained_kinematic_is_evaluated_in_full_physics_unless_asked(tmp_path, capsys):
+    """The shipped Warehouse-v0 PPO with its sidecar saying it trained with physics="kinematic":
+    ``evaluate`` runs it in full physics and says which profile it trained on; ``--physics
+    kinematic`` runs it there. The in-training evaluation keeps the training's profile."""
+    import json
+    import shutil
+
+    from bulletnav.cli import main
+    from bulletnav.rl.envs import evaluation_env_kwargs
+
+    models = Path(__file__).resolve().parents[1] / "models"
+    for suffix in (".zip", ".json", ".safetensors", "_vecnormalize.json"):
+        shutil.copy(models / f"ppo_warehouse{suffix}", tmp_path / f"kin{suffix}")
+    sidecar = tmp_path / "kin.json"
+    meta = json.loads(sidecar.read_text())
+    meta["env_kwargs"] = {**meta["env_kwargs"], "physics": "kinematic"}
+    sidecar.write_text(json.dumps(meta))
+    argv = ["evaluate", "--model", str(tmp_path / "kin.zip"), "--episodes", "1", "--seed", "5"]
+    assert main([*argv, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert (out["physics"], out["trained_physics"]) == ("default", "kinematic")
+    assert main([*argv, "--json", "--physics", "kinematic"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert (out["physics"], out["trained_physics"]) == ("kinematic", "kinematic")
+    assert main(argv) == 0
+    assert "trained with physics=kinematic; these episodes run with physics=default" in capsys.readouterr().out
+    assert "physics" not in evaluation_env_kwargs(meta["env_kwargs"])
+    assert evaluation_env_kwargs(meta["env_kwargs"], keep=("physics",))["physics"] == "kinematic"

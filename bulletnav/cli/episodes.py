@@ -225,6 +225,13 @@ def load_for_evaluation(args: argparse.Namespace, model_path: str) -> tuple:
     return model, meta, vecnorm, env, env_kwargs, default_obstacles
 
 
+def trained_physics(meta: dict) -> str:
+    """The physics profile a model's sidecar records it was trained with (``env_kwargs``), ``"default"`` where none."""
+    kwargs = meta.get("env_kwargs")
+    physics = kwargs.get("physics") if isinstance(kwargs, dict) else None
+    return physics if isinstance(physics, str) else "default"
+
+
 REPORT_KEYS = ("episodes", "success_rate", "mean_reward", "std_reward", "mean_length", "std_length", "mean_distance",
                "std_distance", "collision_rate", "spl")
 """The evaluation report's summary keys before the safety and shield ones."""
@@ -305,6 +312,10 @@ def evaluate_report(args: argparse.Namespace, model_path: str, loaded: tuple | N
             env_name += f", BARN world {env.unwrapped.world_idx}"
         shift = (f", perturb {args.perturb}" if args.perturb else "") + (", shield" if args.shield else "")
         print(f"{BAR}\nRunning {args.episodes} evaluation episodes ({algo} {model_path}, seed {args.seed}{env_name}{shift})\n{BAR}")
+        trained = trained_physics(meta)
+        if trained != env_kwargs.get("physics", "default"):
+            print(f"The model was trained with physics={trained}; these episodes run with "
+                  f"physics={env_kwargs.get('physics', 'default')} (--physics chooses).")
     label = episode_world_label(args, env, default_obstacles)
     results, written, layout_size = run_with_visuals(args, env, SB3Policy(model, vecnorm), _episode_line(args),
                                                      f"{algo} (seed {args.seed})")
@@ -320,7 +331,8 @@ def evaluate_report(args: argparse.Namespace, model_path: str, loaded: tuple | N
         out["barn"] = figures
     out.update(model=str(model_path), seed=args.seed, env_id=args.env_id,
                world=label, world_size=layout_size, perturb=args.perturb, shield=args.shield,
-               physics=env_kwargs.get("physics", "default"), physics_hz=env.unwrapped.config.physics.physics_hz)
+               physics=env_kwargs.get("physics", "default"), physics_hz=env.unwrapped.config.physics.physics_hz,
+               trained_physics=trained_physics(meta))
     if args.json:
         print_json(out)
         return out

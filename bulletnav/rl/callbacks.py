@@ -195,7 +195,8 @@ class EvaluationCallback(BaseCallback):
         if self.eval_env is None:
             import bulletnav  # noqa: F401
 
-            self.eval_env = make_env(self.env_id, evaluation_env_kwargs(self.env_kwargs), self.shield)
+            # in the training's own physics profile: cheap where training is (final scores: ``evaluate``, full physics)
+            self.eval_env = make_env(self.env_id, evaluation_env_kwargs(self.env_kwargs, keep=("physics",)), self.shield)
         results = run_episodes(self.eval_env, SB3Policy(model, _vecnorm(model)), self.episodes, EVAL_SEED_BASE)
         s = summarize(results)
         row = {"timesteps": int(model.num_timesteps), "wall_time": time.time() - self.started,

@@ -18,9 +18,11 @@ EVALUATE_OBSTACLES = 31
 ``bulletnav/Warehouse-v0`` unless told otherwise, whatever the model was trained with (the
 benchmark's warehouses)."""
 
-TRAINING_ONLY_KWARGS = ("collision_terminates", "randomize")
+TRAINING_ONLY_KWARGS = ("collision_terminates", "randomize", "physics")
 """Env options that shape learning, not the benchmark: evaluation leaves them out (a shift to
-evaluate under is chosen with ``--perturb``). Leaving ``collision_terminates`` out gives each id
+evaluate under is chosen with ``--perturb``, a physics profile with ``--physics``: a model trained
+where stepping is cheap, ``physics="kinematic"`` or ``"fast"``, is scored in full physics unless
+asked otherwise). Leaving ``collision_terminates`` out gives each id
 its own registered rule, since ``gym.make(id, **kwargs)`` lays ``kwargs`` over the id's
 registered ones: a collision truncates on ``Warehouse-v0`` and terminates on the aisle, dynamic
 and mission ids, whatever the model trained with (``tests/test_episode_rules.py``)."""
@@ -59,12 +61,14 @@ def make_env(env_id: str, env_kwargs: dict[str, Any], shield: bool = False, **ma
     return env
 
 
-def evaluation_env_kwargs(env_kwargs: dict[str, Any]) -> dict[str, Any]:
+def evaluation_env_kwargs(env_kwargs: dict[str, Any], keep: tuple[str, ...] = ()) -> dict[str, Any]:
     """The env settings a model is evaluated with: its training settings minus the reward
     overrides (``reward_*``) and the learning-only options (:data:`TRAINING_ONLY_KWARGS`), so
-    every agent is scored on the env's own reward and episode rules. Give them to ``gym.make``
+    every agent is scored on the env's own reward and episode rules; ``keep`` names options to
+    keep all the same (the in-training evaluation keeps the training's ``physics``). Give them to ``gym.make``
     (or :func:`make_env`) with the id: the id's registered kwargs fill in what is left out.
 
     Whether a collision terminates or truncates changes no evaluation figure: the episode ends
     at that step either way, and :func:`bulletnav.evaluation.run_episodes` scores from ``info``."""
-    return {k: v for k, v in env_kwargs.items() if not k.startswith("reward_") and k not in TRAINING_ONLY_KWARGS}
+    return {k: v for k, v in env_kwargs.items()
+            if k in keep or (not k.startswith("reward_") and k not in TRAINING_ONLY_KWARGS)}
