@@ -434,8 +434,9 @@ def cast_grid(ox: float, oy: float, oz: float, yaw: float, cos_a: np.ndarray, si
                 if not (0 <= ix < nx and 0 <= iy < ny):
                     enter = np.inf
                     break
-                if empty[ix * ny + iy] >= 3:  # open space ahead: leap from here
-                    enter = far
+                leap = empty[ix * ny + iy] - 1
+                if leap >= 2:  # open space ahead: leap from where the ray enters this cell (never back)
+                    enter = far + leap * cell * (1.0 - 1e-12)
                     break
         out[i] = best
 
