@@ -18,17 +18,22 @@ from bulletnav.sim import kinematic_kernels as kk
 from bulletnav.sim.world import Primitive
 
 
+def _cylinder(rng: np.random.Generator, r: float, spread: float) -> Primitive:
+    """A cylinder of radius ``r`` centred within ``spread`` m of the origin, its height drawn."""
+    return Primitive("cylinder", (rng.uniform(-spread, spread), rng.uniform(-spread, spread), rng.uniform(0.1, 1.0)),
+                     (r, r, rng.uniform(0.05, 1.0)))
+
+
+def _box(rng: np.random.Generator) -> Primitive:
+    """A box of any size up to 6 x 6 m and any yaw, centred within 5 m of the origin."""
+    return Primitive("box", (rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(0.1, 1.0)),
+                     (rng.uniform(0.02, 3.0), rng.uniform(0.02, 3.0), rng.uniform(0.05, 1.0)), rng.uniform(-4, 4))
+
+
 def _scene(rng: np.random.Generator) -> list[Primitive]:
     prims = [Primitive("plane", (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))]
     for _ in range(int(rng.integers(0, 40))):
-        if rng.random() < 0.5:
-            r = rng.uniform(0.05, 0.5)
-            prims.append(Primitive("cylinder", (rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(0.1, 1.0)),
-                                   (r, r, rng.uniform(0.05, 1.0))))
-        else:
-            prims.append(Primitive("box", (rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(0.1, 1.0)),
-                                   (rng.uniform(0.02, 3.0), rng.uniform(0.02, 3.0), rng.uniform(0.05, 1.0)),
-                                   rng.uniform(-4, 4)))
+        prims.append(_cylinder(rng, rng.uniform(0.05, 0.5), 5.0) if rng.random() < 0.5 else _box(rng))
     return prims
 
 
@@ -61,13 +66,9 @@ def _dense_scene(rng: np.random.Generator) -> list[Primitive]:
     prims = []
     for _ in range(int(rng.integers(1, 300))):
         if rng.random() < 0.7:
-            r = rng.uniform(0.03, 0.5) if rng.random() < 0.3 else 0.075
-            prims.append(Primitive("cylinder", (rng.uniform(-3, 3), rng.uniform(-3, 3), rng.uniform(0.1, 1.0)),
-                                   (r, r, rng.uniform(0.05, 1.0))))
+            prims.append(_cylinder(rng, rng.uniform(0.03, 0.5) if rng.random() < 0.3 else 0.075, 3.0))
         else:
-            prims.append(Primitive("box", (rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(0.1, 1.0)),
-                                   (rng.uniform(0.02, 3.0), rng.uniform(0.02, 3.0), rng.uniform(0.05, 1.0)),
-                                   rng.uniform(-4, 4)))
+            prims.append(_box(rng))
     walls = [((0.0, 15.0), (5.0, 0.1)), ((0.0, -15.0), (5.0, 0.1)), ((5.0, 0.0), (0.1, 15.0)), ((-5.0, 0.0), (0.1, 15.0))]
     return prims + [Primitive("box", (x, y, 0.5), (hx, hy, 0.5)) for (x, y), (hx, hy) in walls]
 

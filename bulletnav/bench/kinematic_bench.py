@@ -265,6 +265,7 @@ def bench_outcomes(out: Path, workers: int = 1, suite_path: Path = PAIR_SUITE) -
     profiles: per world and controller, success and collision rates in each, the points between
     them, the share of episodes with the same outcome (success, collision, time-out), and the
     episodes whose outcome differs."""
+    from bulletnav.benchmark.report import OUTCOME_WORDS, outcome_of
     from bulletnav.benchmark.runner import run_suite
     from bulletnav.benchmark.suite import load_suite
 
@@ -273,7 +274,7 @@ def bench_outcomes(out: Path, workers: int = 1, suite_path: Path = PAIR_SUITE) -
     rows = {(r["world"], r["controller"], r["episode"]): r for r in results["episodes"]}
 
     def outcome(r: dict[str, Any]) -> str:
-        return "success" if r["success"] else "collision" if r["collision"] else "time-out"
+        return OUTCOME_WORDS[outcome_of(r)]
 
     pairs = []
     for world in suite.worlds:

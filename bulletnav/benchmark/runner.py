@@ -304,16 +304,20 @@ def row_commits(suite: Suite, rows: list[dict[str, Any]]) -> dict[str, dict[str,
     another commit mixes them, and the results say so; rows written before rows carried their
     commit count under ``"unrecorded"``. (The results' own rows leave the commit out, so a rerun
     at another commit gives the same rows.)"""
-    worlds = {w.name for w in suite.worlds}
-    controllers = [c.name for c in suite.controllers]
-    unique = {cell_key(r["world"], r["controller"], r["episode"]): r for r in rows
-              if r["world"] in worlds and r["controller"] in controllers}
     counts: dict[str, dict[str, int]] = {}
-    for row in unique.values():
+    for row in _suite_rows(suite, rows).values():
         cell = counts.setdefault(row["controller"], {})
         commit = str(row.get("commit") or "unrecorded")
         cell[commit] = cell.get(commit, 0) + 1
-    return {c: counts[c] for c in controllers if c in counts}
+    return {c.name: counts[c.name] for c in suite.controllers if c.name in counts}
+
+
+def _suite_rows(suite: Suite, rows: list[dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """The rows of ``suite``'s worlds and controllers, one per episode (the last written), by cell key."""
+    worlds = {w.name for w in suite.worlds}
+    controllers = {c.name for c in suite.controllers}
+    return {cell_key(r["world"], r["controller"], r["episode"]): r for r in rows
+            if r["world"] in worlds and r["controller"] in controllers}
 
 
 def _run_ray(suite: Suite, root: Path, chunks: list, address: str, keep: Callable) -> None:
@@ -362,10 +366,8 @@ def build_results(suite: Suite, rows: list[dict[str, Any]], root: Path = PROJECT
     replay command."""
     order_w = {w.name: i for i, w in enumerate(suite.worlds)}
     order_c = {c.name: i for i, c in enumerate(suite.controllers)}
-    keep = [{k: v for k, v in r.items() if k != "commit"} for r in rows
-            if r["world"] in order_w and r["controller"] in order_c]
-    unique = {cell_key(r["world"], r["controller"], r["episode"]): r for r in keep}
-    ordered = sorted(unique.values(), key=lambda r: (order_w[r["world"]], order_c[r["controller"]], r["episode"]))
+    unique = [{k: v for k, v in r.items() if k != "commit"} for r in _suite_rows(suite, rows).values()]
+    ordered = sorted(unique, key=lambda r: (order_w[r["world"]], order_c[r["controller"]], r["episode"]))
     cells = []
     for world in suite.worlds:
         for controller in suite.controllers:

@@ -337,7 +337,7 @@ class GoToGoal:
             v = align * self._braking_speed(ahead, clear)
         v = min(v, cfg.max_speed * max(0.3, goal_distance / cfg.goal_slowdown))
         if v < 0.05 and abs(w) < 0.5:  # blocked with the blends cancelling: turn toward more room
-            w = 0.8 if float(ranges[self.left].mean()) >= float(ranges[self.right].mean()) else -0.8
+            w = 0.8 * self._roomier(ranges)
         if cfg.outline_clearance and v < cfg.crawl_speed and w != 0.0:
             v, w = self._guard_turn(ranges, v, w, ahead, error)
             if w != 0.0 and self._rolls_into(ranges, w, v_now, dt):
@@ -415,7 +415,11 @@ class GoToGoal:
             if hit is not None:
                 lateral = hit[1] if abs(hit[1]) > CENTRE_BAND else -error
                 return -math.copysign(math.pi / 2, lateral)
-        return math.pi / 2 if float(ranges[self.left].mean()) >= float(ranges[self.right].mean()) else -math.pi / 2
+        return math.pi / 2 * self._roomier(ranges)
+
+    def _roomier(self, ranges: np.ndarray) -> float:
+        """+1 where the rays on the left (15-110 deg) read at least as far on average as those on the right, else -1."""
+        return 1.0 if float(ranges[self.left].mean()) >= float(ranges[self.right].mean()) else -1.0
 
     def _corridor_hit(self, ranges: np.ndarray) -> tuple[float, float] | None:
         """The nearest lidar hit (body frame, m) in the corridor :meth:`_corridor` measures, or None."""

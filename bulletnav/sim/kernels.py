@@ -165,7 +165,7 @@ def place_obstacles(rng: np.random.Generator, kinds: np.ndarray, tries: int, hx:
                 if kind == CYLINDER:
                     inside = abs(x) + radius <= hx - gap and abs(y) + radius <= hy - gap
                 else:
-                    ca, sa = abs(math.cos(shape[6])), abs(math.sin(shape[6]))
+                    ca, sa = abs(c), abs(s)  # the footprint's cos and sin of the yaw
                     ex = ca * shape[1] / 2 + sa * shape[2] / 2
                     ey = sa * shape[1] / 2 + ca * shape[2] / 2
                     inside = abs(x) + ex <= hx - gap and abs(y) + ey <= hy - gap
