@@ -457,6 +457,7 @@ KINDS: dict[str, str] = {
     # read by tests/foxglove_client.py (websockets + mcap_ros2's decoder): the env's own lidar and odometry at each step
     "test_live.py::test_live_stream_is_the_env_step_by_step": "library",
     "test_live.py::test_unwatched_topics_are_not_built": "contract",
+    "test_live.py::test_subscriptions_count_each_client": "hand",
     # sleeps on a fake clock against simulated-time deltas worked out in the test
     "test_live.py::test_pacing_follows_simulated_time": "hand",
     "test_live.py::test_parse_address": "hand",

@@ -25,12 +25,13 @@ from hang import HANG_S
 ACTIONS = [np.array([0.8, 0.3 * np.sin(k / 5)], dtype=np.float32) for k in range(60)]
 
 
-def _wait_watched(live: LiveServer, topics) -> None:
-    """Until the server has taken in the subscriptions (a subscribe has no acknowledgement)."""
+def _wait_watched(live: LiveServer, topics, clients: int = 1) -> None:
+    """Until the server has taken in ``clients`` subscriptions to each topic (a subscribe has no
+    acknowledgement)."""
     import time
 
     end = time.monotonic() + HANG_S
-    while not all(t in live.topics and live.watched(t) for t in topics):
+    while not all(t in live.topics and live.watched(t) and live.subscriptions(t) >= clients for t in topics):
         assert time.monotonic() < end, f"subscriptions to {topics} not taken in: a hang?"
         time.sleep(0.01)
 
@@ -70,6 +71,7 @@ def test_live_stream_is_the_env_step_by_step(tmp_path):
         a.subscribe(topics)
         b.subscribe(["/scan"])
         _wait_watched(live, topics)
+        _wait_watched(live, ["/scan"], clients=2)  # b's too, or b may miss the first scans
         lidar, odometry, expected = scene.sensors.lidar, scene.sensors.odometry, {}
         for k, action in enumerate(ACTIONS[1:], 2):
             obs, *_ = env.step(action)
@@ -136,6 +138,37 @@ def test_unwatched_topics_are_not_built():
         live.close()
     assert counts["/scan"] == counts["/odom"] == counts["/clock"] == 1  # the first step advertises them
     assert counts["/tf_static"] == counts["/map_truth"] == 1 and counts["/goal_pose"] >= 1
+
+
+def test_subscriptions_count_each_client():
+    """``subscriptions(topic)`` counts the clients subscribed: up on each subscribe, down on an
+    unsubscribe and on a client leaving without one (what the step-by-step test waits on)."""
+    import time
+
+    def settles(n: int) -> bool:
+        end = time.monotonic() + HANG_S
+        while live.subscriptions("/x") != n and time.monotonic() < end:
+            time.sleep(0.01)
+        return live.subscriptions("/x") == n
+
+    live = LiveServer("127.0.0.1:0", speed=0)
+    a = b = None
+    try:
+        live.write_encoded("/x", "std_msgs/Float64", b"\x00\x01\x00\x00" + bytes(8), 0)  # advertises /x
+        assert live.subscriptions("/x") == 0 and live.subscriptions("/never") == 0
+        a, b = FoxgloveClient(live.url), FoxgloveClient(live.url)
+        a.subscribe(["/x"])
+        b.subscribe(["/x"])
+        assert settles(2)
+        a.unsubscribe(["/x"])
+        assert settles(1)
+        b.close()
+        assert settles(0)
+    finally:
+        live.close()
+        for c in (a, b):
+            if c is not None:
+                c.close()
 
 
 def test_pacing_follows_simulated_time(monkeypatch):

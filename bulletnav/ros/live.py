@@ -124,7 +124,7 @@ class _Listener:
         self.owner._subscribed(channel.topic)
 
     def on_unsubscribe(self, client: Any, channel: Any) -> None:
-        pass
+        self.owner._unsubscribed(channel.topic)
 
     def on_client_advertise(self, client: Any, channel: Any) -> None:
         self.owner._client_advertised(int(client.id), channel)
@@ -171,6 +171,8 @@ class LiveServer:
         self._client_channels: dict[tuple[int, int], tuple[str, str, str]] = {}
         self._inbox: queue.SimpleQueue[ClientMessage] = queue.SimpleQueue()
         self._warned: set[tuple[str, int]] = set()
+        self._subscriptions: dict[str, int] = {}  # topic -> client subscriptions taken in
+        self._count_lock = threading.Lock()
         self._gate: OriginGate | None = None
         capabilities = [Capability.Time] if control is None else [Capability.Time, Capability.ClientPublish]
         at = (self.host, port) if control is None else ("127.0.0.1", 0)  # behind the gate: a loopback port of its own
@@ -263,9 +265,21 @@ class LiveServer:
                                                   "error": StatusLevel.Error}[level])
 
     def _subscribed(self, topic: str) -> None:
+        with self._count_lock:
+            self._subscriptions[topic] = self._subscriptions.get(topic, 0) + 1
         last = self._latched.get(topic)  # (one dict read: atomic beside the run's thread)
         if last is not None and not self.closed:
             self._channels[topic].log(last[0], log_time=last[1])
+
+    def _unsubscribed(self, topic: str) -> None:
+        with self._count_lock:
+            self._subscriptions[topic] = max(0, self._subscriptions.get(topic, 0) - 1)
+
+    def subscriptions(self, topic: str) -> int:
+        """How many client subscriptions to ``topic`` the server has taken in now (a client's
+        subscription counts from when messages logged after it reach that client)."""
+        with self._count_lock:
+            return self._subscriptions.get(topic, 0)
 
     def _channel(self, topic: str, kind: str) -> Any:
         channel = self._channels.get(topic)
