@@ -446,6 +446,7 @@ KINDS: dict[str, str] = {
     "test_kinematic.py::test_env_checkers_pass": "library",
     # the default profile's set-up drawn by the same sampler code: agreement, not an independent value
     "test_kinematic.py::test_seeded_resets_give_pybullets_world_start_goal_and_movers": "self",
+    "test_kinematic.py::test_step_parts_time_the_scenes_own_drive_and_lidar": "contract",
     "test_kinematic.py::test_refusals_are_one_line_naming_the_profile_that_serves": "contract",
     "test_kinematic.py::test_cli_refuses_the_gui_in_one_line": "contract",
     # ---- test_barn_passage.py

@@ -122,6 +122,18 @@ def test_refusals_are_one_line_naming_the_profile_that_serves():
         assert "\n" not in message and needle in message and "physics='default'" in message, message
 
 
+def test_step_parts_time_the_scenes_own_drive_and_lidar():
+    """``bench env --physics kinematic``'s profile of a step times the scene's own simulation
+    step and closed-form lidar cast: both read time in the kinematic profile; under PyBullet the
+    rays are PyBullet's (no closed-form cast: 0) while its step still reads time."""
+    from bulletnav.envs.profiling import step_parts
+
+    kin = step_parts("bulletnav/Warehouse-v0", "kinematic", steps=300, seed=1)
+    full = step_parts("bulletnav/Warehouse-v0", "default", steps=60, seed=1)
+    assert kin["sim_us"] > 0 and kin["lidar_us"] > 0 and kin["rest_us"] > 0, kin
+    assert full["sim_us"] > 0 and full["lidar_us"] == 0, full
+
+
 def test_cli_refuses_the_gui_in_one_line():
     import subprocess
     import sys

@@ -271,13 +271,15 @@ def bench_env_pair(env_id: str, reference_id: str, steps: int = 6000, block: int
 
 
 def bench_profile(physics: str, env_id: str = "bulletnav/Warehouse-v0", steps: int = 6000, block: int = 500,
-                  seed: int = 0, reference: str = "default") -> dict[str, Any]:
+                  seed: int = 0, reference: str = "default", parts: bool = False) -> dict[str, Any]:
     """Steps per second of ``env_id`` made by ``gym.make`` (its default wrappers and kwargs: a new
     world at every reset where the id draws one) with ``physics=physics``, beside the same id with
-    ``physics=reference`` in the same run. Uniform random actions from a seeded action space;
-    episodes end by the env's own rules and the reset that follows is timed with the steps.
-    The two envs run alternating blocks of ``block`` steps, so load from other processes hits
-    both alike; ``ratio`` is the median over block pairs of (profile steps/s / reference steps/s).
+    ``physics=reference`` in the same run. Uniform random actions from a seeded action space,
+    drawn before each block is timed (as the other modes draw theirs: the sampler's cost is not
+    the env's); episodes end by the env's own rules and the reset that follows is timed with the
+    steps. The two envs run alternating blocks of ``block`` steps, so load from other processes
+    hits both alike; ``ratio`` is the median over block pairs of (profile steps/s / reference
+    steps/s). ``parts`` adds :func:`step_parts` of the profile's env (a separate, untimed-above run).
     """
     import bulletnav  # noqa: F401  (registers the env)
 
@@ -291,10 +293,11 @@ def bench_profile(physics: str, env_id: str = "bulletnav/Warehouse-v0", steps: i
         rounds = max(1, steps // block)
         for _ in range(rounds):
             for name, env in envs.items():
-                sample, step, reset = env.action_space.sample, env.step, env.reset
+                step, reset = env.step, env.reset
+                actions = [env.action_space.sample() for _ in range(block)]
                 t0 = time.perf_counter()
-                for _ in range(block):
-                    _, _, terminated, truncated, _ = step(sample())
+                for action in actions:
+                    _, _, terminated, truncated, _ = step(action)
                     if terminated or truncated:
                         reset()
                         episodes[name] += 1
@@ -304,11 +307,16 @@ def bench_profile(physics: str, env_id: str = "bulletnav/Warehouse-v0", steps: i
             env.close()
     rates = {name: [block / t for t in ts] for name, ts in timing.items()}
     ratios = [a / b for a, b in zip(rates[physics], rates[reference])]
+    from bulletnav.envs.profiling import step_parts
+
+    extra = {"parts": step_parts(env_id, physics, steps=rounds * block, seed=seed)} if parts else {}
     return {
         "benchmark": "env_profile", "env_id": env_id, "physics": physics, "reference": reference,
         "steps": rounds * block, "block": block, "seed": seed,
         "steps_per_s": float(np.median(rates[physics])), "reference_steps_per_s": float(np.median(rates[reference])),
         "episodes": episodes[physics], "reference_episodes": episodes[reference],
         "ratio": float(np.median(ratios)),
-        "note": "resets included; uniform random actions; episodes ended by the env's own rules; medians over blocks",
+        "note": "resets included; uniform random actions (drawn before each block's timing); episodes ended by the "
+                "env's own rules; medians over blocks",
+        **extra,
     }

@@ -67,12 +67,18 @@ def _env_profile(args: argparse.Namespace) -> tuple[dict, list[str]]:
 
     env_id = args.env_id or DEFAULT_ENV_ID
     check_env_id(env_id)
-    r = bench_profile(args.physics, env_id=env_id, steps=args.steps or 6000, seed=args.seed)
+    kinematic = args.physics == "kinematic"
+    r = bench_profile(args.physics, env_id=env_id, steps=args.steps or 6000, seed=args.seed, parts=kinematic)
     lines = [f"{env_id}: steps/s with resets (gym.make, random actions, episodes ended by the env), median of "
              f"{r['steps'] // r['block']} blocks of {r['block']}",
              f"  physics={r['physics']:10s} {r['steps_per_s']:10.1f} steps/s  ({r['episodes']} episodes)",
              f"  physics={r['reference']:10s} {r['reference_steps_per_s']:10.1f} steps/s  ({r['reference_episodes']} episodes)",
              f"  ratio {r['ratio']:.2f}"]
+    if kinematic:
+        q = r["parts"]
+        lines.append(f"  one kinematic step, us: {q['us_per_step']} = resets {q['resets_us']} + drive and contacts "
+                     f"{q['sim_us']} + lidar {q['lidar_us']} + the rest {q['rest_us']} (task, observation, info, "
+                     "sensor noise, wrappers)")
     return r, lines
 
 
