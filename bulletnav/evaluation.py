@@ -186,9 +186,11 @@ def optimal_tour_length(layout: Layout, start: tuple[float, float], goals, order
 def run_episodes(env, policy: Policy, episodes: int, seed: int,
                  on_episode: Callable[[EpisodeResult], None] | None = None,
                  on_step: Callable[[Any, dict], None] | None = None,
-                 on_reset: Callable[[Any, dict], None] | None = None) -> list[EpisodeResult]:
+                 on_reset: Callable[[Any, dict], None] | None = None,
+                 reset_options: Callable[[int], dict[str, Any] | None] | None = None) -> list[EpisodeResult]:
     """Run ``episodes`` episodes of ``policy`` in ``env`` (made with ``gym.make``): episode
-    ``k`` is ``env.reset(seed=seed + k)``.
+    ``k`` is ``env.reset(seed=seed + k)``, with ``options=reset_options(k)`` when given (e.g.
+    BARN-v0's ``{"world_idx": N}``).
 
     Hooks (for recording and drawing; they must only read): ``on_reset(env, info)`` after
     each reset, ``on_step(env, info)`` after each step, ``on_episode(result)`` at each end.
@@ -196,7 +198,7 @@ def run_episodes(env, policy: Policy, episodes: int, seed: int,
     results = []
     scene = env.unwrapped.scene
     for k in range(episodes):
-        obs, info = env.reset(seed=seed + k)
+        obs, info = env.reset(seed=seed + k, options=None if reset_options is None else reset_options(k))
         policy.reset(info)
         if on_reset is not None:
             on_reset(env, info)

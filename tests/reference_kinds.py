@@ -94,6 +94,7 @@ KINDS: dict[str, str] = {
     "test_barn_controllers.py::test_shielded_jackal_at_full_speed_keeps_its_outline_off_a_wall": "formula",  # corners vs wall
     "test_barn_controllers.py::test_navigate_world_idx_drives_a_barn_training_world": "hand",  # 4 t_opt of BARN's score
     "test_barn_controllers.py::test_world_idx_needs_barn_and_a_valid_index": "contract",
+    "test_barn_controllers.py::test_world_idx_several_worlds_run_in_turn_as_each_would_alone": "self",
     "test_barn_controllers.py::test_navigator_reset_fits_each_episodes_robot": "hand",
     # ---- test_raycast.py
     "test_raycast.py::test_hits_on_hand_geometry": "hand",  # distances worked out by hand

@@ -283,9 +283,37 @@ def test_world_idx_needs_barn_and_a_valid_index(capsys):
     assert main(["navigate", "--world-idx", "3", "--episodes", "1"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "--world-idx 3" in err and "bulletnav/BARN-v0" in err
-    with pytest.raises(SystemExit):
-        main(["navigate", "--env", "bulletnav/BARN-v0", "--world-idx", "300"])
-    assert "expected a BARN world index, a whole number from 0 to 299, got 300" in capsys.readouterr().err
+    assert main(["evaluate", "--model", "models/ppo_barn.zip", "--env", "bulletnav/Warehouse-v0", "--world-idx", "test"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--world-idx test" in err and "bulletnav/BARN-v0" in err
+    for given, needle in (("300", "expected a BARN world index, a whole number from 0 to 299, got 300"),
+                          ("0,x", "got 'x'"), ("6,0,6", "names BARN world(s) [6] more than once"),
+                          ("tests", "got 'tests'")):
+        with pytest.raises(SystemExit):
+            main(["navigate", "--env", "bulletnav/BARN-v0", "--world-idx", given])
+        err = capsys.readouterr().err.strip()
+        assert needle in err and err.count("\n") == 0, (given, err)
+
+
+def test_world_idx_several_worlds_run_in_turn_as_each_would_alone(capsys):
+    """``--world-idx 0,6`` runs episode k on world k mod 2 with seed S + k, each episode the very
+    one ``--world-idx W --seed S + k`` runs alone; ``test`` is BARN's 50 test worlds in order, for
+    ``navigate`` and ``evaluate`` alike."""
+    from bulletnav.barn.data import TEST_WORLDS
+
+    assert main(["navigate", "--env", "bulletnav/BARN-v0", "--world-idx", "0,6", "--seed", "4", "--episodes", "3",
+                 "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["world"] == "BARN worlds 0, 6" and [r["world_idx"] for r in out["barn"]["per_episode"]] == [0, 6, 0]
+    assert main(["navigate", "--env", "bulletnav/BARN-v0", "--world-idx", "6", "--seed", "5", "--episodes", "1",
+                 "--json"]) == 0
+    alone = json.loads(capsys.readouterr().out)
+    same = {k: v for k, v in out["per_episode"][1].items() if k not in ("episode", "wall_time")}
+    assert {k: v for k, v in alone["per_episode"][0].items() if k in same} == same and "seed" in same
+    assert main(["evaluate", "--model", "models/ppo_barn.zip", "--world-idx", "test", "--episodes", "2", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["world"] == "BARN's 50 test worlds"
+    assert [r["world_idx"] for r in out["barn"]["per_episode"]] == list(TEST_WORLDS[:2])
 
 
 def test_navigator_reset_fits_each_episodes_robot(barn):

@@ -16,18 +16,41 @@ from bulletnav.cli.output import print_json, safety_line, shield_line
 from bulletnav.errors import BulletnavError
 from bulletnav.rl.envs import EVALUATE_OBSTACLES
 
-WORLD_IDX = int_type(0, N_WORLDS - 1, "a BARN world index, a whole number")
+_WORLD_INDEX = int_type(0, N_WORLDS - 1, "a BARN world index, a whole number")
+
+
+def WORLD_IDX(text: str) -> int | tuple[int, ...]:  # noqa: N802  (an argparse type, named as the others)
+    """``--world-idx``'s type: one BARN world (``7``), a pool by name (``test``, ``train``) or a
+    comma list (``0,6,12``); a pool comes back as its indices, else one line naming what is wrong."""
+    from bulletnav.barn.data import POOLS, world_pool
+    from bulletnav.errors import LayoutError
+
+    text = text.strip()
+    if text in POOLS:
+        return POOLS[text]
+    if "," not in text:
+        return _WORLD_INDEX(text)
+    try:
+        return world_pool([_WORLD_INDEX(part.strip()) for part in text.split(",")], what="--world-idx")
+    except LayoutError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
+WORLD_IDX.__name__ = "world selection"
 
 
 def add_world_idx_arg(parser: argparse.ArgumentParser) -> None:
-    """``--world-idx N``: the BARN world of every episode (``--env bulletnav/BARN-v0`` only)."""
-    parser.add_argument("--world-idx", type=WORLD_IDX, default=None, metavar="N",
-                        help=f"BARN world 0-{N_WORLDS - 1} for every episode (with --env {BARN_ENV_ID} only; "
-                             "default 1, the first non-test world; BARN's test worlds are 0, 6, ..., 294)")
+    """``--world-idx``: the BARN world(s) of the episodes (``--env bulletnav/BARN-v0`` only)."""
+    parser.add_argument("--world-idx", type=WORLD_IDX, default=None, metavar="N|test|train|N,N,...",
+                        help=f"BARN world(s), with --env {BARN_ENV_ID} only: one world 0-{N_WORLDS - 1} for every "
+                             "episode (default 1, the first non-test world), or several: test (BARN's 50 test "
+                             "worlds 0, 6, ..., 294), train (the 250 others) or a list such as 0,6,12; episode k "
+                             "then runs the list's world k mod its length (--episodes 500 --world-idx test: each "
+                             "test world 10 times, seeds S to S + 499)")
 
 
 def world_idx_kwargs(args: argparse.Namespace) -> dict:
-    """``{"world_idx": N}`` for ``--world-idx N`` on BARN-v0, nothing without it.
+    """``{"world_idx": N}`` (or the pool's indices) for ``--world-idx`` on BARN-v0, nothing without it.
 
     Raises:
         BulletnavError: ``--world-idx`` with another env (the message names it).
@@ -36,14 +59,43 @@ def world_idx_kwargs(args: argparse.Namespace) -> dict:
     if index is None:
         return {}
     if args.env_id != BARN_ENV_ID:
-        raise BulletnavError(f"--world-idx {index}: picks a BARN world, so it needs --env {BARN_ENV_ID} "
+        from bulletnav.barn.data import POOLS
+
+        names = {pool: name for name, pool in POOLS.items()}
+        shown = index if isinstance(index, int) else names.get(tuple(index), ",".join(map(str, index)))
+        raise BulletnavError(f"--world-idx {shown}: picks BARN worlds, so it needs --env {BARN_ENV_ID} "
                              f"(not {args.env_id})")
     return {"world_idx": index}
+
+
+def world_cycle(args: argparse.Namespace):
+    """``reset_options`` for :func:`~bulletnav.evaluation.run_episodes`: with several worlds in
+    ``--world-idx``, episode k's reset picks world k mod their count; None otherwise."""
+    pool = getattr(args, "world_idx", None)
+    if pool is None or isinstance(pool, int):
+        return None
+    return lambda k: {"world_idx": pool[k % len(pool)]}
+
+
+def worlds_label(index: int | tuple[int, ...]) -> str:
+    """``BARN world 7``, ``BARN's 50 test worlds``, ``BARN's 250 training worlds`` or ``BARN worlds 0, 6, 12``."""
+    from bulletnav.barn.data import TEST_WORLDS, TRAIN_WORLDS
+
+    if isinstance(index, int):
+        return f"BARN world {index}"
+    if tuple(index) == TEST_WORLDS:
+        return "BARN's 50 test worlds"
+    if tuple(index) == TRAIN_WORLDS:
+        return "BARN's 250 training worlds"
+    return "BARN worlds " + ", ".join(map(str, index))
 
 
 def episode_world_label(args: argparse.Namespace, env, obstacles: int | None = None) -> str:
     """The report's name of the world: ``BARN world N`` on BARN-v0 (the env's own index), else
     :func:`~bulletnav.cli.envs.world_label`'s (layout file or procedural)."""
+    given = getattr(args, "world_idx", None)
+    if given is not None and not isinstance(given, int):
+        return worlds_label(given)
     index = getattr(env.unwrapped, "world_idx", None)
     if index is not None:
         return f"BARN world {index}"
@@ -150,7 +202,7 @@ def run_with_visuals(args, env, policy, line, title: str):
     ok = False
     try:
         results = run_episodes(env, policy, args.episodes, args.seed, on_episode=on_episode,
-                               on_step=visuals.on_step, on_reset=on_reset)
+                               on_step=visuals.on_step, on_reset=on_reset, reset_options=world_cycle(args))
         if dataset is not None:
             dataset.save(algorithm=title)
         ok = True
@@ -309,7 +361,8 @@ def evaluate_report(args: argparse.Namespace, model_path: str, loaded: tuple | N
     if not args.json:
         env_name = "" if args.env_id == DEFAULT_ENV_ID else f", {args.env_id}"
         if getattr(env.unwrapped, "world_idx", None) is not None:
-            env_name += f", BARN world {env.unwrapped.world_idx}"
+            given = getattr(args, "world_idx", None)
+            env_name += ", " + worlds_label(given if given is not None else env.unwrapped.world_idx)
         shift = (f", perturb {args.perturb}" if args.perturb else "") + (", shield" if args.shield else "")
         print(f"{BAR}\nRunning {args.episodes} evaluation episodes ({algo} {model_path}, seed {args.seed}{env_name}{shift})\n{BAR}")
         trained = trained_physics(meta)
