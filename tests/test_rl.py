@@ -504,7 +504,9 @@ def test_compare_groups_runs_by_hyperparameter_file():
     assert run_group({"algo": "ppo", "init_from": None}, "start") == "scratch"
     assert run_group({"algo": "ppo", "init_from": "runs/bc/model.zip"}, "start") == "from bc"
     assert run_group({"algo": "ppo", "init_from": "models/ppo_dynamic.zip"}, "start") == "from ppo_dynamic"
-    with pytest.raises(ValueError, match="group_by must be one of algo, hyperparams, start"):
+    assert run_group({"algo": "ppo", "env_kwargs": {"physics": "kinematic"}}, "physics") == "physics=kinematic"
+    assert run_group({"algo": "ppo", "env_kwargs": {"layouts_every": 4}}, "physics") == "physics=default"
+    with pytest.raises(ValueError, match="group_by must be one of algo, hyperparams, start, physics"):
         run_group(record, "arm")
 
 

@@ -73,9 +73,10 @@ def _register_compare(sub) -> None:
     cmp_.add_argument("runs", nargs="+", metavar="RUN_DIR", help="directories written by train")
     cmp_.add_argument("--out", type=PNG_FILE, default="docs/algorithms.png", metavar="PNG",
                       help="figure to write (default docs/algorithms.png)")
-    cmp_.add_argument("--group-by", choices=("algo", "hyperparams", "start"), default="algo",
+    cmp_.add_argument("--group-by", choices=("algo", "hyperparams", "start", "physics"), default="algo",
                       help="colour and summarize runs by algorithm (default), by hyperparameter file "
-                           "(ablations of one algorithm), or by start (scratch, or the --init-from model)")
+                           "(ablations of one algorithm), by start (scratch, or the --init-from model), or by "
+                           "the physics profile trained in")
     cmp_.add_argument("--reach", type=FRACTION, default=None, metavar="RATE",
                       help="the table's 'first reached' column: the first evaluation with this success rate "
                            "(0-1, default 0.8)")
@@ -139,7 +140,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         print_json(rows)
         return 0
     reach = f"first >= {rate * 100:.0f} % at (steps, s)"
-    head = {"algo": "algorithm", "hyperparams": "hyperparameters", "start": "start"}[args.group_by]
+    head = {"algo": "algorithm", "hyperparams": "hyperparameters", "start": "start", "physics": "physics"}[args.group_by]
     name = (lambda r: r["group"].upper()) if args.group_by == "algo" else (lambda r: r["group"])
     print(f"| {head} | seed | timesteps | wall time (s) | final success | final collisions | final reward | "
           f"best success (at) | {reach} |")

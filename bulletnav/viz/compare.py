@@ -49,12 +49,13 @@ def _steps_label(value: float, _pos: int) -> str:
     return f"{value / 1e3:g}k" if abs(value) >= 1e3 else f"{value:g}"
 
 
-GROUPS = ("algo", "hyperparams", "start")
+GROUPS = ("algo", "hyperparams", "start", "physics")
 """What ``compare_runs`` colours runs by: the algorithm, the hyperparameter file's name
 (``ppo_dynamic_curriculum`` for ``--hyperparams .../ppo_dynamic_curriculum.yml``; the
-algorithm's default file where ``train`` was given none), or where the weights started:
+algorithm's default file where ``train`` was given none), where the weights started:
 ``scratch``, or ``from NAME`` for a run with ``--init-from`` (NAME the model file's stem, or
-its folder's name for a run's ``model.zip``: ``from bc`` for ``runs/bc/model.zip``)."""
+its folder's name for a run's ``model.zip``: ``from bc`` for ``runs/bc/model.zip``), or the
+physics profile it trained in (``env_kwargs``' ``physics``: ``default``, ``fast``, ``kinematic``)."""
 
 
 def run_group(record: dict[str, Any], group_by: str) -> str:
@@ -65,6 +66,8 @@ def run_group(record: dict[str, Any], group_by: str) -> str:
         raise ValueError(f"group_by must be one of {', '.join(GROUPS)}, got {group_by!r}")
     if group_by == "algo":
         return str(record["algo"])
+    if group_by == "physics":
+        return f"physics={(record.get('env_kwargs') or {}).get('physics', 'default')}"
     if group_by == "start":
         init = record.get("init_from")
         if not init:
