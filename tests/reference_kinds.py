@@ -450,6 +450,7 @@ KINDS: dict[str, str] = {
     "test_kinematic.py::test_step_parts_time_the_scenes_own_drive_and_lidar": "contract",
     "test_kinematic.py::test_refusals_are_one_line_naming_the_profile_that_serves": "contract",
     "test_kinematic.py::test_cli_refuses_the_gui_in_one_line": "contract",
+    "test_kinematic.py::test_the_kinematic_trained_policy_scores_its_cards_episodes_in_full_physics": "golden",
     # ---- test_barn_passage.py
     "test_barn_passage.py::test_one_gap_in_a_row_of_touching_cylinders": "hand",
     "test_barn_passage.py::test_closed_row_and_open_room": "hand",

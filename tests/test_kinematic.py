@@ -203,3 +203,22 @@ def test_a_model_trained_kinematic_is_evaluated_in_full_physics_unless_asked(tmp
     assert "trained with physics=kinematic; these episodes run with physics=default" in capsys.readouterr().out
     assert "physics" not in evaluation_env_kwargs(meta["env_kwargs"])
     assert evaluation_env_kwargs(meta["env_kwargs"], keep=("physics",))["physics"] == "kinematic"
+
+
+def test_the_kinematic_trained_policy_scores_its_cards_episodes_in_full_physics(capsys):
+    """``models/ppo_warehouse_kinematic.zip`` (trained in the kinematic profile) is evaluated in
+    full physics by default, and its first episodes there are, to the bit, the committed
+    evaluation's (``docs/results/kinematic_policy/full_physics_200.json``, the model card's)."""
+    import json
+
+    from bulletnav.cli import main
+
+    root = Path(__file__).resolve().parent.parent
+    card = json.loads((root / "docs/results/kinematic_policy/full_physics_200.json").read_text())
+    assert main(["evaluate", "--model", str(root / "models/ppo_warehouse_kinematic.zip"), "--episodes", "3",
+                 "--seed", "1000000", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["physics"] == "default" and out["trained_physics"] == "kinematic"
+    for got, want in zip(out["per_episode"], card["per_episode"][:3]):
+        assert {k: v for k, v in got.items() if k != "wall_time"} == {k: v for k, v in want.items() if k != "wall_time"}
+
