@@ -279,7 +279,8 @@ def bench_profile(physics: str, env_id: str = "bulletnav/Warehouse-v0", steps: i
     the env's); episodes end by the env's own rules and the reset that follows is timed with the
     steps. The two envs run alternating blocks of ``block`` steps, so load from other processes
     hits both alike; ``ratio`` is the median over block pairs of (profile steps/s / reference
-    steps/s). ``parts`` adds :func:`step_parts` of the profile's env (a separate, untimed-above run).
+    steps/s). ``parts`` adds :func:`~bulletnav.envs.profiling.step_parts` of the profile's env, measured
+    in a run of its own after the timed blocks.
     """
     import bulletnav  # noqa: F401  (registers the env)
 
