@@ -205,6 +205,7 @@ def test_a_model_trained_kinematic_is_evaluated_in_full_physics_unless_asked(tmp
     assert evaluation_env_kwargs(meta["env_kwargs"], keep=("physics",))["physics"] == "kinematic"
 
 
+@pytest.mark.slow
 def test_the_kinematic_trained_policy_scores_its_cards_episodes_in_full_physics(capsys):
     """``models/ppo_warehouse_kinematic.zip`` (trained in the kinematic profile) is evaluated in
     full physics by default, and its first episodes there are, to the bit, the committed
